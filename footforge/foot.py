@@ -1,0 +1,335 @@
+"""Foot models for each variant, authored with dm_control.mjcf from a parsed foot description.
+
+- `full`: the closed chain as described: one body per link, the sidecar's loop closures as
+  site-to-site `connect` equalities (a pin = point coincidence; the pin axis is implied by the
+  parallel chain pins), the roll coupling as a joint equality, the arch band as a fixed tendon
+  spring. Its keyframe pose is the sidecar's slack reference pose.
+- `aff`: ankle pitch and roll kept; arches -> one `pitch` body, roll links and all chain links ->
+  one rigid `sole` body.
+- `aof`: as AFF, but roll links -> `roll` body, chain links split into `sole_front` and
+  `sole_back` bodies, each on a hinge about its roll link's transversal (y) axis at its pivot.
+Every derived body's mass, centre of mass and inertia are the composite (Pinocchio) of the links
+it replaces at the reference pose, so the derived foot at q = 0 has exactly the mass
+distribution of the closed chain at its reference pose. Derived bodies collide through boxes that
+enclose the replaced links' collision geometry at that pose (one box per arch and roll link, one
+per sole body: flat soles, cheap and robust in MJX); they carry the replaced links' visual
+meshes.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+from dm_control import mjcf
+
+from footforge import kinematics
+from footforge.collision import DecompositionConfig, Hulls, decompose
+from footforge.params import PassiveJoint, VariantParams
+from footforge.sidecar import FAMILIES, Sidecar
+from footforge.urdf_import import (MeshAssets, ParsedURDF, add_default_classes, add_geoms, add_joint,
+                                   children_in_urdf_order, inertial_attributes, is_mesh, quat_wxyz)
+
+FOOT_VARIANTS = ("full", "aof", "aff")
+DERIVED_JOINT_CLASS = "foot_passive"
+
+
+@dataclass
+class FootModel:
+    """One foot, ready to attach at a robot's foot mount (its root body has no joint)."""
+
+    variant: str
+    mjcf: mjcf.RootElement
+    root_body: str
+    reference_qpos: dict[str, float]
+    """Joint name -> angle of the reference pose (all zero for derived feet), rad."""
+    passive_joints: list[str]
+    touchdown: np.ndarray
+    """Lowest point of the foot's collision geometry below the ankle at the reference pose, in the
+    root body frame, m."""
+    info: dict = field(default_factory=dict)
+    """Figures for the build report."""
+
+
+@dataclass
+class FootSource:
+    """Everything a variant is derived from."""
+
+    parsed: ParsedURDF
+    sidecar: Sidecar
+    params: VariantParams
+    reference: kinematics.ReferencePose
+    hulls: dict[str, Hulls]
+    """Pinocchio collision geometry name -> its convex hulls (meshes only)."""
+
+    @property
+    def families(self) -> dict[int, str]:
+        return kinematics.joint_families(self.parsed, self.sidecar)
+
+
+def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, *, cache_dir=None,
+                               progress=None) -> dict[str, Hulls]:
+    """Hulls of every collision mesh of `parsed`, decomposing each distinct file once."""
+    by_file: dict[str, Hulls] = {}
+    out = {}
+    for go in parsed.collision.geometryObjects:
+        if not is_mesh(go):
+            continue
+        key = f"{go.meshPath}|{tuple(go.meshScale)}"
+        if key not in by_file:
+            hulls = decompose(go.meshPath, config, cache_dir=cache_dir)
+            if not np.allclose(go.meshScale, 1.0):
+                hulls = Hulls(tuple(v * np.asarray(go.meshScale) for v in hulls.vertices), hulls.faces,
+                              hulls.decomposed, hulls.cached)
+            by_file[key] = hulls
+            if progress:
+                progress(go.meshPath, hulls)
+        out[go.name] = by_file[key]
+    return out
+
+
+def _new_root(name: str, sidecar: Sidecar) -> mjcf.RootElement:
+    root = mjcf.RootElement(model=name)
+    add_default_classes(root, friction=sidecar.friction)
+    return root
+
+
+def _hull_geoms(source: FootSource, assets: MeshAssets) -> dict[str, list[dict]]:
+    geoms = {}
+    for name, hulls in source.hulls.items():
+        stem = name.rsplit("_", 1)[0]
+        geoms[name] = [dict(type="mesh", mesh=assets.from_bytes(f"{stem}_hull{i}", hulls.stl_bytes(i)))
+                       for i in range(len(hulls.vertices))]
+    return geoms
+
+
+def _root_body(source: FootSource, root: mjcf.RootElement, assets: MeshAssets, hull_geoms):
+    parsed = source.parsed
+    body = root.worldbody.add("body", name=parsed.root_link)
+    body.add("inertial", **inertial_attributes(parsed.model.inertias[1]))
+    add_geoms(body, parsed, 1, assets, collision_geoms=hull_geoms)
+    return body
+
+
+def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
+    parsed, sidecar = source.parsed, source.sidecar
+    root = _new_root(name, sidecar)
+    for fam in FAMILIES:
+        d = sidecar.joint_dynamics[fam]
+        root.default.add("default", dclass=fam).joint.set_attributes(
+            damping=d.damping, frictionloss=d.frictionloss, armature=d.armature)
+    assets = MeshAssets(root)
+    hull_geoms = _hull_geoms(source, assets)
+    families = source.families
+    bodies = {1: _root_body(source, root, assets, hull_geoms)}
+
+    def add_subtree(joint_id: int) -> None:
+        for child in children_in_urdf_order(parsed, joint_id):
+            placement = parsed.model.jointPlacements[child]
+            body = bodies[joint_id].add("body", name=parsed.link_of(child), pos=np.array(placement.translation),
+                                        quat=quat_wxyz(placement.rotation))
+            body.add("inertial", **inertial_attributes(parsed.model.inertias[child]))
+            fam = families[child]
+            add_joint(body, parsed, child, dclass=fam if fam in FAMILIES else None)
+            add_geoms(body, parsed, child, assets, collision_geoms=hull_geoms)
+            bodies[child] = body
+            add_subtree(child)
+
+    add_subtree(1)
+    full = source.params.full
+    for c in sidecar.closures:
+        sites = []
+        for link, point, tag in ((c.link, c.point, "a"), (c.to_link, c.to_point, "b")):
+            joint_id, placement = parsed.body_of_link(link)
+            sites.append(bodies[joint_id].add("site", name=f"closure_{c.name}_{tag}", group=4, size=[0.001],
+                                              pos=placement.act(np.asarray(c.point if tag == "a" else c.to_point, float))))
+        root.equality.add("connect", name=f"closure_{c.name}", site1=sites[0], site2=sites[1],
+                          solref=list(full.closure_solref), solimp=list(full.closure_solimp))
+    couplings = list(parsed.mimics)
+    if sidecar.roll_coupling:
+        rc = sidecar.roll_coupling
+        couplings.append((rc.joint, rc.follows, rc.multiplier, 0.0))
+    for joint, follows, mult, offset in couplings:
+        root.equality.add("joint", name=f"couple_{joint}", joint1=joint, joint2=follows,
+                          polycoef=[offset, mult, 0, 0, 0], solref=list(full.closure_solref),
+                          solimp=list(full.closure_solimp))
+    if sidecar.arch_spring:
+        s = sidecar.arch_spring
+        tendon = root.tendon.add("fixed", name="arch_spring", stiffness=s.stiffness, springlength=[s.rest, s.rest])
+        for joint, coef in s.joints.items():
+            parsed.joint_id(joint)  # names an unknown joint clearly
+            tendon.add("joint", joint=joint, coef=coef)
+
+    q = source.reference.q
+    reference = {parsed.model.names[j]: float(q[parsed.model.joints[j].idx_q]) for j in families}
+    info = {"closure_error_at_reference_m": source.reference.closure_error_m,
+            "chain_sag_at_reference_m": source.reference.chain_sag_m,
+            "closures": len(sidecar.closures), "couplings": len(couplings)}
+    return _finish(FootModel("full", root, parsed.root_link, reference, list(reference), np.zeros(3), info))
+
+
+def _compiled_full(source: FootSource):
+    """The closed-chain foot compiled by MuJoCo and posed at the reference pose."""
+    foot = build_full(source, name="reference")
+    model = compile_model(foot.mjcf)
+    data = mujoco.MjData(model)
+    for joint, value in foot.reference_qpos.items():
+        data.qpos[model.jnt_qposadr[model.joint(joint).id]] = value
+    mujoco.mj_kinematics(model, data)
+    return model, data
+
+
+def geom_points(model: mujoco.MjModel, data: mujoco.MjData, geom_id: int) -> np.ndarray:
+    """World-frame points whose convex hull contains the geom (mesh vertices, box corners, or the
+    corners of the geom's bounding box for other shapes)."""
+    R, p = data.geom_xmat[geom_id].reshape(3, 3), data.geom_xpos[geom_id]
+    if model.geom_type[geom_id] == mujoco.mjtGeom.mjGEOM_MESH:
+        m = model.geom_dataid[geom_id]
+        local = model.mesh_vert[model.mesh_vertadr[m]: model.mesh_vertadr[m] + model.mesh_vertnum[m]]
+    else:
+        half = (model.geom_size[geom_id] if model.geom_type[geom_id] == mujoco.mjtGeom.mjGEOM_BOX
+                else model.geom_aabb[geom_id, 3:])
+        center = 0 if model.geom_type[geom_id] == mujoco.mjtGeom.mjGEOM_BOX else model.geom_aabb[geom_id, :3]
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        local = center + signs * half
+    return local @ R.T + p
+
+
+def collision_points(model, data, body_names) -> np.ndarray:
+    ids = {model.body(b).id for b in body_names}
+    pts = [geom_points(model, data, g) for g in range(model.ngeom)
+           if model.geom_bodyid[g] in ids and model.geom_group[g] == 3]
+    return np.concatenate(pts) if pts else np.zeros((0, 3))
+
+
+def build_derived(source: FootSource, variant: str, *, name: str = "foot") -> FootModel:
+    """AFF or AOF, derived from the closed chain at its reference pose (see module docstring)."""
+    parsed, sidecar, params = source.parsed, source.sidecar, source.params
+    joints = params.aff if variant == "aff" else params.aof
+    ref_model, ref_data = _compiled_full(source)
+    q = source.reference.q
+    data = parsed.model.createData()
+    pin.forwardKinematics(parsed.model, data, q)
+    oMi = data.oMi
+    families = source.families
+    arch = [parsed.joint_id(n) for n in sidecar.arch_joints]
+    front, back = parsed.joint_id(sidecar.roll_front), parsed.joint_id(sidecar.roll_back)
+    chain = [j for j, f in families.items() if f == "chain"]
+    other = [j for j, f in families.items() if f == "other"]
+
+    root = _new_root(name, sidecar)
+    root.default.add("default", dclass=DERIVED_JOINT_CLASS).joint.set_attributes(type="hinge", limited="true")
+    assets = MeshAssets(root)
+    root_body = _root_body(source, root, assets, _hull_geoms(source, assets))
+
+    def frame_at(point) -> pin.SE3:
+        return pin.SE3(np.eye(3), np.asarray(point, dtype=float))
+
+    def add_body(parent_body, parent_frame: pin.SE3, frame: pin.SE3, body_name: str, members,
+                 joint_name: str, axis, limit, envelope_groups):
+        rel = parent_frame.actInv(frame)
+        body = parent_body.add("body", name=body_name, pos=np.array(rel.translation), quat=quat_wxyz(rel.rotation))
+        body.add("inertial", **inertial_attributes(kinematics.composite_inertia(parsed, members, q, frame)))
+        j: PassiveJoint = joints[joint_name]
+        body.add("joint", name=joint_name, dclass=DERIVED_JOINT_CLASS, axis=frame.rotation.T @ axis,
+                 range=list(limit), stiffness=j.stiffness, damping=j.damping, armature=j.armature,
+                 springref=j.springref)
+        for member in members:  # the replaced links' looks
+            add_geoms_visual_only(body, parsed, member, assets, frame.actInv(oMi[member]))
+        for group_name, group in envelope_groups:
+            pts = collision_points(ref_model, ref_data, [parsed.link_of(m) for m in group])
+            if len(pts) == 0:
+                continue
+            local = (pts - frame.translation) @ frame.rotation
+            lo, hi = local.min(0), local.max(0)
+            body.add("geom", name=f"{group_name}_collision", dclass="collision", type="box",
+                     pos=(lo + hi) / 2, size=(hi - lo) / 2)
+        return body
+
+    # The pitch hinge sits at the arch pivot, on the arch joints' common axis.
+    pivot = oMi[arch[0]].translation
+    pitch_axis = oMi[arch[0]].rotation @ _hinge_axis(parsed, arch[0])
+    pitch_frame = frame_at(pivot)
+    arch_limit = _joint_range(parsed, arch[0])
+    roll_limit = _joint_range(parsed, front)
+    front_pivot, back_pivot = oMi[front].translation, oMi[back].translation
+    roll_axis = front_pivot - back_pivot
+    roll_axis /= np.linalg.norm(roll_axis)
+    roll_frame = frame_at((front_pivot + back_pivot) / 2)
+    root_frame = pin.SE3.Identity()
+    pitch_body = add_body(root_body, root_frame, pitch_frame, "pitch", arch + other, "ankle_pitch",
+                          pitch_axis, arch_limit, [(parsed.link_of(a), [a]) for a in arch])
+    roll_groups = [(parsed.link_of(r), [r]) for r in (front, back)]
+    if variant == "aff":
+        add_body(pitch_body, pitch_frame, roll_frame, "sole", [front, back] + chain, "ankle_roll",
+                 roll_axis, roll_limit, roll_groups + [("sole", chain)])
+        split = {}
+    else:
+        roll_body = add_body(pitch_body, pitch_frame, roll_frame, "roll", [front, back], "ankle_roll",
+                             roll_axis, roll_limit, roll_groups)
+        com_x = {j: oMi[j].act(parsed.model.inertias[j]).lever[0] for j in chain}
+        split = {"sole_front": [j for j in chain if com_x[j] > params.aof_split_x],
+                 "sole_back": [j for j in chain if com_x[j] <= params.aof_split_x]}
+        for body_name, pivot_joint in (("sole_front", front), ("sole_back", back)):
+            axis = oMi[pivot_joint].rotation[:, 1]  # the roll link's transversal axis
+            add_body(roll_body, roll_frame, frame_at(oMi[pivot_joint].translation), body_name,
+                     split[body_name], body_name, axis, params.aof_sole_range,
+                     [(body_name, split[body_name])])
+    names = ["ankle_pitch", "ankle_roll"] + ([] if variant == "aff" else ["sole_front", "sole_back"])
+    info = {"replaced_links": {k: [parsed.link_of(j) for j in v] for k, v in split.items()},
+            "reference_pose_closure_error_m": source.reference.closure_error_m}
+    return _finish(FootModel(variant, root, parsed.root_link, {n: 0.0 for n in names}, names,
+                             np.zeros(3), info))
+
+
+def add_geoms_visual_only(body, parsed, joint_id, assets, offset):
+    keep = parsed.collision
+    parsed.collision = pin.GeometryModel()
+    try:
+        add_geoms(body, parsed, joint_id, assets, offset=offset)
+    finally:
+        parsed.collision = keep
+
+
+def _hinge_axis(parsed: ParsedURDF, joint_id: int) -> np.ndarray:
+    from footforge.urdf_import import joint_axis
+    return joint_axis(parsed.model.joints[joint_id])
+
+
+def _joint_range(parsed: ParsedURDF, joint_id: int) -> tuple[float, float]:
+    idx = parsed.model.joints[joint_id].idx_q
+    return float(parsed.model.lowerPositionLimit[idx]), float(parsed.model.upperPositionLimit[idx])
+
+
+def compile_model(root: mjcf.RootElement) -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(root.to_xml_string(), assets=root.get_assets())
+
+
+def _finish(foot: FootModel) -> FootModel:
+    """Measures the touchdown point: the lowest collision point under the ankle, reference pose."""
+    model = compile_model(foot.mjcf)
+    data = mujoco.MjData(model)
+    for joint, value in foot.reference_qpos.items():
+        data.qpos[model.jnt_qposadr[model.joint(joint).id]] = value
+    mujoco.mj_kinematics(model, data)
+    pts = collision_points(model, data, [model.body(b).name for b in range(1, model.nbody)])
+    foot.touchdown = np.array([0.0, 0.0, pts[:, 2].min()])
+    foot.mjcf.find("body", foot.root_body).add("site", name="touchdown", pos=foot.touchdown, size=[0.005], group=4)
+    return foot
+
+
+def build_foot(source: FootSource, variant: str, *, name: str = "foot") -> FootModel:
+    if variant == "full":
+        return build_full(source, name=name)
+    return build_derived(source, variant, name=name)
+
+
+def clone(foot: FootModel, name: str) -> FootModel:
+    """A copy of `foot` under another model name (for attaching one per leg)."""
+    c = copy.copy(foot)
+    c.mjcf = copy.deepcopy(foot.mjcf)
+    c.mjcf.model = name
+    return c

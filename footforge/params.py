@@ -1,0 +1,124 @@
+"""Variant parameters: the numbers `footforge build` needs beyond the description and sidecar.
+
+Read from a YAML file (default: descriptions/softfoot_q/config/variant_params.yaml, documented
+there field by field) into frozen dataclasses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from footforge.description import descriptions_dir
+from footforge.errors import InputError
+from footforge.yaml_reader import YamlReader, read_yaml
+
+
+def default_params_path() -> Path:
+    return descriptions_dir() / "softfoot_q" / "config" / "variant_params.yaml"
+
+
+@dataclass(frozen=True)
+class PassiveJoint:
+    stiffness: float
+    """N m/rad."""
+    damping: float
+    """N m s/rad."""
+    armature: float
+    """kg m^2."""
+    springref: float
+    """Spring rest angle, rad."""
+
+
+@dataclass(frozen=True)
+class FullChainSettings:
+    timestep: float
+    """s."""
+    iterations: int
+    tolerance: float
+    closure_solref: tuple[float, float]
+    closure_solimp: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class VariantParams:
+    source: Path
+    full: FullChainSettings
+    simplified_timestep: float
+    """s; AFF, AOF and ball."""
+    aff: dict[str, PassiveJoint]
+    """ankle_pitch, ankle_roll."""
+    aof: dict[str, PassiveJoint]
+    """ankle_pitch, ankle_roll, sole_front, sole_back."""
+    aof_split_x: float
+    """m; chain links ahead of this plane form the front sole."""
+    aof_sole_range: tuple[float, float]
+    """rad."""
+    rig_payload_mass: float
+    """kg."""
+    rig_slider_damping: float
+    """N s/m."""
+
+
+_JOINTS = {"aff": ("ankle_pitch", "ankle_roll"),
+           "aof": ("ankle_pitch", "ankle_roll", "sole_front", "sole_back")}
+
+
+def _passive(r: YamlReader) -> PassiveJoint:
+    r.get("stiffness", allowed={"stiffness", "damping", "armature", "springref"})
+    return PassiveJoint(stiffness=r.get("stiffness").float(min_value=0.0),
+                        damping=r.get("damping").float(min_value=0.0),
+                        armature=r.get("armature", 0.0).float(min_value=0.0),
+                        springref=r.get("springref", 0.0).float())
+
+
+def _pair(r: YamlReader, n: int) -> tuple[float, ...]:
+    if not isinstance(r.data, list) or len(r.data) != n:
+        raise r._fail(f"expected a list of {n} numbers, got {r.data!r}", f"give {n} numbers")
+    return tuple(YamlReader(v, f"{r.path}[{i}]", r.file).float() for i, v in enumerate(r.data))
+
+
+def load_params(path: str | Path | None = None) -> VariantParams:
+    """Reads a variant parameter file.
+
+    Raises:
+      InputError: missing file, bad YAML, a missing or unknown key, a bad value.
+    """
+    path = Path(path) if path else default_params_path()
+    top = YamlReader(read_yaml(path, what="parameter file", fix="pass an existing file to --params"),
+                     "", path)
+    top.get("format", allowed={"format", "full", "simplified", "aff", "aof", "rig"})
+    full = top.get("full")
+    full.get("timestep", allowed={"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp"})
+    iterations = full.get("iterations").float(min_value=1)
+    settings = FullChainSettings(
+        timestep=full.get("timestep").float(min_value=1e-6),
+        iterations=int(iterations),
+        tolerance=full.get("tolerance").float(min_value=0.0),
+        closure_solref=_pair(full.get("closure_solref"), 2),
+        closure_solimp=_pair(full.get("closure_solimp"), 3))
+    if settings.closure_solref[0] < 2 * settings.timestep:
+        raise full.get("closure_solref")._fail(
+            f"timeconst {settings.closure_solref[0]} is below twice the timestep {settings.timestep}",
+            "MuJoCo cannot integrate a constraint faster than 2 steps: raise it or lower the timestep")
+    simplified = top.get("simplified")
+    simplified.get("timestep", allowed={"timestep"})
+    variants = {}
+    for variant, names in _JOINTS.items():
+        r = top.get(variant)
+        extra = {"split_x", "sole_range"} if variant == "aof" else set()
+        r.get(names[0], allowed=set(names) | extra)
+        variants[variant] = {n: _passive(r.get(n)) for n in names}
+    aof = top.get("aof")
+    sole_range = _pair(aof.get("sole_range"), 2)
+    if sole_range[0] >= sole_range[1]:
+        raise aof.get("sole_range")._fail(f"empty range {list(sole_range)}", "give [lower, upper] with lower < upper")
+    rig = top.get("rig")
+    rig.get("payload_mass", allowed={"payload_mass", "slider_damping"})
+    return VariantParams(
+        source=path.resolve(), full=settings,
+        simplified_timestep=simplified.get("timestep").float(min_value=1e-6),
+        aff=variants["aff"], aof=variants["aof"],
+        aof_split_x=aof.get("split_x").float(), aof_sole_range=sole_range,
+        rig_payload_mass=rig.get("payload_mass").float(min_value=0.0),
+        rig_slider_damping=rig.get("slider_damping", 0.0).float(min_value=0.0))
