@@ -5,7 +5,7 @@ is ten numbers, its moments up to second order (about the frame origin):
 
     m = ∫ρ,   h = ∫ρ p = m c,   Σ = ∫ρ p pᵀ,   and the rotational inertia I_o = tr(Σ)·1 − Σ.
 
-Not every (m, c, I) is the moment set of some ρ ≥ 0. The criteria checked here, weakest first:
+Not every (m, c, I) is the moment set of some ρ ≥ 0. The criteria, in the order they are reported:
 
 * **mass**: m > 0 and every number finite.
 * **symmetry**: I = Iᵀ (URDF stores six numbers, so only hand-built tensors can fail this).
@@ -22,11 +22,13 @@ Not every (m, c, I) is the moment set of some ρ ≥ 0. The criteria checked her
   inequalities for physically consistent inertial parameter identification", RA-L 2018]: J ⪰ 0
   is the *full* condition of physical realizability, and it is linear in the ten parameters.
   With m > 0 the Schur complement gives J ⪰ 0 ⇔ Σ_c = Σ − h hᵀ/m ⪰ 0, the second moment about
-  the COM, whose eigenvalues are (I_j + I_k − I_i)/2. So in exact arithmetic J ⪰ 0 holds exactly
-  when the triangle inequality holds (which implies moments ≥ 0, since I_i = σ_j + σ_k); the
-  stricter "moments > 0" is a simulator requirement, not a physical one. Both are reported
-  independently so that a caller sees each criterion that fails; the test suite cross-checks
-  the equivalence on random tensors.
+  the COM, whose eigenvalues are (I_j + I_k − I_i)/2; that is also how it is tested, since the
+  eigenvalues of J itself are ill-conditioned when the COM is far from the frame origin. So in
+  exact arithmetic J ⪰ 0 holds exactly when the triangle inequality holds (which implies
+  moments ≥ 0, since I_i = σ_j + σ_k); the stricter "moments > 0" is a simulator requirement,
+  not a physical one. Both are reported independently so that a caller sees each criterion
+  that fails; the test suite cross-checks the equivalence on random tensors and builds each
+  physical body from six point masses.
 
 `balance_inertia` repairs a tensor that fails: it keeps the principal axes and changes only the
 principal moments, the least it can (see its docstring).
@@ -47,6 +49,9 @@ EIGEN_FLOOR_REL = 1e-12
 """`balance_inertia` raises principal moments to at least this fraction of the largest one..."""
 EIGEN_FLOOR_ABS = 1e-12
 """...and to at least this many kg·m² (above MuJoCo's mjMINVAL = 1e-15)."""
+TRIANGLE_MARGIN_REL = 1e-6
+"""`balance_inertia` leaves the triangle inequality satisfied by this fraction of the largest
+principal moment (robust to rounding, also in float32)."""
 
 _PD_RTOL = 1e-13
 # A computed eigenvalue is only known to about eps·λ_max (2e-16·λ_max); moments at or below this
@@ -166,9 +171,9 @@ def inertia_defects(mass: float, com: ArrayLike, inertia: ArrayLike, *,
       com: centre of mass (3,), metres.
       inertia: (3, 3) inertia about the COM, kg·m², in any orientation.
       rtol: relative tolerance of the symmetry test (‖I − Iᵀ‖ ≤ rtol·‖I‖), of the triangle
-        inequality (I_max ≤ I_mid + I_min + rtol·ΣI) and of the pseudo-inertia test (smallest
-        eigenvalue of the scaled J ≥ −rtol·largest). Positive definiteness uses a fixed
-        numerical-zero threshold of 1e-13·I_max.
+        inequality (I_max ≤ I_mid + I_min + rtol·Σ|I_k|) and of the pseudo-inertia test (the
+        Schur complement Σ − h hᵀ/m of J, whose eigenvalues must be ≥ −rtol·‖Σ‖).
+        Positive definiteness uses a fixed numerical-zero threshold, I_min > 1e-13·I_max.
 
     Returns:
       The defects found, in the order of CODES; empty when the body is physically consistent.
@@ -259,10 +264,13 @@ def balance_inertia(inertia: ArrayLike) -> np.ndarray:
     2. principal moments below a floor, max(1e-12·I_max, 1e-12 kg·m²), are raised to it (a zero
        or negative moment becomes a tiny positive one; the floor stays above MuJoCo's mjMINVAL);
     3. if the largest moment exceeds the sum of the other two, the smallest moment is raised to
-       I_max − I_mid, so that the triangle inequality holds with equality. Raising rather than
-       lowering keeps the largest moment (usually the well-known one) and never removes inertia;
-       the usual cause is a dropped digit in the small moment (the public SoftFoot-Q ankle Izz
-       1.0468e-6 for 4.0468e-6 becomes 2.618e-6).
+       I_max − I_mid plus a margin of min(1e-6·I_max, I_mid): the inequality then holds strictly
+       and the raised moment stays at most I_max. (At the exact bound MuJoCo 3.17 still fails
+       "inertia must satisfy A + B >= C": its own eigen-decomposition rounds the sum below the
+       largest moment.) Raising rather than lowering keeps the largest moment (usually the
+       well-known one) and never removes inertia; the usual cause is a dropped digit in the
+       small moment (the public SoftFoot-Q ankle Izz 1.0468e-6, CAD 4.0468e-6, becomes
+       2.619e-6).
 
     A tensor that already passes the checks comes back symmetrised and otherwise unchanged.
 
@@ -288,6 +296,7 @@ def balance_inertia(inertia: ArrayLike) -> np.ndarray:
     order = np.argsort(new)
     small, mid, big = order
     if new[big] > new[mid] + new[small]:
-        new[small] = new[big] - new[mid]
+        # The margin is capped at I_mid so that the raised moment does not exceed I_max.
+        new[small] = new[big] - new[mid] + min(TRIANGLE_MARGIN_REL * new[big], new[mid])
     balanced = axes @ np.diag(new) @ axes.T
     return 0.5 * (balanced + balanced.T)

@@ -557,8 +557,8 @@ def repair_urdf(root: etree._Element,
 
     Returns:
       (repaired copy, notes): one human-readable note per change, e.g. "link 'ankle': inertia
-      balanced: principal moments 4.497e-06, 1.879e-06, 1.047e-06 -> 4.497e-06, 1.879e-06,
-      2.618e-06".
+      balanced: principal moments 4.497e-06, 1.878e-06, 1.047e-06 -> 4.497e-06, 1.878e-06,
+      2.619e-06".
 
     Raises:
       ValueError: a repairable finding does not occur in this tree.

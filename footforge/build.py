@@ -1,0 +1,367 @@
+"""`footforge build`: description -> MJCF models of ANYmal C with a foot variant, checked.
+
+Outputs (in `out_dir`, written to a temporary folder first and renamed, never half-written):
+robot.xml, scene.xml, foot_rig.xml (or foot.xml and foot_rig.xml with `foot_only`), assets/ and
+build_report.json.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import shutil
+import tempfile
+import time
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Callable, Literal, Mapping
+
+import mujoco
+import numpy as np
+from dm_control import mjcf
+
+from footforge import constants as C
+from footforge import foot as foot_lib
+from footforge import kinematics, massprops
+from footforge.collision import DecompositionConfig
+from footforge.description import (Description, default_foot_description, default_robot_description,
+                                   load_description)
+from footforge.errors import CheckFailure, InputError
+from footforge.params import VariantParams, load_params
+from footforge.robot import build_rig, build_robot, scene_xml
+from footforge.sidecar import Sidecar, default_sidecar_path, load_sidecar
+from footforge.urdf_check import Finding, check_urdf, format_findings, has_errors, repair_urdf
+from footforge.urdf_import import parse_urdf
+
+VARIANTS = ("full", "aof", "aff", "ball")
+Variant = Literal["full", "aof", "aff", "ball"]
+
+MASS_RTOL = 1e-9
+"""Total mass and centre of mass of aff/aof must equal the closed chain's to this (relative)."""
+INERTIA_RTOL = 1e-9
+"""Each foot's centroidal inertia likewise (relative, Frobenius norm)."""
+REPORT_FORMAT = 1
+
+
+@dataclass(frozen=True)
+class BuildOptions:
+    variant: Variant
+    """Which feet: full (closed chain), aof, aff, ball."""
+    out_dir: Path
+    """Output folder; replaced as a whole when the build succeeds."""
+    foot_only: bool = False
+    """Write the foot alone (foot.xml) and its rig, no robot."""
+    foot_description: Path | None = None
+    """Foot xacro/URDF; default descriptions/softfoot_q/urdf/softfoot_q.urdf.xacro."""
+    sidecar: Path | None = None
+    """Foot sidecar; default <stem>.sidecar.yaml beside the foot description."""
+    robot_description: Path | None = None
+    """Robot xacro/URDF with a `foot` argument (ball|none); default ANYmal C."""
+    package_paths: tuple[Path, ...] = ()
+    """Folders searched for ROS packages before ROS_PACKAGE_PATH and the project's own."""
+    foot_args: Mapping[str, str] = field(default_factory=dict)
+    """xacro arguments for the foot description."""
+    params: Path | None = None
+    """Variant parameter file; default descriptions/softfoot_q/config/variant_params.yaml."""
+    repair: bool = False
+    """Repair the descriptions' repairable defects (reported) instead of refusing them."""
+    decomposition: DecompositionConfig = DecompositionConfig()
+    cache_dir: Path | None = None
+    """CoACD cache; default ~/.cache/footforge/coacd (or $FOOTFORGE_CACHE)."""
+
+
+class Stages:
+    """Timings and a progress callback per stage."""
+
+    def __init__(self, progress: Callable[[str], None] | None):
+        self.progress = progress or (lambda msg: None)
+        self.timings_s: dict[str, float] = {}
+
+    @contextmanager
+    def __call__(self, name: str):
+        self.progress(name)
+        t0 = time.perf_counter()
+        yield
+        self.timings_s[name] = round(time.perf_counter() - t0, 4)
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def checked_description(description: Description, *, repair: bool, what: str) -> tuple[Description, list[Finding], list[str]]:
+    """Runs `check` on a description; repairs it if asked; refuses one with errors.
+
+    Raises:
+      CheckFailure: errors remain (all of them are listed, with fixes).
+    """
+    findings = check_urdf(description.root(), resolve_uri=description.resolve_uri)
+    notes: list[str] = []
+    if has_errors(findings) and repair:
+        repaired, notes = repair_urdf(description.root(), findings)
+        from lxml import etree
+        description = replace(description, urdf=etree.tostring(repaired, encoding="unicode"))
+        findings = check_urdf(description.root(), resolve_uri=description.resolve_uri)
+    if has_errors(findings):
+        repairable = all(f.repairable for f in findings if f.severity == "error")
+        raise CheckFailure(
+            f"the {what} description has errors:\n{format_findings([f for f in findings if f.severity == 'error'])}",
+            file=str(description.source),
+            fix=("rerun with --repair to apply the listed repairs (recorded in the build report)"
+                 if repairable else "fix the description as suggested above"))
+    return description, findings, notes
+
+
+def link_inertia_checks(description: Description, findings: list[Finding]) -> dict[str, str]:
+    """Per link with an inertial: 'ok' or the codes of its inertia findings."""
+    by_link: dict[str, list[str]] = {}
+    for f in findings:
+        if f.element.startswith("link '"):
+            by_link.setdefault(f.element.split("'")[1], []).append(f.code)
+    out = {}
+    for link in description.root().findall("link"):
+        if link.find("inertial") is not None:
+            codes = by_link.get(link.get("name"), [])
+            out[link.get("name")] = "ok" if not codes else ", ".join(codes)
+    return out
+
+
+def model_counts(model: mujoco.MjModel) -> dict:
+    kinds = {int(mujoco.mjtJoint.mjJNT_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball",
+             int(mujoco.mjtJoint.mjJNT_SLIDE): "slide", int(mujoco.mjtJoint.mjJNT_HINGE): "hinge"}
+    by_kind: dict[str, int] = {}
+    for t in model.jnt_type:
+        by_kind[kinds[int(t)]] = by_kind.get(kinds[int(t)], 0) + 1
+    eq_kinds = {int(mujoco.mjtEq.mjEQ_CONNECT): "connect", int(mujoco.mjtEq.mjEQ_WELD): "weld",
+                int(mujoco.mjtEq.mjEQ_JOINT): "joint", int(mujoco.mjtEq.mjEQ_TENDON): "tendon"}
+    eqs: dict[str, int] = {}
+    for t in model.eq_type:
+        eqs[eq_kinds.get(int(t), str(int(t)))] = eqs.get(eq_kinds.get(int(t), str(int(t))), 0) + 1
+    return {"bodies": int(model.nbody - 1), "joints_by_kind": by_kind, "nq": int(model.nq),
+            "dof": int(model.nv), "actuators": int(model.nu), "sensors": int(model.nsensor),
+            "equality_constraints": eqs, "tendons": int(model.ntendon),
+            "geoms": int(model.ngeom), "mesh_assets": int(model.nmesh),
+            "total_mass_kg": float(mujoco.mj_getTotalmass(model)), "timestep_s": float(model.opt.timestep)}
+
+
+def closure_gaps(model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, float]:
+    """Distance between the two sites of every closure equality (m)."""
+    gaps = {}
+    for e in range(model.neq):
+        if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT and model.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE:
+            a, b = model.eq_obj1id[e], model.eq_obj2id[e]
+            gaps[model.eq(e).name] = float(np.linalg.norm(data.site_xpos[a] - data.site_xpos[b]))
+    return gaps
+
+
+def compare_mass_properties(variant_model: mujoco.MjModel, full_model: mujoco.MjModel, key: str,
+                            foot_roots: list[str]) -> dict:
+    """Total mass, centre of mass and each foot's centroidal inertia, variant against full, with
+    the base of both at the closed-chain model's keyframe pose (the home heights differ by the
+    feet's touchdown points)."""
+    df = massprops.at_keyframe(full_model, key)
+    dv = massprops.at_keyframe(variant_model, key, free_joint_qpos=df.qpos[:7])
+    tv, tf = massprops.subtree_inertia(variant_model, dv, 0), massprops.subtree_inertia(full_model, df, 0)
+    scale = max(float(np.linalg.norm(tf.lever)), 1.0)
+    report = {
+        "total_mass": {"variant_kg": tv.mass, "full_kg": tf.mass,
+                       "relative_error": abs(tv.mass - tf.mass) / tf.mass, "tolerance": MASS_RTOL},
+        "com": {"variant_m": np.array(tv.lever).tolist(), "full_m": np.array(tf.lever).tolist(),
+                "relative_error": float(np.linalg.norm(tv.lever - tf.lever)) / scale, "tolerance": MASS_RTOL},
+        "feet": {},
+    }
+    for body in foot_roots:
+        fv = massprops.subtree_inertia(variant_model, dv, variant_model.body(body).id)
+        ff = massprops.subtree_inertia(full_model, df, full_model.body(body).id)
+        report["feet"][body] = {
+            "mass_relative_error": abs(fv.mass - ff.mass) / ff.mass,
+            "com_error_m": float(np.linalg.norm(fv.lever - ff.lever)),
+            "centroidal_inertia_relative_error": float(np.linalg.norm(fv.inertia - ff.inertia) / np.linalg.norm(ff.inertia)),
+            "tolerance": INERTIA_RTOL}
+    errs = [report["total_mass"]["relative_error"], report["com"]["relative_error"]] + [
+        max(f["mass_relative_error"], f["com_error_m"] / scale, f["centroidal_inertia_relative_error"])
+        for f in report["feet"].values()]
+    report["passed"] = bool(max(errs) <= MASS_RTOL)
+    return report
+
+
+def build(options: BuildOptions, *, progress: Callable[[str], None] | None = None) -> dict:
+    """Builds the models of `options.variant` and writes them to `options.out_dir`.
+
+    Returns:
+      The build report (also written as build_report.json).
+
+    Raises:
+      InputError: bad input (missing files, malformed descriptions, unknown names); exit 2.
+      CheckFailure: a description or model check failed; exit 1.
+    """
+    if options.variant not in VARIANTS:
+        raise InputError(f"unknown variant '{options.variant}'", fix=f"use one of {', '.join(VARIANTS)}")
+    stage = Stages(progress)
+    report: dict = {"format": REPORT_FORMAT, "variant": options.variant, "foot_only": options.foot_only,
+                    "versions": _versions(), "machine": platform.platform(), "repairs": [], "warnings": []}
+    params = load_params(options.params)
+    report["inputs"] = {"params": {"path": str(params.source), "sha256": _sha256(params.source)}}
+    files: dict[str, str] = {}
+    asset_sets: list[dict] = []
+
+    foot = full_foot = None
+    sidecar = None
+    if options.variant != "ball":
+        with stage("read foot description"):
+            path = Path(options.foot_description or default_foot_description())
+            description = load_description(path, args=options.foot_args, package_paths=options.package_paths)
+            description, findings, notes = checked_description(description, repair=options.repair, what="foot")
+            report["repairs"] += [f"{path.name}: {n}" for n in notes]
+            report["warnings"] += [f"{path.name}: {f.element}: {f.message}" for f in findings]
+            sidecar_path = Path(options.sidecar) if options.sidecar else default_sidecar_path(path)
+            sidecar = load_sidecar(sidecar_path)
+            report["inputs"]["foot_description"] = {"path": str(description.source), "sha256": _sha256(description.source),
+                                                    "args": dict(options.foot_args)}
+            report["inputs"]["sidecar"] = {"path": str(sidecar.source), "sha256": _sha256(sidecar.source)}
+            report["link_inertia_checks"] = {"foot": link_inertia_checks(description, findings)}
+            parsed = parse_urdf(description, floating=True)
+            _check_sidecar_names(parsed, sidecar)
+        with stage("solve reference pose"):
+            reference = kinematics.reference_pose(parsed, sidecar)
+        with stage("decompose collision meshes"):
+            hull_report = []
+            hulls = foot_lib.decompose_collision_meshes(
+                parsed, options.decomposition, cache_dir=options.cache_dir,
+                progress=lambda mesh, h: hull_report.append(
+                    {"mesh": str(mesh), "hulls": len(h.vertices), "vertices": [len(v) for v in h.vertices],
+                     "decomposed": h.decomposed, "cached": h.cached}))
+            report["collision"] = {"config": asdict(options.decomposition), "meshes": hull_report}
+        source = foot_lib.FootSource(parsed, sidecar, params, reference, hulls)
+        with stage(f"build {options.variant} foot"):
+            full_foot = foot_lib.build_full(source)
+            foot = full_foot if options.variant == "full" else foot_lib.build_derived(source, options.variant)
+            report["foot"] = foot.info | {"passive_joints": foot.passive_joints,
+                                          "reference_qpos_rad": foot.reference_qpos,
+                                          "touchdown_m": foot.touchdown.tolist()}
+
+    friction = sidecar.friction if sidecar else 0.8
+    with stage("build rig"):
+        rig = build_rig(foot, 0.03, variant=options.variant, params=params, friction=friction)
+        files["foot_rig.xml"] = _xml(rig.mjcf, asset_sets)
+        rig_model = foot_lib.compile_model(rig.mjcf)
+        report["foot_rig"] = model_counts(rig_model) | {"payload_kg": params.rig_payload_mass}
+
+    if options.foot_only:
+        if foot is None:
+            raise InputError("--foot-only needs an adaptive foot variant", fix="use --variant full, aof or aff")
+        with stage("write foot model"):
+            files["foot.xml"] = _xml(foot.mjcf, asset_sets)
+            report["model"] = model_counts(foot_lib.compile_model(foot.mjcf))
+    else:
+        with stage("build robot"):
+            robot_path = Path(options.robot_description or default_robot_description())
+            foot_arg = "ball" if options.variant == "ball" else "none"
+            robot_desc = load_description(robot_path, args={"foot": foot_arg}, package_paths=options.package_paths)
+            robot_desc, robot_findings, notes = checked_description(robot_desc, repair=options.repair, what="robot")
+            report["repairs"] += [f"{robot_path.name}: {n}" for n in notes]
+            report["inputs"]["robot_description"] = {"path": str(robot_desc.source), "sha256": _sha256(robot_desc.source),
+                                                     "args": {"foot": foot_arg}}
+            report.setdefault("link_inertia_checks", {})["robot"] = link_inertia_checks(robot_desc, robot_findings)
+            robot_parsed = parse_urdf(robot_desc, floating=True)
+            robot = build_robot(robot_parsed, foot, variant=options.variant, params=params, friction=friction)
+            files["robot.xml"] = _xml(robot.mjcf, asset_sets)
+            files["scene.xml"] = scene_xml("robot.xml", options.variant)
+            robot_model = foot_lib.compile_model(robot.mjcf)
+            report["model"] = model_counts(robot_model)
+            report["model"]["home_base_height_m"] = float(robot_model.key("home").qpos[2])
+        if options.variant == "full":
+            with stage("check closures"):
+                data = massprops.at_keyframe(robot_model, "home")
+                gaps = closure_gaps(robot_model, data)
+                report["closure_residual_at_home_m"] = max(gaps.values())
+        elif options.variant in ("aof", "aff"):
+            with stage("compare mass properties"):
+                full_robot = build_robot(robot_parsed, full_foot, variant="full", params=params, friction=friction)
+                full_model = foot_lib.compile_model(full_robot.mjcf)
+                roots = [f"{C.FOOT_MODEL_NAME.format(leg=leg)}/{foot.root_body}" for leg in C.LEGS]
+                comparison = compare_mass_properties(robot_model, full_model, "home", roots)
+                report["mass_properties_vs_full"] = comparison
+    report["timings_s"] = stage.timings_s
+    if "mass_properties_vs_full" in report and not report["mass_properties_vs_full"]["passed"]:
+        raise CheckFailure("mass properties of the derived feet differ from the closed chain's beyond "
+                           f"{MASS_RTOL:g}: {json.dumps(report['mass_properties_vs_full'])}",
+                           fix="report this as a bug: derived bodies must be exact composites")
+    _write_atomically(options.out_dir, files, asset_sets, report)
+    return report
+
+
+def _check_sidecar_names(parsed, sidecar: Sidecar) -> None:
+    for name in list(sidecar.arch_joints) + list(sidecar.roll_joints) + list(sidecar.reference_joints):
+        if not parsed.model.existJointName(name):
+            raise InputError(f"the sidecar names joint '{name}', which the description does not have",
+                             file=str(sidecar.source), element=f"joint '{name}'",
+                             fix="use the description's joint names (without any robot prefix)")
+    for c in sidecar.closures:
+        for link in (c.link, c.to_link):
+            parsed.body_of_link(link)
+
+
+def _xml(root: mjcf.RootElement, asset_sets: list[dict]) -> str:
+    """MJCF text whose asset files (content-hashed names from dm_control) live in assets/."""
+    from lxml import etree
+
+    tree = etree.fromstring(root.to_xml_string().encode())
+    compiler = tree.find("compiler")
+    if compiler is None:
+        compiler = etree.Element("compiler")
+        tree.insert(0, compiler)
+    # dm_control resolves asset paths itself and does not write meshdir; MuJoCo needs it on disk.
+    compiler.set("meshdir", "assets")
+    compiler.set("texturedir", "assets")
+    asset_sets.append(root.get_assets())
+    return etree.tostring(tree, pretty_print=True, encoding="unicode")
+
+
+def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dict], report: dict) -> None:
+    out_dir = Path(out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    try:
+        (tmp / "assets").mkdir()
+        for assets in asset_sets:
+            for name, contents in assets.items():
+                (tmp / "assets" / name).write_bytes(contents)
+        for name, text in files.items():
+            (tmp / name).write_text(text)
+        report["outputs"] = sorted(files) + ["assets/", "build_report.json"]
+        (tmp / "build_report.json").write_text(json.dumps(report, indent=2, default=_json_default) + "\n")
+        if out_dir.exists():
+            old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
+            os.replace(out_dir, old)
+            os.replace(tmp, out_dir)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def _json_default(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(type(value))
+
+
+def _versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+    out = {}
+    for pkg in ("footforge", "mujoco", "dm-control", "pin", "coacd", "trimesh", "xacro"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out

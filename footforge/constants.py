@@ -1,0 +1,31 @@
+"""Names and published figures of ANYmal C used across footforge (reference: anymal_c.md)."""
+
+from __future__ import annotations
+
+LEGS = ("LF", "RF", "LH", "RH")
+LEG_JOINTS = ("HAA", "HFE", "KFE")
+ACTUATED_JOINTS = tuple(f"{leg}_{j}" for leg in LEGS for j in LEG_JOINTS)
+
+BASE_BODY = "base"
+FLOATING_JOINT = "floating_base"
+IMU_FRAME = "imu_link"
+FOOT_MOUNT_FRAME = "{leg}_foot_mount"
+"""Frame (link) of the robot description where an adaptive foot is bolted."""
+FOOT_MODEL_NAME = "{leg}_foot"
+"""dm_control namespace of each attached foot: bodies are named e.g. 'LF_foot/front_arch'."""
+
+# PD position control of the paper's rough-terrain baseline (applied at the simulation rate).
+KP_NM_PER_RAD = 80.0
+KD_NMS_PER_RAD = 2.0
+EFFORT_LIMIT_NM = 80.0
+VELOCITY_LIMIT_RAD_S = 7.5
+
+# Default joint angles of the paper's baselines, rad: HAA +left/-right, HFE and KFE front/hind.
+DEFAULT_JOINT_ANGLES_RAD = {
+    **{f"{leg}_HAA": (0.03 if leg[0] == "L" else -0.03) for leg in LEGS},
+    **{f"{leg}_HFE": (0.4 if leg[1] == "F" else -0.4) for leg in LEGS},
+    **{f"{leg}_KFE": (-0.8 if leg[1] == "F" else 0.8) for leg in LEGS},
+}
+
+ROBOT_MASS_KG = 52.13485
+"""ANYmal C with its ball feet, as published."""

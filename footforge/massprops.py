@@ -1,0 +1,42 @@
+"""Mass properties of compiled MuJoCo models, summed with Pinocchio's spatial-inertia algebra."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+
+def body_inertia_world(model: mujoco.MjModel, data: mujoco.MjData, body_id: int) -> pin.Inertia:
+    """Spatial inertia of one body in world coordinates (after mj_kinematics)."""
+    R = data.ximat[body_id].reshape(3, 3)
+    local = pin.Inertia(float(model.body_mass[body_id]), np.zeros(3), np.diag(model.body_inertia[body_id]))
+    return pin.SE3(R, data.xipos[body_id].copy()).act(local)
+
+
+def subtree_inertia(model: mujoco.MjModel, data: mujoco.MjData, body_id: int) -> pin.Inertia:
+    """Composite spatial inertia of `body_id` and all its descendants, world coordinates."""
+    total = pin.Inertia.Zero()
+    for b in range(model.nbody):
+        a = b
+        while a > 0 and a != body_id:
+            a = model.body_parentid[a]
+        if a == body_id and (body_id > 0 or b > 0):
+            total += body_inertia_world(model, data, b)
+    return total
+
+
+def at_keyframe(model: mujoco.MjModel, key: str, *, free_joint_qpos=None) -> mujoco.MjData:
+    """Data at keyframe `key` after kinematics; `free_joint_qpos` (7) overrides the root pose."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(key).id)
+    if free_joint_qpos is not None:
+        data.qpos[:7] = free_joint_qpos
+    mujoco.mj_kinematics(model, data)
+    return data
+
+
+def summary(inertia: pin.Inertia) -> dict:
+    """Total mass (kg), centre of mass (m) and centroidal inertia (kg m^2, world axes)."""
+    return {"mass_kg": float(inertia.mass), "com_m": np.array(inertia.lever).tolist(),
+            "centroidal_inertia_kgm2": np.array(inertia.inertia).tolist()}
