@@ -194,5 +194,7 @@ def scene_xml(robot_file: str, variant: str) -> str:
     root.visual.headlight.set_attributes(diffuse=[0.6, 0.6, 0.6], ambient=[0.3, 0.3, 0.3])
     root.statistic.set_attributes(center=[0, 0, 0.3], extent=1.2)
     tree = etree.fromstring(root.to_xml_string().encode())
+    for default in tree.findall("default"):  # dm_control's empty top class clashes with the robot's
+        tree.remove(default)
     tree.insert(0, etree.Element("include", file=robot_file))
     return etree.tostring(tree, pretty_print=True, encoding="unicode")
