@@ -1,0 +1,54 @@
+"""`footforge check`: a description's defects, with values and fixes; sidecar closures too."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from footforge import kinematics
+from footforge.description import load_description
+from footforge.errors import CheckFailure, InputError
+from footforge.sidecar import load_sidecar
+from footforge.urdf_check import Finding, check_urdf, has_errors
+from footforge.urdf_import import parse_urdf
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    findings: list[Finding]
+    closure_gaps_m: dict[str, float]
+    """Per closure, the gap at the sidecar's reference pose (empty without a sidecar)."""
+
+    @property
+    def failed(self) -> bool:
+        return has_errors(self.findings)
+
+
+def check_description(path: str | Path, *, package_paths: Sequence[str | Path] = (),
+                      args: Mapping[str, str] | None = None, sidecar: str | Path | None = None) -> CheckResult:
+    """Checks a URDF or xacro file (and, given a sidecar, that its closures close).
+
+    Raises:
+      InputError: the file cannot be read or expanded.
+    """
+    description = load_description(path, args=args, package_paths=package_paths)
+    findings = check_urdf(description.root(), resolve_uri=description.resolve_uri)
+    gaps: dict[str, float] = {}
+    if sidecar is not None and not has_errors(findings):
+        side = load_sidecar(sidecar)
+        parsed = parse_urdf(description, floating=True)
+        try:
+            pose = kinematics.reference_pose(parsed, side)
+            residuals = kinematics.closure_residuals(parsed, side, pose.q)
+        except CheckFailure as e:
+            # Report the gap of every closure at the best pose found, then the failure.
+            q = kinematics.pin.neutral(parsed.model)
+            for name, value in side.reference_joints.items():
+                kinematics.set_joint(parsed, q, name, value)
+            residuals = kinematics.closure_residuals(parsed, side, q)
+            findings.append(Finding("error", "closure_open", e.element or "sidecar", e.message, e.fix or "", False))
+        gaps = {c.name: float(np.linalg.norm(r)) for c, r in zip(side.closures, residuals)}
+    return CheckResult(findings, gaps)

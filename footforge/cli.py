@@ -1,0 +1,150 @@
+"""The `footforge` command line: a thin layer over footforge.build and footforge.check.
+
+Exit codes: 0 success, 1 check failures, 2 usage or input errors. Errors print as messages
+that name the file, the element and the fix; `--verbose` adds the traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import traceback
+from pathlib import Path
+
+from footforge.errors import EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's usage errors exit 2, as ours do
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_INPUT_ERROR, f"footforge: error: {message}\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    from footforge.build import VARIANTS
+
+    p = _Parser(prog="footforge", description=__doc__.splitlines()[0])
+    p.add_argument("--verbose", action="store_true", help="print tracebacks on errors")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    b = sub.add_parser("build", help="build MJCF models of ANYmal C with a foot variant")
+    b.add_argument("--variant", required=True, choices=VARIANTS,
+                   help="full: 34-joint closed chain; aof: split sole, 4 passive DOF; aff: flat sole, "
+                        "2 passive DOF; ball: ANYmal C's standard foot")
+    b.add_argument("--foot-only", action="store_true", help="write the foot alone (foot.xml) and its rig")
+    b.add_argument("--description", type=Path, help="foot xacro/URDF (default: the project's SoftFoot-Q)")
+    b.add_argument("--sidecar", type=Path, help="foot sidecar YAML (default: <stem>.sidecar.yaml beside it)")
+    b.add_argument("--robot", type=Path, help="robot xacro/URDF with a foot:=ball|none argument (default: ANYmal C)")
+    b.add_argument("--params", type=Path, help="variant parameter file (default: the SoftFoot-Q's)")
+    b.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR",
+                   help="folder searched for ROS packages ($(find pkg), package://); repeatable")
+    b.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE",
+                   help="xacro argument for the foot description; repeatable")
+    b.add_argument("--repair", action="store_true",
+                   help="repair repairable description defects (reported in build_report.json)")
+    b.add_argument("--max-hull-vertices", type=int, default=64, help="vertex cap per convex hull (default 64)")
+    b.add_argument("--coacd-timeout", type=float, default=120.0, help="seconds before CoACD is stopped")
+    b.add_argument("--cache-dir", type=Path, help="CoACD cache folder (default ~/.cache/footforge/coacd)")
+    b.add_argument("--out", type=Path, help="output folder (default build/<variant>)")
+
+    c = sub.add_parser("check", help="report physical and structural defects of a URDF or xacro")
+    c.add_argument("path", type=Path)
+    c.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR")
+    c.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE")
+    c.add_argument("--sidecar", type=Path, help="also check that the sidecar's closures close")
+    return p
+
+
+def _run_build(args, console) -> int:
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    from footforge.build import BuildOptions, build
+    from footforge.collision import DecompositionConfig
+    from footforge.description import parse_args
+    from footforge.errors import InputError
+
+    if args.max_hull_vertices < 4:
+        raise InputError(f"--max-hull-vertices {args.max_hull_vertices} is below 4",
+                         fix="a convex hull needs at least 4 vertices; the default is 64")
+    if args.coacd_timeout <= 0:
+        raise InputError("--coacd-timeout must be positive", fix="give seconds, e.g. 120")
+    options = BuildOptions(
+        variant=args.variant, out_dir=args.out or Path("build") / args.variant, foot_only=args.foot_only,
+        foot_description=args.description, sidecar=args.sidecar, robot_description=args.robot,
+        package_paths=tuple(args.package_path), foot_args=parse_args(args.arg), params=args.params,
+        repair=args.repair, cache_dir=args.cache_dir,
+        decomposition=DecompositionConfig(max_hull_vertices=args.max_hull_vertices, timeout_s=args.coacd_timeout))
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
+                  console=console, transient=True) as progress:
+        task = progress.add_task("building", total=None)
+        report = build(options, progress=lambda stage: progress.update(task, description=stage))
+    _print_summary(report, options.out_dir, console)
+    return EXIT_OK
+
+
+def _print_summary(report: dict, out_dir: Path, console) -> None:
+    from rich.table import Table
+
+    m = report["model"]
+    table = Table(title=f"footforge build --variant {report['variant']} -> {out_dir}", show_header=False)
+    table.add_row("bodies", str(m["bodies"]))
+    table.add_row("joints", ", ".join(f"{v} {k}" for k, v in m["joints_by_kind"].items()))
+    table.add_row("DOF", str(m["dof"]))
+    table.add_row("equality constraints", ", ".join(f"{v} {k}" for k, v in m["equality_constraints"].items()) or "none")
+    table.add_row("total mass", f"{m['total_mass_kg']:.5f} kg")
+    table.add_row("timestep", f"{m['timestep_s'] * 1e3:g} ms")
+    if "home_base_height_m" in m:
+        table.add_row("home base height", f"{m['home_base_height_m']:.4f} m")
+    if "closure_residual_at_home_m" in report:
+        table.add_row("closure residual (home)", f"{report['closure_residual_at_home_m']:.2e} m")
+    mp = report.get("mass_properties_vs_full")
+    if mp:
+        worst_inertia = max(f["centroidal_inertia_relative_error"] for f in mp["feet"].values())
+        table.add_row("vs full: mass, COM, foot inertia",
+                      f"{mp['total_mass']['relative_error']:.1e}, {mp['com']['relative_error']:.1e}, "
+                      f"{worst_inertia:.1e} (tol {mp['total_mass']['tolerance']:g}) "
+                      + ("[green]pass[/green]" if mp["passed"] else "[red]FAIL[/red]"))
+    for mesh in report.get("collision", {}).get("meshes", []):
+        table.add_row(f"hulls {Path(mesh['mesh']).name}",
+                      f"{mesh['hulls']} (max {max(mesh['vertices'])} vertices{', cached' if mesh['cached'] else ''})")
+    for note in report.get("repairs", []):
+        table.add_row("[yellow]repaired[/yellow]", note)
+    table.add_row("time", f"{sum(report['timings_s'].values()):.2f} s")
+    console.print(table)
+
+
+def _run_check(args, console) -> int:
+    from footforge.check import check_description
+    from footforge.description import parse_args
+    from footforge.urdf_check import format_findings
+
+    result = check_description(args.path, package_paths=args.package_path, args=parse_args(args.arg),
+                               sidecar=args.sidecar)
+    console.print(format_findings(result.findings), markup=False, highlight=False)
+    for name, gap in result.closure_gaps_m.items():
+        console.print(f"closure '{name}': gap {gap:.2e} m at the reference pose", markup=False)
+    errors = sum(f.severity == "error" for f in result.findings)
+    warnings = len(result.findings) - errors
+    console.print(f"{args.path}: {errors} error(s), {warnings} warning(s)", markup=False)
+    return EXIT_CHECK_FAILED if result.failed else EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    from rich.console import Console
+
+    args = _parser().parse_args(argv)
+    console, errors = Console(), Console(stderr=True)
+    try:
+        return _run_build(args, console) if args.command == "build" else _run_check(args, console)
+    except FootforgeError as e:
+        if args.verbose:
+            traceback.print_exc()
+        errors.print(f"footforge: error: {e}", markup=False, highlight=False)
+        return e.exit_code
+    except KeyboardInterrupt:
+        errors.print("footforge: interrupted; no output was written")
+        return EXIT_INPUT_ERROR
+
+
+if __name__ == "__main__":
+    sys.exit(main())
