@@ -44,6 +44,7 @@ MASS_RTOL = 1e-9
 INERTIA_RTOL = 1e-9
 """Each foot's centroidal inertia likewise (relative, Frobenius norm)."""
 REPORT_FORMAT = 1
+INPUT_ERROR_CODES = frozenset({"missing_mesh", "unresolved_package"})
 
 
 @dataclass(frozen=True)
@@ -105,6 +106,11 @@ def checked_description(description: Description, *, repair: bool, what: str) ->
         from lxml import etree
         description = replace(description, urdf=etree.tostring(repaired, encoding="unicode"))
         findings = check_urdf(description.root(), resolve_uri=description.resolve_uri)
+    missing = [f for f in findings if f.severity == "error" and f.code in INPUT_ERROR_CODES]
+    if missing:  # files that are not there are input errors (exit 2), not model defects
+        raise InputError(f"the {what} description refers to files it cannot find:\n{format_findings(missing)}",
+                         file=str(description.source),
+                         fix="fix the paths, or add the folder holding the package with --package-path")
     if has_errors(findings):
         repairable = all(f.repairable for f in findings if f.severity == "error")
         raise CheckFailure(

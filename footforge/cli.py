@@ -132,7 +132,10 @@ def _run_check(args, console) -> int:
 def main(argv: list[str] | None = None) -> int:
     from rich.console import Console
 
-    args = _parser().parse_args(argv)
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as e:  # usage errors (2) and --help (0), as exit codes
+        return int(e.code or 0)
     console, errors = Console(), Console(stderr=True)
     try:
         return _run_build(args, console) if args.command == "build" else _run_check(args, console)

@@ -1,0 +1,130 @@
+"""The command line: exit codes, messages that name file/element/fix, no partial output."""
+
+import shutil
+
+import pytest
+import yaml
+
+from footforge.cli import main
+
+from conftest import FOOT_SIDECAR, FOOT_XACRO, REPO
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out + out.err
+
+
+@pytest.fixture
+def foot_copy(tmp_path):
+    """A copy of the SoftFoot-Q description (xacro, sidecar, meshes) to plant defects in."""
+    pkg = tmp_path / "softfoot_q"
+    shutil.copytree(REPO / "descriptions/softfoot_q", pkg)
+    return pkg
+
+
+def test_build_writes_outputs_and_summary(capsys, tmp_path):
+    code, text = run(capsys, "build", "--variant", "aff", "--out", tmp_path / "out", "--cache-dir", tmp_path / "c")
+    assert code == 0, text
+    assert "total mass" in text and "pass" in text
+    assert {p.name for p in (tmp_path / "out").iterdir()} == {
+        "robot.xml", "scene.xml", "foot_rig.xml", "assets", "build_report.json"}
+
+
+def test_foot_only(capsys, tmp_path):
+    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--out", tmp_path / "f",
+                     "--cache-dir", tmp_path / "c")
+    assert code == 0, text
+    assert (tmp_path / "f/foot.xml").is_file() and not (tmp_path / "f/robot.xml").exists()
+
+
+def test_unknown_variant_is_a_usage_error(capsys):
+    code, text = run(capsys, "build", "--variant", "hoof")
+    assert code == 2 and "invalid choice" in text
+
+
+def test_missing_mesh_names_link_and_leaves_no_output(capsys, tmp_path, foot_copy):
+    (foot_copy / "meshes/arch.stl").unlink()
+    out = tmp_path / "out"
+    code, text = run(capsys, "build", "--variant", "aof", "--description", foot_copy / "urdf/softfoot_q.urdf.xacro",
+                     "--package-path", tmp_path, "--out", out)
+    assert code == 2
+    assert "arch.stl" in text and "front_arch" in text and "fix:" in text and "Traceback" not in text
+    assert not out.exists() and not any(p.name.startswith(".out.tmp") for p in tmp_path.iterdir())
+
+
+def test_malformed_xacro(capsys, tmp_path, foot_copy):
+    path = foot_copy / "urdf/softfoot_q.xacro"
+    path.write_text(path.read_text().replace("</robot>", "</robt>"))
+    code, text = run(capsys, "build", "--variant", "aff", "--description", foot_copy / "urdf/softfoot_q.urdf.xacro",
+                     "--package-path", tmp_path, "--out", tmp_path / "out")
+    assert code == 2 and "malformed" in text.lower() or "xacro failed" in text
+    assert "Traceback" not in text
+
+
+def test_unresolved_package(capsys, tmp_path):
+    urdf = tmp_path / "foot.urdf"
+    urdf.write_text('<robot name="r"><link name="a"><visual><geometry><mesh filename="package://nopkg/m.stl"/>'
+                    "</geometry></visual></link></robot>")
+    code, text = run(capsys, "check", urdf)
+    assert code == 1 and "nopkg" in text
+
+
+def test_non_physical_inertia_fails_then_repairs(capsys, tmp_path, foot_copy):
+    path = foot_copy / "urdf/softfoot_q.xacro"
+    path.write_text(path.read_text().replace('izz="4.0468e-6"', 'izz="1.0468e-6"'))  # the public file's typo
+    args = ["build", "--variant", "aff", "--description", foot_copy / "urdf/softfoot_q.urdf.xacro",
+            "--package-path", tmp_path, "--cache-dir", tmp_path / "c"]
+    code, text = run(capsys, *args, "--out", tmp_path / "out")
+    assert code == 1 and "ankle" in text and "triangle" in text and "--repair" in text
+    assert not (tmp_path / "out").exists()
+    code, text = run(capsys, *args, "--out", tmp_path / "out", "--repair")
+    assert code == 0, text
+    report = (tmp_path / "out/build_report.json").read_text()
+    assert "inertia balanced" in report
+
+
+def test_check_finds_crossed_closure(capsys, tmp_path):
+    """The reference sheet's '∓' for the back insertion points crosses the side chains (in the back
+    roll link's frame, turned by pi about z, the right chain ends at +y): check must say so."""
+    data = yaml.safe_load(FOOT_SIDECAR.read_text())
+    for closure in data["closures"]:
+        closure["to_point"][1] = -closure["to_point"][1]
+    sidecar = tmp_path / "crossed.sidecar.yaml"
+    sidecar.write_text(yaml.safe_dump(data))
+    code, text = run(capsys, "check", FOOT_XACRO, "--sidecar", sidecar)
+    assert code == 1 and "closure" in text and "does not close" in text
+
+
+def test_check_clean_descriptions(capsys):
+    code, text = run(capsys, "check", FOOT_XACRO, "--sidecar", FOOT_SIDECAR)
+    assert code == 0, text
+    code, text = run(capsys, "check", REPO / "descriptions/anymal_c/urdf/anymal_c.urdf.xacro", "--arg", "foot:=softfoot_q")
+    assert code == 0, text
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d.update(friction=-1), "friction"),
+    (lambda d: d.update(bogus=1), "unknown keys"),
+    (lambda d: d["closures"][0].update(link="no_such_link"), "no_such_link"),
+])
+def test_bad_sidecar_values(capsys, tmp_path, edit, message):
+    data = yaml.safe_load(FOOT_SIDECAR.read_text())
+    edit(data)
+    sidecar = tmp_path / "bad.sidecar.yaml"
+    sidecar.write_text(yaml.safe_dump(data))
+    code, text = run(capsys, "build", "--variant", "aff", "--sidecar", sidecar, "--out", tmp_path / "o",
+                     "--cache-dir", tmp_path / "c")
+    assert code == 2 and message in text and "Traceback" not in text
+
+
+def test_bad_params_and_args(capsys, tmp_path):
+    params = yaml.safe_load((REPO / "descriptions/softfoot_q/config/variant_params.yaml").read_text())
+    params["full"]["closure_solref"] = [0.0001, 1.0]
+    p = tmp_path / "params.yaml"
+    p.write_text(yaml.safe_dump(params))
+    code, text = run(capsys, "build", "--variant", "full", "--params", p, "--out", tmp_path / "o")
+    assert code == 2 and "timeconst" in text
+    code, text = run(capsys, "build", "--variant", "aff", "--arg", "novalue", "--out", tmp_path / "o")
+    assert code == 2 and "NAME:=VALUE" in text
