@@ -30,8 +30,8 @@ from footforge import kinematics
 from footforge.collision import DecompositionConfig, Hulls, decompose
 from footforge.params import PassiveJoint, VariantParams
 from footforge.sidecar import FAMILIES, Sidecar
-from footforge.urdf_import import (MeshAssets, ParsedURDF, add_default_classes, add_geoms, add_joint,
-                                   children_in_urdf_order, inertial_attributes, is_mesh, quat_wxyz)
+from footforge.urdf_import import (MeshAssets, ParsedURDF, add_body_tree, add_default_classes, add_geoms,
+                                   inertial_attributes, is_mesh, quat_wxyz)
 
 FOOT_VARIANTS = ("full", "aof", "aff")
 DERIVED_JOINT_CLASS = "foot_passive"
@@ -124,21 +124,9 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     assets = MeshAssets(root)
     hull_geoms = _hull_geoms(source, assets)
     families = source.families
-    bodies = {1: _root_body(source, root, assets, hull_geoms)}
-
-    def add_subtree(joint_id: int) -> None:
-        for child in children_in_urdf_order(parsed, joint_id):
-            placement = parsed.model.jointPlacements[child]
-            body = bodies[joint_id].add("body", name=parsed.link_of(child), pos=np.array(placement.translation),
-                                        quat=quat_wxyz(placement.rotation))
-            body.add("inertial", **inertial_attributes(parsed.model.inertias[child]))
-            fam = families[child]
-            add_joint(body, parsed, child, dclass=fam if fam in FAMILIES else None)
-            add_geoms(body, parsed, child, assets, collision_geoms=hull_geoms)
-            bodies[child] = body
-            add_subtree(child)
-
-    add_subtree(1)
+    bodies = add_body_tree(parsed, _root_body(source, root, assets, hull_geoms), assets,
+                           joint_class=lambda j: families[j] if families[j] in FAMILIES else None,
+                           collision_geoms=hull_geoms)
     full = source.params.full
     for c in sidecar.closures:
         sites = []

@@ -17,8 +17,8 @@ from lxml import etree
 from footforge import constants as C
 from footforge.foot import FootModel, clone, collision_points, compile_model
 from footforge.params import VariantParams
-from footforge.urdf_import import (FLOATING_JOINT, MeshAssets, ParsedURDF, add_default_classes, add_geoms,
-                                   add_joint, children_in_urdf_order, inertial_attributes, quat_wxyz)
+from footforge.urdf_import import (FLOATING_JOINT, MeshAssets, ParsedURDF, add_body_tree, add_default_classes,
+                                   add_geoms, inertial_attributes, quat_wxyz)
 
 FLOOR_CONTYPE = 1  # environment geoms touch robot collision geoms (conaffinity 1)
 
@@ -61,25 +61,11 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
     actuator_class.position.set_attributes(kp=C.KP_NM_PER_RAD, kv=C.KD_NMS_PER_RAD,
                                            forcerange=[-C.EFFORT_LIMIT_NM, C.EFFORT_LIMIT_NM])
     assets = MeshAssets(root)
-    bodies = {}
     base = root.worldbody.add("body", name=parsed.link_of_joint[FLOATING_JOINT])
     base.add("freejoint", name=C.FLOATING_JOINT)
     base.add("inertial", **inertial_attributes(model.inertias[1]))
     add_geoms(base, parsed, 1, assets)
-    bodies[1] = base
-
-    def add_subtree(joint_id):
-        for child in children_in_urdf_order(parsed, joint_id):
-            placement = model.jointPlacements[child]
-            body = bodies[joint_id].add("body", name=parsed.link_of(child), pos=np.array(placement.translation),
-                                        quat=quat_wxyz(placement.rotation))
-            body.add("inertial", **inertial_attributes(model.inertias[child]))
-            add_joint(body, parsed, child, dclass="leg")
-            add_geoms(body, parsed, child, assets)
-            bodies[child] = body
-            add_subtree(child)
-
-    add_subtree(1)
+    bodies = add_body_tree(parsed, base, assets, joint_class=lambda j: "leg")
 
     def frame_site(link: str, name: str, **kw):
         joint_id, placement = parsed.body_of_link(link)

@@ -278,3 +278,29 @@ def add_geoms(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, assets: Mes
             if kind == "visual":
                 attrs["rgba"] = np.array(go.meshColor)
             body.add("geom", name=f"{go.name}_{kind}", dclass=kind, **attrs)
+
+
+def add_body_tree(parsed: ParsedURDF, root_body: mjcf.Element, assets: MeshAssets, *,
+                  joint_class, collision_geoms: Mapping[str, list[dict]] | None = None) -> dict[int, mjcf.Element]:
+    """Adds one MJCF body per Pinocchio joint below the root joint (id 1) under `root_body`, in
+    URDF order: frame, inertial, joint (class `joint_class(joint_id)`), geoms.
+
+    Returns:
+      Pinocchio joint id -> its MJCF body (the root joint maps to `root_body`).
+    """
+    model = parsed.model
+    bodies = {1: root_body}
+
+    def add_subtree(joint_id: int) -> None:
+        for child in children_in_urdf_order(parsed, joint_id):
+            placement = model.jointPlacements[child]
+            body = bodies[joint_id].add("body", name=parsed.link_of(child), pos=np.array(placement.translation),
+                                        quat=quat_wxyz(placement.rotation))
+            body.add("inertial", **inertial_attributes(model.inertias[child]))
+            add_joint(body, parsed, child, dclass=joint_class(child))
+            add_geoms(body, parsed, child, assets, collision_geoms=collision_geoms)
+            bodies[child] = body
+            add_subtree(child)
+
+    add_subtree(1)
+    return bodies
