@@ -22,6 +22,7 @@ from typing import Callable, Literal, Mapping
 import mujoco
 import numpy as np
 from dm_control import mjcf
+from lxml import etree
 
 from footforge import constants as C
 from footforge import foot as foot_lib
@@ -30,7 +31,7 @@ from footforge.collision import DecompositionConfig
 from footforge.description import (Description, default_foot_description, default_robot_description,
                                    load_description)
 from footforge.errors import CheckFailure, InputError
-from footforge.params import VariantParams, load_params
+from footforge.params import load_params
 from footforge.robot import build_rig, build_robot, scene_xml
 from footforge.sidecar import Sidecar, default_sidecar_path, load_sidecar
 from footforge.urdf_check import Finding, check_urdf, format_findings, has_errors, repair_urdf
@@ -103,7 +104,6 @@ def checked_description(description: Description, *, repair: bool, what: str) ->
     notes: list[str] = []
     if has_errors(findings) and repair:
         repaired, notes = repair_urdf(description.root(), findings)
-        from lxml import etree
         description = replace(description, urdf=etree.tostring(repaired, encoding="unicode"))
         findings = check_urdf(description.root(), resolve_uri=description.resolve_uri)
     missing = [f for f in findings if f.severity == "error" and f.code in INPUT_ERROR_CODES]
@@ -244,7 +244,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
         source = foot_lib.FootSource(parsed, sidecar, params, reference, hulls)
         with stage(f"build {options.variant} foot"):
             full_foot = foot_lib.build_full(source)
-            foot = full_foot if options.variant == "full" else foot_lib.build_derived(source, options.variant)
+            foot = full_foot if options.variant == "full" else foot_lib.build_derived(source, options.variant, full=full_foot)
             report["foot"] = foot.info | {"passive_joints": foot.passive_joints,
                                           "reference_qpos_rad": foot.reference_qpos,
                                           "touchdown_m": foot.touchdown.tolist()}
@@ -313,8 +313,6 @@ def _check_sidecar_names(parsed, sidecar: Sidecar) -> None:
 
 def _xml(root: mjcf.RootElement, asset_sets: list[dict]) -> str:
     """MJCF text whose asset files (content-hashed names from dm_control) live in assets/."""
-    from lxml import etree
-
     tree = etree.fromstring(root.to_xml_string().encode())
     compiler = tree.find("compiler")
     if compiler is None:

@@ -10,7 +10,7 @@ import numpy as np
 
 from footforge import kinematics
 from footforge.description import load_description
-from footforge.errors import CheckFailure, InputError
+from footforge.errors import CheckFailure
 from footforge.sidecar import load_sidecar
 from footforge.urdf_check import Finding, check_urdf, has_errors
 from footforge.urdf_import import parse_urdf
@@ -44,7 +44,8 @@ def check_description(path: str | Path, *, package_paths: Sequence[str | Path] =
             pose = kinematics.reference_pose(parsed, side)
             residuals = kinematics.closure_residuals(parsed, side, pose.q)
         except CheckFailure as e:
-            # Report the gap of every closure at the best pose found, then the failure.
+            # The loops could not be closed: report each gap with the chain pins at zero and the
+            # listed joints at their reference angles, then the failure.
             q = kinematics.pin.neutral(parsed.model)
             for name, value in side.reference_joints.items():
                 kinematics.set_joint(parsed, q, name, value)

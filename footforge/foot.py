@@ -31,7 +31,7 @@ from footforge.collision import DecompositionConfig, Hulls, decompose
 from footforge.params import PassiveJoint, VariantParams
 from footforge.sidecar import FAMILIES, Sidecar
 from footforge.urdf_import import (MeshAssets, ParsedURDF, add_body_tree, add_default_classes, add_geoms,
-                                   inertial_attributes, is_mesh, quat_wxyz)
+                                   inertial_attributes, is_mesh, joint_axis, quat_wxyz)
 
 FOOT_VARIANTS = ("full", "aof", "aff")
 DERIVED_JOINT_CLASS = "foot_passive"
@@ -133,7 +133,7 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
         for link, point, tag in ((c.link, c.point, "a"), (c.to_link, c.to_point, "b")):
             joint_id, placement = parsed.body_of_link(link)
             sites.append(bodies[joint_id].add("site", name=f"closure_{c.name}_{tag}", group=4, size=[0.001],
-                                              pos=placement.act(np.asarray(c.point if tag == "a" else c.to_point, float))))
+                                              pos=placement.act(np.asarray(point, float))))
         root.equality.add("connect", name=f"closure_{c.name}", site1=sites[0], site2=sites[1],
                           solref=list(full.closure_solref), solimp=list(full.closure_solimp))
     couplings = list(parsed.mimics)
@@ -159,9 +159,8 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     return _finish(FootModel("full", root, parsed.root_link, reference, list(reference), np.zeros(3), info))
 
 
-def _compiled_full(source: FootSource):
+def _compiled_full(foot: FootModel):
     """The closed-chain foot compiled by MuJoCo and posed at the reference pose."""
-    foot = build_full(source, name="reference")
     model = compile_model(foot.mjcf)
     data = mujoco.MjData(model)
     for joint, value in foot.reference_qpos.items():
@@ -193,11 +192,15 @@ def collision_points(model, data, body_names) -> np.ndarray:
     return np.concatenate(pts) if pts else np.zeros((0, 3))
 
 
-def build_derived(source: FootSource, variant: str, *, name: str = "foot") -> FootModel:
-    """AFF or AOF, derived from the closed chain at its reference pose (see module docstring)."""
+def build_derived(source: FootSource, variant: str, *, name: str = "foot",
+                  full: FootModel | None = None) -> FootModel:
+    """AFF or AOF, derived from the closed chain at its reference pose (see module docstring).
+
+    `full` is the closed-chain foot of `source` when the caller already built it.
+    """
     parsed, sidecar, params = source.parsed, source.sidecar, source.params
     joints = params.aff if variant == "aff" else params.aof
-    ref_model, ref_data = _compiled_full(source)
+    ref_model, ref_data = _compiled_full(full or build_full(source, name="reference"))
     q = source.reference.q
     data = parsed.model.createData()
     pin.forwardKinematics(parsed.model, data, q)
@@ -226,7 +229,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot") -> Fo
                  range=list(limit), stiffness=j.stiffness, damping=j.damping, armature=j.armature,
                  springref=j.springref)
         for member in members:  # the replaced links' looks
-            add_geoms_visual_only(body, parsed, member, assets, frame.actInv(oMi[member]))
+            add_geoms(body, parsed, member, assets, offset=frame.actInv(oMi[member]), kinds=("visual",))
         for group_name, group in envelope_groups:
             pts = collision_points(ref_model, ref_data, [parsed.link_of(m) for m in group])
             if len(pts) == 0:
@@ -239,7 +242,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot") -> Fo
 
     # The pitch hinge sits at the arch pivot, on the arch joints' common axis.
     pivot = oMi[arch[0]].translation
-    pitch_axis = oMi[arch[0]].rotation @ _hinge_axis(parsed, arch[0])
+    pitch_axis = oMi[arch[0]].rotation @ joint_axis(parsed.model.joints[arch[0]])
     pitch_frame = frame_at(pivot)
     arch_limit = _joint_range(parsed, arch[0])
     roll_limit = _joint_range(parsed, front)
@@ -271,20 +274,6 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot") -> Fo
             "reference_pose_closure_error_m": source.reference.closure_error_m}
     return _finish(FootModel(variant, root, parsed.root_link, {n: 0.0 for n in names}, names,
                              np.zeros(3), info))
-
-
-def add_geoms_visual_only(body, parsed, joint_id, assets, offset):
-    keep = parsed.collision
-    parsed.collision = pin.GeometryModel()
-    try:
-        add_geoms(body, parsed, joint_id, assets, offset=offset)
-    finally:
-        parsed.collision = keep
-
-
-def _hinge_axis(parsed: ParsedURDF, joint_id: int) -> np.ndarray:
-    from footforge.urdf_import import joint_axis
-    return joint_axis(parsed.model.joints[joint_id])
 
 
 def _joint_range(parsed: ParsedURDF, joint_id: int) -> tuple[float, float]:

@@ -131,7 +131,6 @@ def _solve_chain(parsed, sidecar, closure, chain, q0):
     idx = [model.joints[j].idx_q for j in chain]
     lo, hi = model.lowerPositionLimit[idx], model.upperPositionLimit[idx]
     data = model.createData()
-    c_index = sidecar.closures.index(closure)
 
     def gap(x):
         q = q0.copy()

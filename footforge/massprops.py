@@ -17,11 +17,11 @@ def body_inertia_world(model: mujoco.MjModel, data: mujoco.MjData, body_id: int)
 def subtree_inertia(model: mujoco.MjModel, data: mujoco.MjData, body_id: int) -> pin.Inertia:
     """Composite spatial inertia of `body_id` and all its descendants, world coordinates."""
     total = pin.Inertia.Zero()
-    for b in range(model.nbody):
+    for b in range(1, model.nbody):  # the world body has no mass
         a = b
-        while a > 0 and a != body_id:
+        while a != body_id and a > 0:
             a = model.body_parentid[a]
-        if a == body_id and (body_id > 0 or b > 0):
+        if a == body_id:
             total += body_inertia_world(model, data, b)
     return total
 

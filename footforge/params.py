@@ -10,7 +10,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from footforge.description import descriptions_dir
-from footforge.errors import InputError
 from footforge.yaml_reader import YamlReader, read_yaml
 
 
@@ -74,7 +73,7 @@ def _passive(r: YamlReader) -> PassiveJoint:
 
 def _pair(r: YamlReader, n: int) -> tuple[float, ...]:
     if not isinstance(r.data, list) or len(r.data) != n:
-        raise r._fail(f"expected a list of {n} numbers, got {r.data!r}", f"give {n} numbers")
+        raise r.fail(f"expected a list of {n} numbers, got {r.data!r}", f"give {n} numbers")
     return tuple(YamlReader(v, f"{r.path}[{i}]", r.file).float() for i, v in enumerate(r.data))
 
 
@@ -98,7 +97,7 @@ def load_params(path: str | Path | None = None) -> VariantParams:
         closure_solref=_pair(full.get("closure_solref"), 2),
         closure_solimp=_pair(full.get("closure_solimp"), 3))
     if settings.closure_solref[0] < 2 * settings.timestep:
-        raise full.get("closure_solref")._fail(
+        raise full.get("closure_solref").fail(
             f"timeconst {settings.closure_solref[0]} is below twice the timestep {settings.timestep}",
             "MuJoCo cannot integrate a constraint faster than 2 steps: raise it or lower the timestep")
     simplified = top.get("simplified")
@@ -112,7 +111,7 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     aof = top.get("aof")
     sole_range = _pair(aof.get("sole_range"), 2)
     if sole_range[0] >= sole_range[1]:
-        raise aof.get("sole_range")._fail(f"empty range {list(sole_range)}", "give [lower, upper] with lower < upper")
+        raise aof.get("sole_range").fail(f"empty range {list(sole_range)}", "give [lower, upper] with lower < upper")
     rig = top.get("rig")
     rig.get("payload_mass", allowed={"payload_mass", "slider_damping"})
     return VariantParams(

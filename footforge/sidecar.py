@@ -10,9 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Mapping
 
-from footforge.errors import InputError
 from footforge.yaml_reader import YamlReader, read_yaml
 
 SIDECAR_FORMAT = 1
@@ -114,7 +113,7 @@ def load_sidecar(path: str | Path) -> Sidecar:
     top.get("format", allowed=_TOP_KEYS)
     fmt = top.get("format").data
     if fmt != SIDECAR_FORMAT:
-        raise top.get("format")._fail(f"unsupported format {fmt!r}", f"set format: {SIDECAR_FORMAT}")
+        raise top.get("format").fail(f"unsupported format {fmt!r}", f"set format: {SIDECAR_FORMAT}")
 
     roll = top.get("roll_joints")
     roll.get("front", allowed={"front", "back"})
@@ -128,14 +127,14 @@ def load_sidecar(path: str | Path) -> Sidecar:
     closures = []
     cl = top.get("closures")
     if not isinstance(cl.data, list) or not cl.data:
-        raise cl._fail("expected a non-empty list of closures", "list each loop-closing pin")
+        raise cl.fail("expected a non-empty list of closures", "list each loop-closing pin")
     for i, item in enumerate(cl.data):
         r = YamlReader(item, f"closures[{i}]", path)
         r.get("name", allowed={"name", "link", "point", "to_link", "to_point", "axis"})
         axis = r.get("axis").vec3()
         norm = math.sqrt(sum(a * a for a in axis))
         if norm < 1e-9:
-            raise r.get("axis")._fail("zero pin axis", "give a unit vector such as [1, 0, 0]")
+            raise r.get("axis").fail("zero pin axis", "give a unit vector such as [1, 0, 0]")
         closures.append(Closure(
             name=r.get("name").str(), link=r.get("link").str(), point=r.get("point").vec3(),
             to_link=r.get("to_link").str(), to_point=r.get("to_point").vec3(),

@@ -255,13 +255,15 @@ def add_joint(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, *, dclass: 
 
 def add_geoms(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, assets: MeshAssets,
               *, collision_geoms: Mapping[str, list[dict]] | None = None,
-              offset: pin.SE3 | None = None) -> None:
-    """Adds the visual and collision geoms carried by `joint_id` to `body`.
+              offset: pin.SE3 | None = None, kinds: tuple[str, ...] = ("visual", "collision")) -> None:
+    """Adds the geoms of `kinds` (visual, collision) carried by `joint_id` to `body`.
 
     `collision_geoms` maps a Pinocchio geometry name to replacement geom attribute dicts (the
     convex hulls of a decomposed mesh); `offset` re-expresses placements in another frame.
     """
-    for kind, gmodel in (("visual", parsed.visual), ("collision", parsed.collision)):
+    models = {"visual": parsed.visual, "collision": parsed.collision}
+    for kind in kinds:
+        gmodel = models[kind]
         for go in gmodel.geometryObjects:
             if go.parentJoint != joint_id:
                 continue

@@ -28,12 +28,12 @@ class YamlReader:
     def __init__(self, data: Any, path: str, file: Path):
         self.data, self.path, self.file = data, path, file
 
-    def _fail(self, msg: str, fix: str) -> InputError:
+    def fail(self, msg: str, fix: str) -> InputError:
         return InputError(msg, file=str(self.file), element=f"key '{self.path}'", fix=fix)
 
     def mapping(self) -> dict:
         if not isinstance(self.data, dict):
-            raise self._fail(f"expected a mapping, got {type(self.data).__name__}",
+            raise self.fail(f"expected a mapping, got {type(self.data).__name__}",
                              "write it as 'key: value' lines")
         return self.data
 
@@ -42,37 +42,37 @@ class YamlReader:
         if allowed is not None:
             unknown = set(m) - allowed
             if unknown:
-                raise self._fail(f"unknown keys {sorted(unknown)}",
+                raise self.fail(f"unknown keys {sorted(unknown)}",
                                  f"use only {sorted(allowed)}")
         sub = f"{self.path}.{key}" if self.path else key
         if key not in m:
             if default is ...:
-                raise YamlReader(None, sub, self.file)._fail("missing", f"add '{key}:' to the sidecar")
+                raise YamlReader(None, sub, self.file).fail("missing", f"add '{key}:' to the sidecar")
             return YamlReader(default, sub, self.file)
         return YamlReader(m[key], sub, self.file)
 
     def str(self) -> str:
         if not isinstance(self.data, str) or not self.data:
-            raise self._fail(f"expected a name, got {self.data!r}", "give a joint or link name")
+            raise self.fail(f"expected a name, got {self.data!r}", "give a joint or link name")
         return self.data
 
     def float(self, *, min_value: float | None = None) -> float:
         if isinstance(self.data, bool) or not isinstance(self.data, (int, float)) \
                 or not math.isfinite(self.data):
-            raise self._fail(f"expected a finite number, got {self.data!r}", "give a number")
+            raise self.fail(f"expected a finite number, got {self.data!r}", "give a number")
         if min_value is not None and self.data < min_value:
-            raise self._fail(f"{self.data} is below {min_value}", f"give a value >= {min_value}")
+            raise self.fail(f"{self.data} is below {min_value}", f"give a value >= {min_value}")
         return float(self.data)
 
     def vec3(self) -> tuple[float, float, float]:
         if not isinstance(self.data, list) or len(self.data) != 3:
-            raise self._fail(f"expected [x, y, z], got {self.data!r}", "give three numbers")
+            raise self.fail(f"expected [x, y, z], got {self.data!r}", "give three numbers")
         return tuple(YamlReader(v, f"{self.path}[{i}]", self.file).float()
                      for i, v in enumerate(self.data))
 
     def str_list(self) -> tuple[str, ...]:
         if not isinstance(self.data, list):
-            raise self._fail(f"expected a list of names, got {self.data!r}", "write [a, b]")
+            raise self.fail(f"expected a list of names, got {self.data!r}", "write [a, b]")
         return tuple(YamlReader(v, f"{self.path}[{i}]", self.file).str()
                      for i, v in enumerate(self.data))
 
@@ -82,5 +82,5 @@ class YamlReader:
 
     def bool(self) -> bool:
         if not isinstance(self.data, bool):
-            raise self._fail(f"expected true or false, got {self.data!r}", "write true or false")
+            raise self.fail(f"expected true or false, got {self.data!r}", "write true or false")
         return self.data
