@@ -1,8 +1,12 @@
 """`footforge build`: description -> MJCF models of ANYmal C with a foot variant, checked.
 
 Outputs (in `out_dir`, written to a temporary folder first and renamed, never half-written):
-robot.xml, scene.xml, foot_rig.xml (or foot.xml and foot_rig.xml with `foot_only`), assets/ and
-build_report.json.
+- format mjcf: robot.xml, scene.xml, foot_rig.xml (or foot.xml and foot_rig.xml with
+  `foot_only`) and assets/;
+- format usd: robot.usda and robot.usd (binary), foot_rig.usda/.usd (foot.usda/.usd), exported
+  from the compiled MJCF models, validated by usd-core and compared with them;
+- always build_report.json.
+The default is both formats: the USD export costs a fraction of a second per model.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from footforge.urdf_import import parse_urdf
 
 VARIANTS = ("full", "aof", "aff", "ball")
 Variant = Literal["full", "aof", "aff", "ball"]
+FORMATS = ("mjcf", "usd")
 
 MASS_RTOL = 1e-9
 """Total mass and centre of mass of aff/aof must equal the closed chain's to this (relative)."""
@@ -73,6 +78,8 @@ class BuildOptions:
     decomposition: DecompositionConfig = DecompositionConfig()
     cache_dir: Path | None = None
     """CoACD cache; default ~/.cache/footforge/coacd (or $FOOTFORGE_CACHE)."""
+    formats: tuple[str, ...] = FORMATS
+    """Which outputs: "mjcf" (MuJoCo XML and assets) and/or "usd" (for Isaac Sim)."""
 
 
 class Stages:
@@ -206,6 +213,10 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
     """
     if options.variant not in VARIANTS:
         raise InputError(f"unknown variant '{options.variant}'", fix=f"use one of {', '.join(VARIANTS)}")
+    unknown = [f for f in options.formats if f not in FORMATS]
+    if unknown or not options.formats:
+        raise InputError(f"unknown output format '{', '.join(unknown)}'" if unknown else "no output format given",
+                         fix=f"use one or more of {', '.join(FORMATS)}, e.g. --format mjcf,usd")
     stage = Stages(progress)
     report: dict = {"format": REPORT_FORMAT, "variant": options.variant, "foot_only": options.foot_only,
                     "versions": _versions(), "machine": platform.platform(), "repairs": [], "warnings": []}
@@ -213,6 +224,9 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
     report["inputs"] = {"params": {"path": str(params.source), "sha256": _sha256(params.source)}}
     files: dict[str, str] = {}
     asset_sets: list[dict] = []
+    stages: dict[str, object] = {}
+    if "usd" in options.formats:
+        report["usd"] = {}
 
     foot = full_foot = None
     sidecar = None
@@ -255,13 +269,16 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
         files["foot_rig.xml"] = _xml(rig.mjcf, asset_sets)
         rig_model = foot_lib.compile_model(rig.mjcf)
         report["foot_rig"] = model_counts(rig_model) | {"payload_kg": params.rig_payload_mass}
+    _export_usd(options, stage, report, stages, "foot_rig", rig_model, "reference")
 
     if options.foot_only:
         if foot is None:
             raise InputError("--foot-only needs an adaptive foot variant", fix="use --variant full, aof or aff")
         with stage("write foot model"):
             files["foot.xml"] = _xml(foot.mjcf, asset_sets)
-            report["model"] = model_counts(foot_lib.compile_model(foot.mjcf))
+            foot_model = foot_lib.compile_model(foot.mjcf)
+            report["model"] = model_counts(foot_model)
+        _export_usd(options, stage, report, stages, "foot", foot_model, None)
     else:
         with stage("build robot"):
             robot_path = Path(options.robot_description or default_robot_description())
@@ -279,6 +296,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
             robot_model = foot_lib.compile_model(robot.mjcf)
             report["model"] = model_counts(robot_model)
             report["model"]["home_base_height_m"] = float(robot_model.key("home").qpos[2])
+        _export_usd(options, stage, report, stages, "robot", robot_model, "home")
         if options.variant == "full":
             with stage("check closures"):
                 data = massprops.at_keyframe(robot_model, "home")
@@ -296,8 +314,40 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
         raise CheckFailure("mass properties of the derived feet differ from the closed chain's beyond "
                            f"{MASS_RTOL:g}: {json.dumps(report['mass_properties_vs_full'])}",
                            fix="report this as a bug: derived bodies must be exact composites")
-    _write_atomically(options.out_dir, files, asset_sets, report)
+    if "mjcf" not in options.formats:
+        files, asset_sets = {}, []
+    _write_atomically(options.out_dir, files, asset_sets, report, stages)
     return report
+
+
+def _export_usd(options: BuildOptions, stage: Stages, report: dict, stages: dict, stem: str,
+                model: mujoco.MjModel, keyframe: str | None) -> None:
+    """Exports one compiled model to USD, validates it and compares it with the model.
+
+    Raises:
+      CheckFailure: usd-core's validators report errors, or the stage differs from the model.
+    """
+    if "usd" not in options.formats:
+        return
+    from footforge import usd
+
+    with stage(f"export {stem} to USD"):
+        exported = usd.export_model(model, name=stem, keyframe=keyframe)
+        findings = usd.validate_stage(exported.stage)
+        comparison = usd.compare_with_model(exported.stage, model, keyframe=keyframe)
+    errors = [f for f in findings if f["severity"] == "error"]
+    report["usd"][stem] = {"files": [f"{stem}.usda", f"{stem}.usd"], "keyframe": keyframe,
+                           "validation": findings, "vs_mjcf": comparison, "tolerances": usd.TOLERANCES,
+                           **exported.report()}
+    if errors:
+        raise CheckFailure(f"the exported {stem} USD stage fails usd-core's validation:\n" + "\n".join(
+            f"  {e['name']}: {e['message']} ({', '.join(e['prims'])})" for e in errors),
+            fix="report this as a bug in footforge's USD exporter; use --format mjcf meanwhile")
+    failures = usd.comparison_failures(comparison)
+    if failures:
+        raise CheckFailure(f"the exported {stem} USD stage differs from its MJCF model:\n  " + "\n  ".join(failures),
+                           fix="report this as a bug in footforge's USD exporter; use --format mjcf meanwhile")
+    stages[stem] = exported.stage
 
 
 def _check_sidecar_names(parsed, sidecar: Sidecar) -> None:
@@ -325,18 +375,26 @@ def _xml(root: mjcf.RootElement, asset_sets: list[dict]) -> str:
     return etree.tostring(tree, pretty_print=True, encoding="unicode")
 
 
-def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dict], report: dict) -> None:
+def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dict], report: dict,
+                      stages: Mapping[str, object] = {}) -> None:
     out_dir = Path(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
     try:
-        (tmp / "assets").mkdir()
-        for assets in asset_sets:
-            for name, contents in assets.items():
-                (tmp / "assets" / name).write_bytes(contents)
+        outputs = sorted(files)
+        if asset_sets:
+            (tmp / "assets").mkdir()
+            outputs.append("assets/")
+            for assets in asset_sets:
+                for name, contents in assets.items():
+                    (tmp / "assets" / name).write_bytes(contents)
         for name, text in files.items():
             (tmp / name).write_text(text)
-        report["outputs"] = sorted(files) + ["assets/", "build_report.json"]
+        if stages:
+            from footforge.usd import write_stage
+            for stem, usd_stage in stages.items():
+                outputs += write_stage(usd_stage, tmp, stem)
+        report["outputs"] = outputs + ["build_report.json"]
         (tmp / "build_report.json").write_text(json.dumps(report, indent=2, default=_json_default) + "\n")
         if out_dir.exists():
             old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
@@ -363,7 +421,7 @@ def _json_default(value):
 def _versions() -> dict[str, str]:
     from importlib.metadata import PackageNotFoundError, version
     out = {}
-    for pkg in ("footforge", "mujoco", "dm-control", "pin", "coacd", "trimesh", "xacro"):
+    for pkg in ("footforge", "mujoco", "dm-control", "pin", "coacd", "trimesh", "xacro", "usd-core"):
         try:
             out[pkg] = version(pkg)
         except PackageNotFoundError:

@@ -45,6 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--max-hull-vertices", type=int, default=64, help="vertex cap per convex hull (default 64)")
     b.add_argument("--coacd-timeout", type=float, default=120.0, help="seconds before CoACD is stopped")
     b.add_argument("--cache-dir", type=Path, help="CoACD cache folder (default ~/.cache/footforge/coacd)")
+    b.add_argument("--format", default="mjcf,usd", metavar="FORMATS",
+                   help="comma-separated outputs: mjcf (MuJoCo XML), usd (robot.usda/.usd for Isaac Sim); "
+                        "default mjcf,usd")
     b.add_argument("--out", type=Path, help="output folder (default build/<variant>)")
 
     c = sub.add_parser("check", help="report physical and structural defects of a URDF or xacro")
@@ -73,6 +76,7 @@ def _run_build(args, console) -> int:
         foot_description=args.description, sidecar=args.sidecar, robot_description=args.robot,
         package_paths=tuple(args.package_path), foot_args=parse_args(args.arg), params=args.params,
         repair=args.repair, cache_dir=args.cache_dir,
+        formats=tuple(f.strip() for f in args.format.split(",") if f.strip()),
         decomposition=DecompositionConfig(max_hull_vertices=args.max_hull_vertices, timeout_s=args.coacd_timeout))
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
                   console=console, transient=True) as progress:
@@ -107,6 +111,11 @@ def _print_summary(report: dict, out_dir: Path, console) -> None:
     for mesh in report.get("collision", {}).get("meshes", []):
         table.add_row(f"hulls {Path(mesh['mesh']).name}",
                       f"{mesh['hulls']} (max {max(mesh['vertices'])} vertices{', cached' if mesh['cached'] else ''})")
+    for stem, u in report.get("usd", {}).items():
+        c = u["vs_mjcf"]
+        table.add_row(f"USD {stem}", f"valid; vs MJCF: mass {c['mass_rel']:.1e}, anchors {c['anchor_m']:.1e} m, "
+                      f"axes {c['axis_rad']:.1e} rad; {len(u['unsupported'])} item(s) not carried "
+                      "(build_report.json: usd.unsupported)")
     for note in report.get("repairs", []):
         table.add_row("[yellow]repaired[/yellow]", note)
     table.add_row("time", f"{sum(report['timings_s'].values()):.2f} s")

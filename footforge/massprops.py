@@ -40,3 +40,25 @@ def summary(inertia: pin.Inertia) -> dict:
     """Total mass (kg), centre of mass (m) and centroidal inertia (kg m^2, world axes)."""
     return {"mass_kg": float(inertia.mass), "com_m": np.array(inertia.lever).tolist(),
             "centroidal_inertia_kgm2": np.array(inertia.inertia).tolist()}
+
+
+def weld_group_inertia(model: mujoco.MjModel, data: mujoco.MjData, root_id: int) -> pin.Inertia:
+    """Composite spatial inertia (world coordinates) of the bodies MuJoCo welds to `root_id`:
+    the bodies without joints of their own between it and the next jointed body. Together they
+    move as one rigid body, which is what a USD or PhysX rigid body represents."""
+    total = pin.Inertia.Zero()
+    for b in range(1, model.nbody):
+        if model.body_weldid[b] == root_id:
+            total += body_inertia_world(model, data, b)
+    return total
+
+
+def principal_axes(inertia_3x3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Principal moments (ascending) and the rotation (wxyz quaternion, right-handed) whose
+    columns are the principal axes: inertia = R diag(moments) R^T."""
+    moments, axes = np.linalg.eigh(0.5 * (inertia_3x3 + inertia_3x3.T))
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1.0
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, axes.flatten())
+    return moments, quat
