@@ -113,7 +113,7 @@ def compare_with_model(stage: Usd.Stage, model: mujoco.MjModel, *, keyframe: str
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
     usd = read_stage(stage)
-    name = lambda obj, i: mujoco.mj_id2name(model, obj, i)  # noqa: E731
+    name = lambda obj, i: mujoco.mj_id2name(model, obj, i)
     roots = {name(mujoco.mjtObj.mjOBJ_BODY, b): b for b in range(1, model.nbody) if model.body_weldid[b] == b}
     out = {"bodies_missing": sorted(set(roots) - set(usd["bodies"])),
            "bodies_extra": sorted(set(usd["bodies"]) - set(roots)),
