@@ -288,3 +288,32 @@ def test_export_is_deterministic(built):
     model = _model(built, "aof", "robot")
     first, second = (export_model(model, name="robot", keyframe="home") for _ in range(2))
     assert first.stage.GetRootLayer().ExportToString() == second.stage.GetRootLayer().ExportToString()
+
+
+def test_unsupported_constructs_are_named_not_dropped_silently():
+    """A model with constructs UsdPhysics lacks: each is reported by element, and the stage
+    still validates."""
+    xml = """<mujoco>
+      <worldbody>
+        <body name="a" pos="0 0 1">
+          <freejoint/>
+          <geom name="egg" type="ellipsoid" size=".1 .2 .3"/>
+          <body name="b" pos="0 0 -.5">
+            <joint name="j1" axis="0 1 1" frictionloss="0.2"/>
+            <joint name="j2" axis="1 0 0"/>
+            <geom name="box" type="box" size=".1 .1 .1"/>
+          </body>
+        </body>
+      </worldbody>
+      <sensor><framepos name="p" objtype="body" objname="a"/></sensor>
+    </mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    exported = export_model(model, name="odd")
+    elements = {u.element: u for u in exported.unsupported}
+    assert "geom type mjGEOM_ELLIPSOID" in elements["geom 'egg'"].feature
+    assert "2 joints on one body" in elements["body 'b'"].feature
+    assert "dry friction 0.2" in elements["joint 'j1'"].feature
+    assert "sensors (1)" in elements
+    assert not [f for f in validate_stage(exported.stage) if f["severity"] == "error"]
+    token, _ = axis_frame(model.jnt_axis[1])
+    assert token == "X"  # a skew axis: the joint frame is rotated instead

@@ -124,13 +124,13 @@ def _add_joint(ctx: ExportContext, scope: Sdf.Path, j: int, terms: DriveTerms | 
                 drive.CreateMaxForceAttr(float(terms.max_force))
             prim.SetCustomDataByKey("footforge:role", terms.role)
         dof = int(m.jnt_dofadr[j])
-        lost = {key: (float(value), unit) for key, value, unit in (
-            ("dryFriction", m.dof_frictionloss[dof], "N m" if revolute else "N"),
-            ("armature", m.dof_armature[dof], "kg m^2" if revolute else "kg")) if value}
-        for key, (value, _) in lost.items():
+        lost = [(key, label, float(value), unit) for key, label, value, unit in (
+            ("frictionloss", "dry friction", m.dof_frictionloss[dof], "N m" if revolute else "N"),
+            ("armature", "armature", m.dof_armature[dof], "kg m^2" if revolute else "kg")) if value]
+        for key, _, value, _ in lost:
             prim.SetCustomDataByKey(f"footforge:{key}", value)
         if lost:
-            ctx.lose(f"joint '{name}'", ", ".join(f"{k} {v:g} {u}" for k, (v, u) in lost.items()),
+            ctx.lose(f"joint '{name}'", ", ".join(f"{label} {v:g} {u}" for _, label, v, u in lost),
                      "recorded in customData only (PhysX: PhysxJointAPI jointFriction and armature)")
     return path
 
