@@ -231,31 +231,8 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
     foot = full_foot = None
     sidecar = None
     if options.variant != "ball":
-        with stage("read foot description"):
-            path = Path(options.foot_description or default_foot_description())
-            description = load_description(path, args=options.foot_args, package_paths=options.package_paths)
-            description, findings, notes = checked_description(description, repair=options.repair, what="foot")
-            report["repairs"] += [f"{path.name}: {n}" for n in notes]
-            report["warnings"] += [f"{path.name}: {f.element}: {f.message}" for f in findings]
-            sidecar_path = Path(options.sidecar) if options.sidecar else default_sidecar_path(path)
-            sidecar = load_sidecar(sidecar_path)
-            report["inputs"]["foot_description"] = {"path": str(description.source), "sha256": _sha256(description.source),
-                                                    "args": dict(options.foot_args)}
-            report["inputs"]["sidecar"] = {"path": str(sidecar.source), "sha256": _sha256(sidecar.source)}
-            report["link_inertia_checks"] = {"foot": link_inertia_checks(description, findings)}
-            parsed = parse_urdf(description, floating=True)
-            _check_sidecar_names(parsed, sidecar)
-        with stage("solve reference pose"):
-            reference = kinematics.reference_pose(parsed, sidecar)
-        with stage("decompose collision meshes"):
-            hull_report = []
-            hulls = foot_lib.decompose_collision_meshes(
-                parsed, options.decomposition, cache_dir=options.cache_dir,
-                progress=lambda mesh, h: hull_report.append(
-                    {"mesh": str(mesh), "hulls": len(h.vertices), "vertices": [len(v) for v in h.vertices],
-                     "decomposed": h.decomposed, "cached": h.cached}))
-            report["collision"] = {"config": asdict(options.decomposition), "meshes": hull_report}
-        source = foot_lib.FootSource(parsed, sidecar, params, reference, hulls)
+        source = load_foot_source(options, stage, report)
+        sidecar = source.sidecar
         with stage(f"build {options.variant} foot"):
             full_foot = foot_lib.build_full(source)
             foot = full_foot if options.variant == "full" else foot_lib.build_derived(source, options.variant, full=full_foot)
@@ -265,7 +242,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
 
     friction = sidecar.friction if sidecar else 0.8
     with stage("build rig"):
-        rig = build_rig(foot, 0.03, variant=options.variant, params=params, friction=friction)
+        rig = build_rig(foot, C.BALL_FOOT_RADIUS_M, variant=options.variant, params=params, friction=friction)
         files["foot_rig.xml"] = _xml(rig.mjcf, asset_sets)
         rig_model = foot_lib.compile_model(rig.mjcf)
         report["foot_rig"] = model_counts(rig_model) | {"payload_kg": params.rig_payload_mass}
@@ -348,6 +325,42 @@ def _export_usd(options: BuildOptions, stage: Stages, report: dict, stages: dict
         raise CheckFailure(f"the exported {stem} USD stage differs from its MJCF model:\n  " + "\n  ".join(failures),
                            fix="report this as a bug in footforge's USD exporter; use --format mjcf meanwhile")
     stages[stem] = exported.stage
+
+
+def load_foot_source(options: BuildOptions, stage: Stages, report: dict) -> foot_lib.FootSource:
+    """Reads and checks the foot description and its sidecar, solves the reference pose and
+    decomposes the collision meshes: everything every foot variant is built from.
+
+    Raises:
+      InputError, CheckFailure: as `build`.
+    """
+    params = load_params(options.params)
+    with stage("read foot description"):
+        path = Path(options.foot_description or default_foot_description())
+        description = load_description(path, args=options.foot_args, package_paths=options.package_paths)
+        description, findings, notes = checked_description(description, repair=options.repair, what="foot")
+        report.setdefault("repairs", []).extend(f"{path.name}: {n}" for n in notes)
+        report.setdefault("warnings", []).extend(f"{path.name}: {f.element}: {f.message}" for f in findings)
+        sidecar_path = Path(options.sidecar) if options.sidecar else default_sidecar_path(path)
+        sidecar = load_sidecar(sidecar_path)
+        inputs = report.setdefault("inputs", {})
+        inputs["foot_description"] = {"path": str(description.source), "sha256": _sha256(description.source),
+                                      "args": dict(options.foot_args)}
+        inputs["sidecar"] = {"path": str(sidecar.source), "sha256": _sha256(sidecar.source)}
+        report["link_inertia_checks"] = {"foot": link_inertia_checks(description, findings)}
+        parsed = parse_urdf(description, floating=True)
+        _check_sidecar_names(parsed, sidecar)
+    with stage("solve reference pose"):
+        reference = kinematics.reference_pose(parsed, sidecar)
+    with stage("decompose collision meshes"):
+        hull_report = []
+        hulls = foot_lib.decompose_collision_meshes(
+            parsed, options.decomposition, cache_dir=options.cache_dir,
+            progress=lambda mesh, h: hull_report.append(
+                {"mesh": str(mesh), "hulls": len(h.vertices), "vertices": [len(v) for v in h.vertices],
+                 "decomposed": h.decomposed, "cached": h.cached}))
+        report["collision"] = {"config": asdict(options.decomposition), "meshes": hull_report}
+    return foot_lib.FootSource(parsed, sidecar, params, reference, hulls)
 
 
 def _check_sidecar_names(parsed, sidecar: Sidecar) -> None:

@@ -29,3 +29,6 @@ DEFAULT_JOINT_ANGLES_RAD = {
 
 ROBOT_MASS_KG = 52.13485
 """ANYmal C with its ball feet, as published."""
+
+BALL_FOOT_RADIUS_M = 0.03
+"""ANYmal C's ball foot (the description's ball_radius); its centre is the foot mount."""

@@ -91,9 +91,9 @@ def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, 
     return out
 
 
-def _new_root(name: str, sidecar: Sidecar) -> mjcf.RootElement:
+def _new_root(name: str, sidecar: Sidecar, params: VariantParams) -> mjcf.RootElement:
     root = mjcf.RootElement(model=name)
-    add_default_classes(root, friction=sidecar.friction)
+    add_default_classes(root, friction=sidecar.friction, contact_solref=params.contact_solref)
     return root
 
 
@@ -116,7 +116,7 @@ def _root_body(source: FootSource, root: mjcf.RootElement, assets: MeshAssets, h
 
 def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     parsed, sidecar = source.parsed, source.sidecar
-    root = _new_root(name, sidecar)
+    root = _new_root(name, sidecar, source.params)
     for fam in FAMILIES:
         d = sidecar.joint_dynamics[fam]
         root.default.add("default", dclass=fam).joint.set_attributes(
@@ -200,6 +200,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
     """
     parsed, sidecar, params = source.parsed, source.sidecar, source.params
     joints = params.aff if variant == "aff" else params.aof
+    sole_lift = params.sole_lift_m[variant]
     ref_model, ref_data = _compiled_full(full or build_full(source, name="reference"))
     q = source.reference.q
     data = parsed.model.createData()
@@ -211,7 +212,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
     chain = [j for j, f in families.items() if f == "chain"]
     other = [j for j, f in families.items() if f == "other"]
 
-    root = _new_root(name, sidecar)
+    root = _new_root(name, sidecar, source.params)
     root.default.add("default", dclass=DERIVED_JOINT_CLASS).joint.set_attributes(type="hinge", limited="true")
     assets = MeshAssets(root)
     root_body = _root_body(source, root, assets, _hull_geoms(source, assets))
@@ -236,8 +237,9 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
                 continue
             local = (pts - frame.translation) @ frame.rotation
             lo, hi = local.min(0), local.max(0)
+            lift = np.array([0.0, 0.0, sole_lift if group_name.startswith("sole") else 0.0])
             body.add("geom", name=f"{group_name}_collision", dclass="collision", type="box",
-                     pos=(lo + hi) / 2, size=(hi - lo) / 2)
+                     pos=(lo + hi) / 2 + lift, size=(hi - lo) / 2)
         return body
 
     # The pitch hinge sits at the arch pivot, on the arch joints' common axis.

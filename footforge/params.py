@@ -53,10 +53,17 @@ class VariantParams:
     """m; chain links ahead of this plane form the front sole."""
     aof_sole_range: tuple[float, float]
     """rad."""
+    sole_lift_m: dict[str, float]
+    """Per derived variant (aff, aof): how far the sole's collision box is raised above the closed
+    chain's lowest point at the slack reference pose, m. Under load the chain flattens and the
+    ankle sinks; a lift lets the rigid sole stand at the loaded chain's height (calibrated)."""
     rig_payload_mass: float
     """kg."""
     rig_slider_damping: float
     """N s/m."""
+    contact_solref: tuple[float, float]
+    """MuJoCo solref (timeconst s, damping ratio) of the robot's and feet's collision geoms: the
+    rubber sole pad's contact stiffness, dominant over the ground's (see urdf_import.CONTACT_SOLMIX)."""
 
 
 _JOINTS = {"aff": ("ankle_pitch", "ankle_roll"),
@@ -86,7 +93,7 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     path = Path(path) if path else default_params_path()
     top = YamlReader(read_yaml(path, what="parameter file", fix="pass an existing file to --params"),
                      "", path)
-    top.get("format", allowed={"format", "full", "simplified", "aff", "aof", "rig"})
+    top.get("format", allowed={"format", "full", "simplified", "aff", "aof", "rig", "contact"})
     full = top.get("full")
     full.get("timestep", allowed={"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp"})
     iterations = full.get("iterations").float(min_value=1)
@@ -102,22 +109,32 @@ def load_params(path: str | Path | None = None) -> VariantParams:
             "MuJoCo cannot integrate a constraint faster than 2 steps: raise it or lower the timestep")
     simplified = top.get("simplified")
     simplified.get("timestep", allowed={"timestep"})
-    variants = {}
+    variants, lifts = {}, {}
     for variant, names in _JOINTS.items():
         r = top.get(variant)
-        extra = {"split_x", "sole_range"} if variant == "aof" else set()
+        extra = {"split_x", "sole_range", "sole_lift_m"} if variant == "aof" else {"sole_lift_m"}
         r.get(names[0], allowed=set(names) | extra)
         variants[variant] = {n: _passive(r.get(n)) for n in names}
+        lifts[variant] = r.get("sole_lift_m", 0.0).float(min_value=0.0, max_value=0.05)
     aof = top.get("aof")
     sole_range = _pair(aof.get("sole_range"), 2)
     if sole_range[0] >= sole_range[1]:
         raise aof.get("sole_range").fail(f"empty range {list(sole_range)}", "give [lower, upper] with lower < upper")
     rig = top.get("rig")
     rig.get("payload_mass", allowed={"payload_mass", "slider_damping"})
+    contact = top.get("contact")
+    contact.get("solref", allowed={"solref"})
+    contact_solref = _pair(contact.get("solref"), 2)
+    slowest_step = max(settings.timestep, simplified.get("timestep").float(min_value=1e-6))
+    if contact_solref[0] < 2 * slowest_step:
+        raise contact.get("solref").fail(
+            f"timeconst {contact_solref[0]} is below twice the timestep {slowest_step}",
+            "MuJoCo cannot integrate a contact faster than 2 steps: raise it to at least twice every timestep")
     return VariantParams(
         source=path.resolve(), full=settings,
         simplified_timestep=simplified.get("timestep").float(min_value=1e-6),
         aff=variants["aff"], aof=variants["aof"],
-        aof_split_x=aof.get("split_x").float(), aof_sole_range=sole_range,
+        aof_split_x=aof.get("split_x").float(), aof_sole_range=sole_range, sole_lift_m=lifts,
         rig_payload_mass=rig.get("payload_mass").float(min_value=0.0),
-        rig_slider_damping=rig.get("slider_damping", 0.0).float(min_value=0.0))
+        rig_slider_damping=rig.get("slider_damping", 0.0).float(min_value=0.0),
+        contact_solref=contact_solref)

@@ -55,7 +55,7 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
     model = parsed.model
     root = mjcf.RootElement(model=f"anymal_c_{variant}")
     _options(root, variant, params)
-    add_default_classes(root, friction=friction)
+    add_default_classes(root, friction=friction, contact_solref=params.contact_solref)
     root.default.add("default", dclass="leg").joint.set_attributes(type="hinge")
     actuator_class = root.default.add("default", dclass="leg_actuator")
     actuator_class.position.set_attributes(kp=C.KP_NM_PER_RAD, kv=C.KD_NMS_PER_RAD,
@@ -127,22 +127,24 @@ def _add_home_keyframe(root: mjcf.RootElement, foot: FootModel | None) -> None:
 
 
 def build_rig(foot: FootModel | None, ball_radius: float | None, *, variant: str, params: VariantParams,
-              friction: float) -> BuiltModel:
+              friction: float, mount_quat=None) -> BuiltModel:
     """One foot under a vertical slider carrying the payload, over a floor (the drop-test rig).
 
     The slider's zero puts the foot mount at z = 0; keyframe 'reference' rests the foot's lowest
-    point on the floor with the foot at its reference pose.
+    point on the floor with the foot at its reference pose. `mount_quat` (wxyz) tilts the foot
+    mount relative to the carriage: a leg meeting the ground at an angle.
     """
     root = mjcf.RootElement(model=f"foot_rig_{variant}")
     _options(root, variant, params)
-    add_default_classes(root, friction=friction)
+    add_default_classes(root, friction=friction, contact_solref=params.contact_solref)
     _add_floor(root)
     carriage = root.worldbody.add("body", name="carriage")
     carriage.add("joint", name="slider", type="slide", axis=[0, 0, 1], damping=params.rig_slider_damping)
     carriage.add("inertial", pos=[0, 0, 0.1], mass=params.rig_payload_mass, diaginertia=[0.05, 0.05, 0.05])
     carriage.add("geom", name="payload_visual", dclass="visual", type="box", size=[0.04, 0.04, 0.04],
                  pos=[0, 0, 0.1], rgba=[0.3, 0.3, 0.35, 1])
-    mount = carriage.add("site", name="mount", size=[0.005], group=4)
+    mount = carriage.add("site", name="mount", size=[0.005], group=4,
+                         quat=list(mount_quat) if mount_quat is not None else None)
     root.sensor.add("jointpos", name="slider_pos", joint="slider")
     root.sensor.add("jointvel", name="slider_vel", joint="slider")
     if foot is None:  # the ball foot: a sphere whose centre is the mount (the default mount offset)

@@ -56,12 +56,14 @@ class YamlReader:
             raise self.fail(f"expected a name, got {self.data!r}", "give a joint or link name")
         return self.data
 
-    def float(self, *, min_value: float | None = None) -> float:
+    def float(self, *, min_value: float | None = None, max_value: float | None = None) -> float:
         if isinstance(self.data, bool) or not isinstance(self.data, (int, float)) \
                 or not math.isfinite(self.data):
             raise self.fail(f"expected a finite number, got {self.data!r}", "give a number")
         if min_value is not None and self.data < min_value:
             raise self.fail(f"{self.data} is below {min_value}", f"give a value >= {min_value}")
+        if max_value is not None and self.data > max_value:
+            raise self.fail(f"{self.data} is above {max_value}", f"give a value <= {max_value}")
         return float(self.data)
 
     def vec3(self) -> tuple[float, float, float]:

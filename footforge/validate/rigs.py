@@ -1,0 +1,49 @@
+"""The rig of every (scenario, variant), as MJCF text and assets for worker processes."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from footforge import constants as C
+from footforge import foot as foot_lib
+from footforge.params import VariantParams
+from footforge.robot import build_rig
+from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
+from footforge.validate.simulate import SOLE_BODY_PREFIXES, RigCase
+
+VALIDATE_VARIANTS = ("full", "aof", "aff", "ball")
+
+
+def build_feet(source: foot_lib.FootSource, variants) -> dict[str, foot_lib.FootModel | None]:
+    """The closed chain and each requested variant (None for the ball), from one source."""
+    full = foot_lib.build_full(source)
+    feet: dict[str, foot_lib.FootModel | None] = {"full": full}
+    for v in variants:
+        if v in ("aof", "aff"):
+            feet[v] = foot_lib.build_derived(source, v, full=full)
+        elif v == "ball":
+            feet[v] = None
+    return feet
+
+
+def sole_extent(full: foot_lib.FootModel) -> SoleExtent:
+    """Half-length and half-width of the closed chain's sole collision geometry (reference pose)."""
+    model = foot_lib.compile_model(full.mjcf)
+    data = mujoco.MjData(model)
+    for joint, q in full.reference_qpos.items():
+        data.qpos[model.jnt_qposadr[model.joint(joint).id]] = q
+    mujoco.mj_kinematics(model, data)
+    sole = [model.body(b).name for b in range(model.nbody) if model.body(b).name.startswith(SOLE_BODY_PREFIXES)]
+    pts = foot_lib.collision_points(model, data, sole)
+    centre = data.xpos[model.body(full.root_body).id]
+    return SoleExtent(half_length_m=float(np.abs(pts[:, 0] - centre[0]).max()),
+                      half_width_m=float(np.abs(pts[:, 1] - centre[1]).max()))
+
+
+def rig_case(foot: foot_lib.FootModel | None, variant: str, scenario: Scenario, sole: SoleExtent,
+             params: VariantParams, friction: float) -> RigCase:
+    rig = build_rig(foot, C.BALL_FOOT_RADIUS_M, variant=variant, params=params, friction=friction,
+                    mount_quat=mount_quat(scenario))
+    add_obstacle(rig.mjcf, scenario, sole)
+    return RigCase(scenario, variant, rig.mjcf.to_xml_string(), rig.mjcf.get_assets())

@@ -1,0 +1,201 @@
+"""One drop test: compile the scenario's rig, release the foot, record what the ground feels.
+
+Runs in a worker process: inputs are plain MJCF text and asset bytes, outputs plain arrays.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from footforge.foot import geom_points
+from footforge.validate.scenarios import Scenario
+
+SAMPLE_DT_S = 0.001
+"""Recording interval, s (every variant is sampled on the same grid)."""
+SOLE_BODY_PREFIXES = ("chain_", "sole")
+"""Bodies (after the `foot/` prefix) whose bottoms form the sole: the closed chain's links, the
+derived feet's sole bodies."""
+SETTLE_BAND_M = 0.0005
+"""Settling: the mount stays within this of its final height."""
+
+
+@dataclass(frozen=True)
+class RigCase:
+    """A compiled-to-be rig for one (scenario, variant)."""
+
+    scenario: Scenario
+    variant: str
+    xml: str
+    assets: dict
+
+
+def _foot_bodies(model: mujoco.MjModel) -> np.ndarray:
+    carriage = model.body("carriage").id
+    return np.array([b for b in range(model.nbody) if b and (b == carriage or model.body_rootid[b] == model.body_rootid[carriage])])
+
+
+def _sole_points(model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[int, np.ndarray]]:
+    """Material points on the bottom of each sole body (within 1 mm of its lowest collision
+    point at the reference pose), as (body, point in the body frame)."""
+    out = []
+    for b in range(model.nbody):
+        name = model.body(b).name
+        if not name.startswith("foot/") or not name[5:].startswith(SOLE_BODY_PREFIXES):
+            continue
+        pts = [geom_points(model, data, g) for g in np.flatnonzero(model.geom_bodyid == b)
+               if model.geom_conaffinity[g] and int(model.geom_type[g]) in (mujoco.mjtGeom.mjGEOM_MESH, mujoco.mjtGeom.mjGEOM_BOX)]
+        if not pts:
+            continue
+        pts = np.concatenate(pts)
+        bottom = pts[pts[:, 2] <= pts[:, 2].min() + 1e-3]
+        Rb, pb = data.xmat[b].reshape(3, 3), data.xpos[b]
+        out += [(b, (q - pb) @ Rb) for q in bottom]
+    return out
+
+
+def _sole_orientation(data: mujoco.MjData, points: list[tuple[int, np.ndarray]]) -> tuple[float, float]:
+    """Pitch and roll (rad) of the least-squares plane through the sole points, world frame.
+    Pitch positive: toe down; roll positive: left side down (right-hand rotations about y, x)."""
+    if len(points) < 3:
+        return float("nan"), float("nan")
+    world = np.array([data.xmat[b].reshape(3, 3) @ p + data.xpos[b] for b, p in points])
+    A = np.c_[np.ones(len(world)), world[:, 0], world[:, 1]]
+    (_, slope_x, slope_y), *_ = np.linalg.lstsq(A, world[:, 2], rcond=None)
+    return float(-np.arctan(slope_x)), float(np.arctan(slope_y))
+
+
+def _ground_contacts(model, data, foot_bodies_mask):
+    """(world position, world force on the foot, penetration) of every foot-ground contact."""
+    out = []
+    force = np.zeros(6)
+    for i in range(data.ncon):
+        c = data.contact[i]
+        b1, b2 = model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]
+        if foot_bodies_mask[b1] == foot_bodies_mask[b2]:
+            continue
+        mujoco.mj_contactForce(model, data, i, force)
+        f_world = c.frame.reshape(3, 3).T @ force[:3]  # on geom2, along the normal from geom1 to geom2
+        if foot_bodies_mask[b1]:
+            f_world = -f_world
+        out.append((c.pos.copy(), f_world, max(0.0, -c.dist)))
+    return out
+
+
+def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
+    """Sets the slider so the foot's lowest point is `drop_height_m` above the obstacle
+    (bisection on the first contact; works for every geom type, heightfields included)."""
+    def touching(z):
+        data.qpos[slider_adr] = z
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        return any(foot_mask[model.geom_bodyid[data.contact[i].geom1]] != foot_mask[model.geom_bodyid[data.contact[i].geom2]]
+                   and data.contact[i].dist < 0 for i in range(data.ncon))
+    lo, hi = -0.5, 0.5
+    while not touching(lo):
+        lo -= 0.5
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if touching(mid) else (lo, mid)
+    data.qpos[slider_adr] = hi + drop_height_m
+    mujoco.mj_forward(model, data)
+
+
+def run(case: RigCase) -> dict:
+    """Simulates one case; returns time series (sampled every SAMPLE_DT_S) and scalars."""
+    scenario = case.scenario
+    model = mujoco.MjModel.from_xml_string(case.xml, case.assets)
+    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("reference").id)
+    mujoco.mj_forward(model, data)
+    foot_mask = np.zeros(model.nbody, bool)
+    foot_mask[_foot_bodies(model)] = True
+    sole = _sole_points(model, data)
+    slider = model.joint("slider")
+    _place(model, data, int(slider.qposadr[0]), foot_mask, scenario.drop_height_m)
+    closures = [(int(model.eq_obj1id[e]), int(model.eq_obj2id[e])) for e in range(model.neq)
+                if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT and model.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE]
+    mount = model.site("mount").id
+    steps = int(round(scenario.duration_s / model.opt.timestep))
+    every = max(1, int(round(SAMPLE_DT_S / model.opt.timestep)))
+    n = steps // every + 1
+    series = {k: np.full(n, np.nan) for k in ("time_s", "force_z_n", "height_m", "pitch_rad", "roll_rad", "contacts",
+                                              "cop_x_m", "cop_y_m", "spread_m", "penetration_m", "closure_gap_m", "energy_j")}
+    failed = None
+    t0 = time.perf_counter()
+    for k in range(steps + 1):
+        if k % every == 0:
+            i = k // every
+            contacts = _ground_contacts(model, data, foot_mask)
+            fz = sum(f[2] for _, f, _ in contacts)
+            series["time_s"][i] = data.time
+            series["force_z_n"][i] = fz
+            series["height_m"][i] = data.site_xpos[mount][2]
+            series["pitch_rad"][i], series["roll_rad"][i] = _sole_orientation(data, sole)
+            series["contacts"][i] = len(contacts)
+            series["penetration_m"][i] = max((p for *_, p in contacts), default=0.0)
+            weights = np.array([max(f[2], 0.0) for _, f, _ in contacts])
+            if weights.sum() > 1e-9:
+                pos = np.array([p for p, _, _ in contacts])[:, :2] - data.site_xpos[mount][:2]
+                cop = weights @ pos / weights.sum()
+                series["cop_x_m"][i], series["cop_y_m"][i] = cop
+                series["spread_m"][i] = float(np.sqrt(weights @ ((pos - cop) ** 2).sum(axis=1) / weights.sum()))
+            series["closure_gap_m"][i] = max((np.linalg.norm(data.site_xpos[a] - data.site_xpos[b]) for a, b in closures),
+                                             default=0.0)
+            series["energy_j"][i] = data.energy.sum()
+        if k == steps:
+            break
+        mujoco.mj_step(model, data)
+        if not np.isfinite(data.qacc).all() or any(w.number for w in data.warning):
+            warnings = [mujoco.mjtWarning(j).name for j, w in enumerate(data.warning) if w.number]
+            failed = f"step {k}: " + (", ".join(warnings) if warnings else "non-finite acceleration")
+            break
+    wall = time.perf_counter() - t0
+    return {"scenario": scenario.name, "variant": case.variant, "series": series,
+            "scalars": scalars(series, model, failed), "failed": failed, "wall_s": wall, "steps": k,
+            "timestep_s": model.opt.timestep, "supported_weight_n": float(
+                -model.opt.gravity[2] * sum(model.body_mass[b] for b in np.flatnonzero(foot_mask)))}
+
+
+def scalars(s: dict, model: mujoco.MjModel, failed: str | None) -> dict:
+    """The per-run figures of the report, from the recorded series."""
+    t, f, h = s["time_s"], s["force_z_n"], s["height_m"]
+    ok = np.isfinite(h)
+    if failed or not ok.any():
+        return {"failed": True}
+    touched = np.flatnonzero(f > 1e-6)
+    first = int(touched[0]) if touched.size else 0
+    final_h = float(np.nanmean(h[-50:]))
+    outside = np.flatnonzero(np.abs(h - final_h) > SETTLE_BAND_M)
+    settle = float(t[outside[-1]] - t[first]) if outside.size else 0.0
+    # Compression phase: from first contact until the mount stops descending.
+    v = np.gradient(h, t)
+    rising = np.flatnonzero(v[first:] >= 0)
+    end = first + int(rising[0]) if rising.size else len(t) - 1
+    impulse = float(np.trapezoid(f[first:end + 1], t[first:end + 1])) if end > first else 0.0
+    low = first + int(np.argmin(h[first:end + 1])) if end > first else first
+    rebound = float(max(0.0, np.nanmax(h[low:]) - final_h))
+    peak = int(np.nanargmax(f))
+    cop = np.c_[s["cop_x_m"], s["cop_y_m"]]
+    tail = slice(-50, None)
+    cop_final = np.nanmean(cop[tail], axis=0)
+    slip = float(np.linalg.norm(cop_final - cop[peak])) if np.isfinite(cop[peak]).all() else float("nan")
+    # Released at rest, the rig has only gravity (in the energy), springs (in it too) and
+    # dissipative forces acting: its energy may never exceed the initial value.
+    energy = s["energy_j"]
+    gain = float(np.nanmax(energy) - energy[0])
+    return {
+        "peak_force_n": float(f[peak]), "impulse_ns": impulse, "settling_time_s": settle,
+        "final_height_m": final_h, "final_force_n": float(np.nanmean(f[tail])),
+        "final_pitch_deg": float(np.degrees(np.nanmean(s["pitch_rad"][tail]))),
+        "final_roll_deg": float(np.degrees(np.nanmean(s["roll_rad"][tail]))),
+        "contacts": float(np.nanmean(s["contacts"][tail])), "cop_x_mm": float(cop_final[0] * 1e3),
+        "cop_y_mm": float(cop_final[1] * 1e3), "spread_mm": float(np.nanmean(s["spread_m"][tail]) * 1e3),
+        "rebound_mm": rebound * 1e3, "slip_mm": slip * 1e3,
+        "max_penetration_mm": float(np.nanmax(s["penetration_m"]) * 1e3),
+        "max_closure_gap_mm": float(np.nanmax(s["closure_gap_m"]) * 1e3),
+        "energy_gain_j": gain, "failed": False}
