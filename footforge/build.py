@@ -13,10 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import platform
-import shutil
-import tempfile
 import time
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
@@ -31,6 +28,7 @@ from lxml import etree
 from footforge import constants as C
 from footforge import foot as foot_lib
 from footforge import kinematics, massprops
+from footforge.atomic import atomic_directory
 from footforge.collision import DecompositionConfig
 from footforge.description import (Description, default_foot_description, default_robot_description,
                                    load_description)
@@ -219,7 +217,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
                          fix=f"use one or more of {', '.join(FORMATS)}, e.g. --format mjcf,usd")
     stage = Stages(progress)
     report: dict = {"format": REPORT_FORMAT, "variant": options.variant, "foot_only": options.foot_only,
-                    "versions": _versions(), "machine": platform.platform(), "repairs": [], "warnings": []}
+                    "versions": versions(), "machine": platform.platform(), "repairs": [], "warnings": []}
     params = load_params(options.params)
     report["inputs"] = {"params": {"path": str(params.source), "sha256": _sha256(params.source)}}
     files: dict[str, str] = {}
@@ -390,10 +388,7 @@ def _xml(root: mjcf.RootElement, asset_sets: list[dict]) -> str:
 
 def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dict], report: dict,
                       stages: Mapping[str, object] = {}) -> None:
-    out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
-    try:
+    with atomic_directory(out_dir) as tmp:
         outputs = sorted(files)
         if asset_sets:
             (tmp / "assets").mkdir()
@@ -409,16 +404,6 @@ def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dic
                 outputs += write_stage(usd_stage, tmp, stem)
         report["outputs"] = outputs + ["build_report.json"]
         (tmp / "build_report.json").write_text(json.dumps(report, indent=2, default=_json_default) + "\n")
-        if out_dir.exists():
-            old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
-            os.replace(out_dir, old)
-            os.replace(tmp, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
 
 
 def _json_default(value):
@@ -431,7 +416,7 @@ def _json_default(value):
     raise TypeError(type(value))
 
 
-def _versions() -> dict[str, str]:
+def versions() -> dict[str, str]:
     from importlib.metadata import PackageNotFoundError, version
     out = {}
     for pkg in ("footforge", "mujoco", "dm-control", "pin", "coacd", "trimesh", "xacro", "usd-core"):

@@ -7,6 +7,7 @@ that name the file, the element and the fix; `--verbose` adds the traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import traceback
 from pathlib import Path
@@ -49,6 +50,26 @@ def _parser() -> argparse.ArgumentParser:
                    help="comma-separated outputs: mjcf (MuJoCo XML), usd (robot.usda/.usd for Isaac Sim); "
                         "default mjcf,usd")
     b.add_argument("--out", type=Path, help="output folder (default build/<variant>)")
+
+    v = sub.add_parser("validate", help="drop tests of AFF/AOF/ball against the closed chain; fidelity report")
+    v.add_argument("--variant", default="all", help="aof, aff, ball, a comma-separated list, or all (default)")
+    v.add_argument("--scenarios", nargs="+", default=["quick"], metavar="NAME",
+                   help="quick (6, default), all (26), or scenario names")
+    v.add_argument("--calibrate", action="store_true",
+                   help="fit the AFF/AOF springs, dampers and sole lift on a training subset and write them "
+                        "to the parameter file")
+    v.add_argument("--evaluations", type=int, default=120, help="objective evaluations per calibrated variant")
+    v.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes (default: all cores)")
+    v.add_argument("--threshold", action="append", default=[], metavar="NAME=VALUE",
+                   help="override a fidelity threshold (force_nrmse, peak_force_rel, final_height_mm, "
+                        "orientation_deg, cop_mm, slip_mm); repeatable")
+    v.add_argument("--seed", type=int, default=0, help="offset for the random scenarios' seeds")
+    v.add_argument("--description", type=Path, help="foot xacro/URDF (default: the project's SoftFoot-Q)")
+    v.add_argument("--sidecar", type=Path)
+    v.add_argument("--params", type=Path, help="variant parameter file (read, and written by --calibrate)")
+    v.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR")
+    v.add_argument("--cache-dir", type=Path, help="CoACD cache folder")
+    v.add_argument("--out", type=Path, default=Path("validation"), help="report folder (default validation/)")
 
     c = sub.add_parser("check", help="report physical and structural defects of a URDF or xacro")
     c.add_argument("path", type=Path)
@@ -122,6 +143,65 @@ def _print_summary(report: dict, out_dir: Path, console) -> None:
     console.print(table)
 
 
+def _run_validate(args, console) -> int:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from footforge.build import BuildOptions
+    from footforge.errors import InputError
+    from footforge.validate import report as report_lib
+    from footforge.validate.fidelity import Thresholds
+    from footforge.validate.runner import ValidateOptions, parse_variants, validate
+    from footforge.validate.scenarios import select
+
+    if args.jobs < 1:
+        raise InputError(f"--jobs {args.jobs} must be at least 1", fix="give a number of worker processes, e.g. 2")
+    if args.evaluations < 2:
+        raise InputError(f"--evaluations {args.evaluations} must be at least 2", fix="e.g. 120")
+    select(args.scenarios)  # unknown names are usage errors before anything is built
+    options = ValidateOptions(
+        variants=parse_variants(args.variant), scenarios=tuple(args.scenarios), calibrate=args.calibrate,
+        calibration_evaluations=args.evaluations, jobs=args.jobs,
+        thresholds=Thresholds.with_overrides(args.threshold), seed=args.seed,
+        build=BuildOptions(variant="full", out_dir=args.out, foot_description=args.description, sidecar=args.sidecar,
+                           params=args.params, package_paths=tuple(args.package_path), cache_dir=args.cache_dir))
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=console, transient=True) as progress:
+        def tracker(description: str, total: int):
+            task = progress.add_task(description, total=total)
+            return lambda: progress.advance(task)
+        report = validate(options, progress=tracker)
+        progress.add_task("writing the report", total=None)
+        report_lib.write(report, args.out, "footforge " + " ".join(sys.argv[1:]))
+    _print_validation(report, args.out, console)
+    return EXIT_OK if report["passed"] else EXIT_CHECK_FAILED
+
+
+def _print_validation(report: dict, out: Path, console) -> None:
+    from rich.table import Table
+
+    from footforge.validate.report import METRICS, _fmt
+
+    ref = report["reference"]
+    table = Table(title=f"footforge validate -> {out}/report.md")
+    for column in ("variant", *METRICS, "speed vs full", "verdict"):
+        table.add_column(column)
+    for v, f in report["fidelity"].items():
+        m = f["summary"]["metrics"]
+        table.add_row(v, *[_fmt(m[k]["mean"]) for k in METRICS], f"{report['speed'][v]['vs_full']:.1f}x",
+                      "[green]pass[/green]" if f["summary"]["passed"] else "[red]FAIL[/red]")
+    table.add_row("threshold", *[_fmt(report["thresholds"][k]) for k in METRICS], "", "")
+    console.print(table)
+    console.print(f"closed-chain reference: largest closure opening {_fmt(ref['max_closure_gap_mm'])} mm "
+                  f"(limit {ref['closure_limit_mm']}), largest energy gain {_fmt(ref['max_energy_gain_j'])} J: "
+                  + ("[green]trustworthy[/green]" if ref["passed"] else "[red]NOT trustworthy[/red]"))
+    for v, cal in report.get("calibration", {}).items():
+        console.print(f"calibrated {v}: objective {cal['series_errors_before']['train']['objective']:.3g} -> "
+                      f"{cal['series_errors_after']['train']['objective']:.3g} (train), "
+                      f"{_fmt(cal['series_errors_before']['held_out'].get('objective'))} -> "
+                      f"{_fmt(cal['series_errors_after']['held_out'].get('objective'))} (held out); "
+                      f"written to {cal['written_to']}")
+
+
 def _run_check(args, console) -> int:
     from footforge.check import check_description
     from footforge.description import parse_args
@@ -147,7 +227,8 @@ def main(argv: list[str] | None = None) -> int:
         return int(e.code or 0)
     console, errors = Console(), Console(stderr=True)
     try:
-        return _run_build(args, console) if args.command == "build" else _run_check(args, console)
+        run = {"build": _run_build, "validate": _run_validate, "check": _run_check}[args.command]
+        return run(args, console)
     except FootforgeError as e:
         if args.verbose:
             traceback.print_exc()

@@ -91,9 +91,9 @@ def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, 
     return out
 
 
-def _new_root(name: str, sidecar: Sidecar, params: VariantParams) -> mjcf.RootElement:
+def _new_root(name: str, sidecar: Sidecar, contact_solref) -> mjcf.RootElement:
     root = mjcf.RootElement(model=name)
-    add_default_classes(root, friction=sidecar.friction, contact_solref=params.contact_solref)
+    add_default_classes(root, friction=sidecar.friction, contact_solref=contact_solref)
     return root
 
 
@@ -116,7 +116,7 @@ def _root_body(source: FootSource, root: mjcf.RootElement, assets: MeshAssets, h
 
 def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     parsed, sidecar = source.parsed, source.sidecar
-    root = _new_root(name, sidecar, source.params)
+    root = _new_root(name, sidecar, source.params.contact_solref_for("full"))
     for fam in FAMILIES:
         d = sidecar.joint_dynamics[fam]
         root.default.add("default", dclass=fam).joint.set_attributes(
@@ -212,7 +212,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
     chain = [j for j, f in families.items() if f == "chain"]
     other = [j for j, f in families.items() if f == "other"]
 
-    root = _new_root(name, sidecar, source.params)
+    root = _new_root(name, sidecar, params.contact_solref_for(variant))
     root.default.add("default", dclass=DERIVED_JOINT_CLASS).joint.set_attributes(type="hinge", limited="true")
     assets = MeshAssets(root)
     root_body = _root_body(source, root, assets, _hull_geoms(source, assets))

@@ -37,6 +37,8 @@ class FullChainSettings:
     tolerance: float
     closure_solref: tuple[float, float]
     closure_solimp: tuple[float, float, float]
+    contact_solref: tuple[float, float]
+    """Contact solref of the closed chain's (and its robot's) collision geoms."""
 
 
 @dataclass(frozen=True)
@@ -62,8 +64,12 @@ class VariantParams:
     rig_slider_damping: float
     """N s/m."""
     contact_solref: tuple[float, float]
-    """MuJoCo solref (timeconst s, damping ratio) of the robot's and feet's collision geoms: the
-    rubber sole pad's contact stiffness, dominant over the ground's (see urdf_import.CONTACT_SOLMIX)."""
+    """MuJoCo solref (timeconst s, damping ratio) of the robot's and feet's collision geoms in the
+    AFF, AOF and ball models: the sole pad's contact stiffness, dominant over the ground's (see
+    urdf_import.CONTACT_SOLMIX). The closed chain has its own (full.contact_solref)."""
+
+    def contact_solref_for(self, variant: str) -> tuple[float, float]:
+        return self.full.contact_solref if variant == "full" else self.contact_solref
 
 
 _JOINTS = {"aff": ("ankle_pitch", "ankle_roll"),
@@ -84,6 +90,12 @@ def _pair(r: YamlReader, n: int) -> tuple[float, ...]:
     return tuple(YamlReader(v, f"{r.path}[{i}]", r.file).float() for i, v in enumerate(r.data))
 
 
+def _check_timeconst(r: YamlReader, solref: tuple[float, ...], timestep: float) -> None:
+    if solref[0] < 2 * timestep:
+        raise r.fail(f"timeconst {solref[0]} is below twice the timestep {timestep}",
+                     "MuJoCo cannot integrate a constraint faster than 2 steps: raise it or lower the timestep")
+
+
 def load_params(path: str | Path | None = None) -> VariantParams:
     """Reads a variant parameter file.
 
@@ -95,18 +107,18 @@ def load_params(path: str | Path | None = None) -> VariantParams:
                      "", path)
     top.get("format", allowed={"format", "full", "simplified", "aff", "aof", "rig", "contact"})
     full = top.get("full")
-    full.get("timestep", allowed={"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp"})
+    full.get("timestep", allowed={"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp",
+                                  "contact_solref"})
     iterations = full.get("iterations").float(min_value=1)
     settings = FullChainSettings(
         timestep=full.get("timestep").float(min_value=1e-6),
         iterations=int(iterations),
         tolerance=full.get("tolerance").float(min_value=0.0),
         closure_solref=_pair(full.get("closure_solref"), 2),
-        closure_solimp=_pair(full.get("closure_solimp"), 3))
-    if settings.closure_solref[0] < 2 * settings.timestep:
-        raise full.get("closure_solref").fail(
-            f"timeconst {settings.closure_solref[0]} is below twice the timestep {settings.timestep}",
-            "MuJoCo cannot integrate a constraint faster than 2 steps: raise it or lower the timestep")
+        closure_solimp=_pair(full.get("closure_solimp"), 3),
+        contact_solref=_pair(full.get("contact_solref"), 2))
+    for key in ("closure_solref", "contact_solref"):
+        _check_timeconst(full.get(key), getattr(settings, key), settings.timestep)
     simplified = top.get("simplified")
     simplified.get("timestep", allowed={"timestep"})
     variants, lifts = {}, {}
@@ -125,11 +137,7 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     contact = top.get("contact")
     contact.get("solref", allowed={"solref"})
     contact_solref = _pair(contact.get("solref"), 2)
-    slowest_step = max(settings.timestep, simplified.get("timestep").float(min_value=1e-6))
-    if contact_solref[0] < 2 * slowest_step:
-        raise contact.get("solref").fail(
-            f"timeconst {contact_solref[0]} is below twice the timestep {slowest_step}",
-            "MuJoCo cannot integrate a contact faster than 2 steps: raise it to at least twice every timestep")
+    _check_timeconst(contact.get("solref"), contact_solref, simplified.get("timestep").float(min_value=1e-6))
     return VariantParams(
         source=path.resolve(), full=settings,
         simplified_timestep=simplified.get("timestep").float(min_value=1e-6),

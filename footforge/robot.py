@@ -55,7 +55,7 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
     model = parsed.model
     root = mjcf.RootElement(model=f"anymal_c_{variant}")
     _options(root, variant, params)
-    add_default_classes(root, friction=friction, contact_solref=params.contact_solref)
+    add_default_classes(root, friction=friction, contact_solref=params.contact_solref_for(variant))
     root.default.add("default", dclass="leg").joint.set_attributes(type="hinge")
     actuator_class = root.default.add("default", dclass="leg_actuator")
     actuator_class.position.set_attributes(kp=C.KP_NM_PER_RAD, kv=C.KD_NMS_PER_RAD,
@@ -136,7 +136,7 @@ def build_rig(foot: FootModel | None, ball_radius: float | None, *, variant: str
     """
     root = mjcf.RootElement(model=f"foot_rig_{variant}")
     _options(root, variant, params)
-    add_default_classes(root, friction=friction, contact_solref=params.contact_solref)
+    add_default_classes(root, friction=friction, contact_solref=params.contact_solref_for(variant))
     _add_floor(root)
     carriage = root.worldbody.add("body", name="carriage")
     carriage.add("joint", name="slider", type="slide", axis=[0, 0, 1], damping=params.rig_slider_damping)

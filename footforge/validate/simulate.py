@@ -31,6 +31,26 @@ class RigCase:
     variant: str
     xml: str
     assets: dict
+    patch: dict | None = None
+    """Calibration trial values applied to the compiled model: {"joints": {name: {"stiffness":
+    N m/rad, "damping": N m s/rad}}, "sole_lift_delta_m": m added to the sole boxes' height}."""
+
+
+def apply_patch(model: mujoco.MjModel, patch: dict | None) -> None:
+    if not patch:
+        return
+    for name, values in patch.get("joints", {}).items():
+        joint = model.joint(f"foot/{name}")
+        if "stiffness" in values:
+            model.jnt_stiffness[joint.id] = values["stiffness"]
+        if "damping" in values:
+            model.dof_damping[joint.dofadr[0]] = values["damping"]
+    delta = patch.get("sole_lift_delta_m", 0.0)
+    if delta:
+        for g in range(model.ngeom):
+            name = model.geom(g).name
+            if name.startswith("foot/sole") and name.endswith("_collision"):
+                model.geom_pos[g][2] += delta  # sole body frames are aligned with the mount
 
 
 def _foot_bodies(model: mujoco.MjModel) -> np.ndarray:
@@ -57,12 +77,15 @@ def _sole_points(model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[int, 
     return out
 
 
-def _sole_orientation(data: mujoco.MjData, points: list[tuple[int, np.ndarray]]) -> tuple[float, float]:
+def _sole_world(data: mujoco.MjData, points: list[tuple[int, np.ndarray]]) -> np.ndarray:
+    return np.array([data.xmat[b].reshape(3, 3) @ p + data.xpos[b] for b, p in points]).reshape(-1, 3)
+
+
+def _sole_orientation(world: np.ndarray) -> tuple[float, float]:
     """Pitch and roll (rad) of the least-squares plane through the sole points, world frame.
     Pitch positive: toe down; roll positive: left side down (right-hand rotations about y, x)."""
-    if len(points) < 3:
+    if len(world) < 3:
         return float("nan"), float("nan")
-    world = np.array([data.xmat[b].reshape(3, 3) @ p + data.xpos[b] for b, p in points])
     A = np.c_[np.ones(len(world)), world[:, 0], world[:, 1]]
     (_, slope_x, slope_y), *_ = np.linalg.lstsq(A, world[:, 2], rcond=None)
     return float(-np.arctan(slope_x)), float(np.arctan(slope_y))
@@ -108,6 +131,7 @@ def run(case: RigCase) -> dict:
     """Simulates one case; returns time series (sampled every SAMPLE_DT_S) and scalars."""
     scenario = case.scenario
     model = mujoco.MjModel.from_xml_string(case.xml, case.assets)
+    apply_patch(model, case.patch)
     model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("reference").id)
@@ -124,7 +148,8 @@ def run(case: RigCase) -> dict:
     every = max(1, int(round(SAMPLE_DT_S / model.opt.timestep)))
     n = steps // every + 1
     series = {k: np.full(n, np.nan) for k in ("time_s", "force_z_n", "height_m", "pitch_rad", "roll_rad", "contacts",
-                                              "cop_x_m", "cop_y_m", "spread_m", "penetration_m", "closure_gap_m", "energy_j")}
+                                              "cop_x_m", "cop_y_m", "spread_m", "penetration_m", "closure_gap_m", "energy_j",
+                                              "sole_x_m", "sole_y_m")}
     failed = None
     t0 = time.perf_counter()
     for k in range(steps + 1):
@@ -135,7 +160,10 @@ def run(case: RigCase) -> dict:
             series["time_s"][i] = data.time
             series["force_z_n"][i] = fz
             series["height_m"][i] = data.site_xpos[mount][2]
-            series["pitch_rad"][i], series["roll_rad"][i] = _sole_orientation(data, sole)
+            sole_world = _sole_world(data, sole)
+            series["pitch_rad"][i], series["roll_rad"][i] = _sole_orientation(sole_world)
+            if len(sole_world):
+                series["sole_x_m"][i], series["sole_y_m"][i] = sole_world[:, :2].mean(axis=0)
             series["contacts"][i] = len(contacts)
             series["penetration_m"][i] = max((p for *_, p in contacts), default=0.0)
             weights = np.array([max(f[2], 0.0) for _, f, _ in contacts])
@@ -155,10 +183,20 @@ def run(case: RigCase) -> dict:
             failed = f"step {k}: " + (", ".join(warnings) if warnings else "non-finite acceleration")
             break
     wall = time.perf_counter() - t0
-    return {"scenario": scenario.name, "variant": case.variant, "series": series,
+    final = _ground_contacts(model, data, foot_mask) if not failed else []
+    footprint = np.array([[*(p[:2] - data.site_xpos[mount][:2]), f[2]] for p, f, _ in final]).reshape(-1, 3)
+    return {"footprint": footprint, "scenario": scenario.name, "variant": case.variant, "series": series,
             "scalars": scalars(series, model, failed), "failed": failed, "wall_s": wall, "steps": k,
-            "timestep_s": model.opt.timestep, "supported_weight_n": float(
-                -model.opt.gravity[2] * sum(model.body_mass[b] for b in np.flatnonzero(foot_mask)))}
+            "timestep_s": model.opt.timestep, "supported_weight_n": float(-model.opt.gravity[2] * supported_mass(model))}
+
+
+def supported_mass(model: mujoco.MjModel) -> float:
+    """Everything the slider carries: the payload, the carriage and the foot (kg)."""
+    return float(mujoco.mj_getTotalmass(model))
+
+
+def _tail_mean_deg(values: np.ndarray) -> float:
+    return float(np.degrees(np.nanmean(values))) if np.isfinite(values).any() else float("nan")
 
 
 def scalars(s: dict, model: mujoco.MjModel, failed: str | None) -> dict:
@@ -182,8 +220,14 @@ def scalars(s: dict, model: mujoco.MjModel, failed: str | None) -> dict:
     peak = int(np.nanargmax(f))
     cop = np.c_[s["cop_x_m"], s["cop_y_m"]]
     tail = slice(-50, None)
-    cop_final = np.nanmean(cop[tail], axis=0)
-    slip = float(np.linalg.norm(cop_final - cop[peak])) if np.isfinite(cop[peak]).all() else float("nan")
+    cop_final = np.nanmean(cop[tail], axis=0) if np.isfinite(cop[tail]).any() else np.full(2, np.nan)
+    # Slip: how far the sole (the centroid of its bottom points) slides horizontally from the
+    # moment the ground first carries the supported weight to the end. The slider holds the
+    # mount in x and y, so this is the foot's own sliding and rolling on the surface.
+    sole = np.c_[s["sole_x_m"], s["sole_y_m"]]
+    supported = np.flatnonzero(f >= -model.opt.gravity[2] * supported_mass(model))
+    start = int(supported[0]) if supported.size else first
+    slip = float(np.linalg.norm(np.nanmean(sole[tail], axis=0) - sole[start])) if np.isfinite(sole[start]).all() else 0.0
     # Released at rest, the rig has only gravity (in the energy), springs (in it too) and
     # dissipative forces acting: its energy may never exceed the initial value.
     energy = s["energy_j"]
@@ -191,10 +235,10 @@ def scalars(s: dict, model: mujoco.MjModel, failed: str | None) -> dict:
     return {
         "peak_force_n": float(f[peak]), "impulse_ns": impulse, "settling_time_s": settle,
         "final_height_m": final_h, "final_force_n": float(np.nanmean(f[tail])),
-        "final_pitch_deg": float(np.degrees(np.nanmean(s["pitch_rad"][tail]))),
-        "final_roll_deg": float(np.degrees(np.nanmean(s["roll_rad"][tail]))),
+        "final_pitch_deg": _tail_mean_deg(s["pitch_rad"][tail]), "final_roll_deg": _tail_mean_deg(s["roll_rad"][tail]),
         "contacts": float(np.nanmean(s["contacts"][tail])), "cop_x_mm": float(cop_final[0] * 1e3),
-        "cop_y_mm": float(cop_final[1] * 1e3), "spread_mm": float(np.nanmean(s["spread_m"][tail]) * 1e3),
+        "cop_y_mm": float(cop_final[1] * 1e3),
+        "spread_mm": float(np.nanmean(s["spread_m"][tail]) * 1e3) if np.isfinite(s["spread_m"][tail]).any() else 0.0,
         "rebound_mm": rebound * 1e3, "slip_mm": slip * 1e3,
         "max_penetration_mm": float(np.nanmax(s["penetration_m"]) * 1e3),
         "max_closure_gap_mm": float(np.nanmax(s["closure_gap_m"]) * 1e3),

@@ -1,0 +1,163 @@
+"""Fit the AFF/AOF passive-joint springs and dampers and the sole lift to the closed chain.
+
+Objective, on the training scenarios: the mean of (force RMS / force range)^2 + (height RMS /
+5 mm)^2 + (sole orientation RMS / 5 deg)^2, all from time series so it varies smoothly with the
+parameters. Free parameters: log10 stiffness and log10 damping of the ankle pitch, the ankle roll
+and (AOF) the two sole hinges as one symmetric pair, plus the sole lift (params.sole_lift_m).
+Nelder-Mead, deterministic; the fitted values are written into the parameter file, and the
+variant is rebuilt from that file before its final runs, so what is reported is what
+`footforge build` will make.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import minimize
+
+from footforge.errors import InputError
+from footforge.params import load_params
+from footforge.validate import fidelity
+
+GROUPS = {"aff": (("ankle_pitch",), ("ankle_roll",)),
+          "aof": (("ankle_pitch",), ("ankle_roll",), ("sole_front", "sole_back"))}
+LOG_STIFFNESS = (-3.0, 2.3)
+"""log10 bounds, N m/rad (1e-3 .. 200)."""
+LOG_DAMPING = (-4.0, 1.3)
+"""log10 bounds, N m s/rad (1e-4 .. 20)."""
+LIFT_CM = (0.0, 3.0)
+"""Sole lift bounds, cm (the optimiser works in cm to keep the simplex balanced)."""
+HEIGHT_SCALE_MM = 5.0
+ORIENTATION_SCALE_DEG = 5.0
+
+
+def objective_terms(errors: dict) -> float:
+    return (errors["force"] ** 2 + (errors["height_mm"] / HEIGHT_SCALE_MM) ** 2
+            + (0.0 if math.isnan(errors["orientation_deg"]) else (errors["orientation_deg"] / ORIENTATION_SCALE_DEG) ** 2))
+
+
+def _vector(params, variant: str) -> np.ndarray:
+    joints = params.aff if variant == "aff" else params.aof
+    x = []
+    for group in GROUPS[variant]:
+        j = joints[group[0]]
+        x += [math.log10(min(max(j.stiffness, 10 ** LOG_STIFFNESS[0]), 10 ** LOG_STIFFNESS[1])),
+              math.log10(min(max(j.damping, 10 ** LOG_DAMPING[0]), 10 ** LOG_DAMPING[1]))]
+    return np.array(x + [params.sole_lift_m[variant] * 100.0])
+
+
+def _values(x: np.ndarray, variant: str) -> tuple[dict, float]:
+    joints = {}
+    for i, group in enumerate(GROUPS[variant]):
+        for name in group:
+            joints[name] = {"stiffness": float(f"{10 ** x[2 * i]:.4g}"), "damping": float(f"{10 ** x[2 * i + 1]:.4g}")}
+    return joints, float(f"{x[-1] / 100.0:.4g}")
+
+
+def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
+    from footforge.validate.runner import DERIVED, mean_series_errors, training_split, variant_params_summary
+
+    train, held = training_split(scenarios)
+    if not train:
+        raise InputError("calibration needs scenarios to train on", fix="run --calibrate with --scenarios quick or all")
+    out = {}
+    for variant in [v for v in options.variants if v in DERIVED]:
+        params = session.source.params
+        before = variant_params_summary(session, variant)
+        cases = session.cases(variant, train)
+        full = runs["full"]
+        tick = advance(f"calibrating {variant}", options.calibration_evaluations)
+        history = []
+
+        def objective(x):
+            joints, lift = _values(x, variant)
+            patch = {"joints": joints, "sole_lift_delta_m": lift - params.sole_lift_m[variant]}
+            results = pool.map([replace(c, patch=patch) for c in cases])
+            value = float(np.mean([objective_terms(fidelity.series_errors(r, full[r["scenario"]]))
+                                   if not r["failed"] else 1e6 for r in results]))
+            history.append(value)
+            tick()
+            return value
+
+        x0 = _vector(params, variant)
+        bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [LIFT_CM]
+        simplex = [x0] + [x0 + np.eye(len(x0))[i] * (0.5 if i < len(x0) - 1 else 0.5) for i in range(len(x0))]
+        simplex = np.array([np.clip(p, [b[0] for b in bounds], [b[1] for b in bounds]) for p in simplex])
+        for i in range(1, len(simplex)):  # a step that hit a bound goes the other way
+            if np.allclose(simplex[i], x0):
+                simplex[i] = x0 - np.eye(len(x0))[i - 1] * 0.5
+        result = minimize(objective, x0, method="Nelder-Mead", bounds=bounds,
+                          options={"maxfev": options.calibration_evaluations, "initial_simplex": simplex,
+                                   "xatol": 1e-3, "fatol": 1e-5})
+        best = result.x if result.fun <= history[0] else x0
+        joints, lift = _values(best, variant)
+        write_params(params.source, variant, joints, lift)
+        session.reload(variant, params.source)
+        new_runs = {r["scenario"]: r for r in pool.map(session.cases(variant, scenarios),
+                                                       advance(f"re-running {variant}", len(scenarios)))}
+        out[variant] = {
+            "parameters_before": before, "parameters_after": variant_params_summary(session, variant),
+            "objective_before": history[0], "objective_after": float(min(history)), "evaluations": len(history),
+            "objective_history": history, "written_to": str(params.source),
+            "train": [s.name for s in train], "held_out": [s.name for s in held],
+            "series_errors_before": {"train": mean_series_errors(runs[variant], full, [s.name for s in train]),
+                                     "held_out": mean_series_errors(runs[variant], full, [s.name for s in held])},
+            "series_errors_after": {"train": mean_series_errors(new_runs, full, [s.name for s in train]),
+                                    "held_out": mean_series_errors(new_runs, full, [s.name for s in held])},
+            "runs": new_runs}
+        for key in ("series_errors_before", "series_errors_after"):
+            for split in ("train", "held_out"):
+                e = out[variant][key][split]
+                e["objective"] = objective_terms(e) if e else None
+    return out
+
+
+def write_params(path: Path, variant: str, joints: dict[str, dict], lift_m: float) -> None:
+    """Rewrites the `variant` section's joint stiffness/damping and sole_lift_m in place,
+    keeping every comment and other value; written atomically and read back to check.
+
+    Raises:
+      InputError: the file lacks the section or one of the joints.
+    """
+    path = Path(path)
+    lines = path.read_text().splitlines(keepends=True)
+    section, seen, lift_done = False, set(), False
+    for i, line in enumerate(lines):
+        header = re.match(r"^([A-Za-z_]\w*):", line)
+        if header:
+            section = header.group(1) == variant
+            continue
+        if not section:
+            continue
+        m = re.match(r"^(\s+)(\w+):\s*\{(.*)\}(.*)$", line.rstrip("\n"))
+        if m and m.group(2) in joints:
+            fields = dict(kv.split(":", 1) for kv in m.group(3).split(","))
+            fields = {k.strip(): v.strip() for k, v in fields.items()}
+            fields["stiffness"] = repr(joints[m.group(2)]["stiffness"])
+            fields["damping"] = repr(joints[m.group(2)]["damping"])
+            body = ", ".join(f"{k}: {v}" for k, v in fields.items())
+            lines[i] = f"{m.group(1)}{m.group(2)}: {{{body}}}{m.group(4)}\n"
+            seen.add(m.group(2))
+        lift = re.match(r"^(\s+)sole_lift_m:\s*[-+0-9.eE]+(.*)$", line.rstrip("\n"))
+        if lift:
+            lines[i] = f"{lift.group(1)}sole_lift_m: {lift_m!r}{lift.group(2)}\n"
+            lift_done = True
+    missing = sorted(set(joints) - seen) + ([] if lift_done else ["sole_lift_m"])
+    if missing:
+        raise InputError(f"the parameter file has no {variant}.{', '.join(missing)} to update", file=str(path),
+                         element=variant, fix="start from the project's variant_params.yaml")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    with os.fdopen(fd, "w") as f:
+        f.write("".join(lines))
+    os.replace(tmp, path)
+    check = load_params(path)
+    written = check.aff if variant == "aff" else check.aof
+    for name, values in joints.items():
+        assert math.isclose(written[name].stiffness, values["stiffness"]) and math.isclose(written[name].damping, values["damping"])
+    assert math.isclose(check.sole_lift_m[variant], lift_m)

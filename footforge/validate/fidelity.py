@@ -1,0 +1,108 @@
+"""Fidelity of a variant: its difference from the closed chain on the same scenario, and the
+thresholds that decide pass or fail."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
+
+from footforge.errors import InputError
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Largest accepted mean (over the scenarios run) of each fidelity error."""
+
+    force_nrmse: float = 0.15
+    """RMS difference of the vertical ground force curves over the full chain's force range."""
+    peak_force_rel: float = 0.5
+    """|peak - peak_full| / peak_full (impacts are stiff: peaks are sensitive to the contact model)."""
+    final_height_mm: float = 5.0
+    """Difference of the loaded foot mount's height after settling, mm."""
+    orientation_deg: float = 5.0
+    """Difference of the settled sole's pitch and roll (Euclidean), deg."""
+    cop_mm: float = 10.0
+    """Difference of the settled centre of pressure, mm."""
+    slip_mm: float = 5.0
+    """Difference of the centre of pressure's drift from peak force to rest, mm."""
+
+    @classmethod
+    def with_overrides(cls, items: list[str] | None) -> Thresholds:
+        """Defaults overridden by NAME=VALUE strings.
+
+        Raises:
+          InputError: unknown name or a value that is not a positive number.
+        """
+        t = cls()
+        names = {f.name for f in fields(cls)}
+        for item in items or []:
+            name, _, value = item.partition("=")
+            if name not in names:
+                raise InputError(f"unknown threshold '{name}'", fix=f"use one of {', '.join(sorted(names))}")
+            try:
+                number = float(value)
+            except ValueError:
+                number = float("nan")
+            if not math.isfinite(number) or number <= 0:
+                raise InputError(f"threshold {name}={value!r} is not a positive number", fix=f"e.g. {name}=0.2")
+            t = replace(t, **{name: number})
+        return t
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def errors(variant: dict, full: dict) -> dict:
+    """Fidelity errors of one variant run against the full chain's run of the same scenario."""
+    if variant["scalars"].get("failed") or full["scalars"].get("failed"):
+        return {"failed": True}
+    sv, sf = variant["series"], full["series"]
+    n = min(len(sv["force_z_n"]), len(sf["force_z_n"]))
+    fv, ff = sv["force_z_n"][:n], sf["force_z_n"][:n]
+    span = max(float(np.nanmax(ff) - np.nanmin(ff)), 1e-9)
+    a, b = variant["scalars"], full["scalars"]
+    orientation = math.hypot(a["final_pitch_deg"] - b["final_pitch_deg"], a["final_roll_deg"] - b["final_roll_deg"])
+    return {
+        "force_nrmse": float(np.sqrt(np.nanmean((fv - ff) ** 2)) / span),
+        "peak_force_rel": abs(a["peak_force_n"] - b["peak_force_n"]) / b["peak_force_n"],
+        "final_height_mm": abs(a["final_height_m"] - b["final_height_m"]) * 1e3,
+        "orientation_deg": orientation,  # NaN for the ball foot: it has no sole
+        "cop_mm": math.hypot(a["cop_x_mm"] - b["cop_x_mm"], a["cop_y_mm"] - b["cop_y_mm"]),
+        "slip_mm": abs(a["slip_mm"] - b["slip_mm"]),
+        "failed": False,
+    }
+
+
+def series_errors(variant: dict, full: dict) -> dict:
+    """Time-series errors, smooth in the parameters (the calibration's objective terms):
+    force RMS over the force range, height RMS (mm), sole pitch and roll RMS (deg)."""
+    sv, sf = variant["series"], full["series"]
+    n = min(len(sv["force_z_n"]), len(sf["force_z_n"]))
+    ff = sf["force_z_n"][:n]
+    span = max(float(np.nanmax(ff) - np.nanmin(ff)), 1e-9)
+    rms = lambda x: float(np.sqrt(np.nanmean(x ** 2)))  # noqa: E731
+    return {"force": rms(sv["force_z_n"][:n] - ff) / span,
+            "height_mm": rms(sv["height_m"][:n] - sf["height_m"][:n]) * 1e3,
+            "orientation_deg": float(np.degrees(np.hypot(rms(sv["pitch_rad"][:n] - sf["pitch_rad"][:n]),
+                                                         rms(sv["roll_rad"][:n] - sf["roll_rad"][:n]))))}
+
+
+def summarise(per_scenario: dict[str, dict], thresholds: Thresholds) -> dict:
+    """Mean and worst of each error over the scenarios, and pass/fail against the thresholds
+    (a metric that is undefined for the variant, like the ball's sole orientation, is skipped)."""
+    out = {"metrics": {}, "passed": True, "failed_runs": sorted(s for s, e in per_scenario.items() if e.get("failed"))}
+    for name, limit in thresholds.as_dict().items():
+        values = np.array([e[name] for e in per_scenario.values() if not e.get("failed")], float)
+        values = values[np.isfinite(values)]
+        if not values.size:
+            out["metrics"][name] = {"mean": None, "max": None, "threshold": limit, "passed": None}
+            continue
+        mean = float(values.mean())
+        passed = mean <= limit
+        out["metrics"][name] = {"mean": mean, "max": float(values.max()), "threshold": limit, "passed": passed}
+        out["passed"] &= passed
+    if out["failed_runs"]:
+        out["passed"] = False
+    return out

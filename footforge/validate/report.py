@@ -1,0 +1,186 @@
+"""The validation report: report.md, report.html (same content), report.json (every figure),
+series.npz (the time series) and plots/*.png, written atomically into one folder."""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from footforge.atomic import atomic_directory
+
+METRICS = ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm", "slip_mm")
+COLOURS = {"full": "black", "aof": "tab:blue", "aff": "tab:orange", "ball": "tab:green"}
+
+
+def _fmt(value, digits=3) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    if isinstance(value, bool):
+        return "pass" if value else "FAIL"
+    if isinstance(value, float):
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
+def blocks(report: dict, command: str) -> list[tuple]:
+    """The report as ('h', level, text) | ('p', text) | ('table', header, rows) | ('img', path, alt)."""
+    out: list[tuple] = [("h", 1, "footforge validate"), ("p", f"Command: `{command}`"),
+                        ("p", f"footforge {report['footforge']}, mujoco {report['versions'].get('mujoco')}, "
+                              f"machine {report['machine']}, seed {report['seed']}, {report['jobs']} worker(s); "
+                              f"parameters {report['params']}."),
+                        ("p", "Verdict: " + ("PASS" if report["passed"] else "FAIL") + " (reference trustworthy and "
+                              "every variant's mean errors within the thresholds).")]
+    ref = report["reference"]
+    out += [("h", 2, "The closed-chain reference"),
+            ("p", f"Largest closure opening {_fmt(ref['max_closure_gap_mm'])} mm (limit {ref['closure_limit_mm']} mm); "
+                  f"largest energy gain over the initial energy {_fmt(ref['max_energy_gain_j'])} J "
+                  f"(tolerance {ref['energy_gain_tolerance_j']} J): {_fmt(ref['passed'])}."),
+            ("table", ["scenario", "max closure gap (mm)", "energy gain (J)", "failure"],
+             [[n, _fmt(p["max_closure_gap_mm"]), _fmt(p["energy_gain_j"]), p["failed"] or ""]
+              for n, p in ref["per_scenario"].items()])]
+    out += [("h", 2, "Fidelity summary (mean over scenarios, against the closed chain)"),
+            ("table", ["variant", *METRICS, "speed vs full", "verdict"],
+             [[v, *[f"{_fmt(f['summary']['metrics'][m]['mean'])} (max {_fmt(f['summary']['metrics'][m]['max'])})"
+                    for m in METRICS], f"{report['speed'][v]['vs_full']:.1f}x", _fmt(f["summary"]["passed"])]
+              for v, f in report["fidelity"].items()]),
+            ("p", "Thresholds (mean): " + ", ".join(f"{k} {v:g}" for k, v in report["thresholds"].items())
+                  + ". Speed: simulated seconds per wall-clock second over the same scenarios, "
+                  f"full = {report['speed']['full']['realtime_factor']:.2f}.")]
+    if "calibration" in report:
+        out.append(("h", 2, "Calibration"))
+        for v, cal in report["calibration"].items():
+            rows = []
+            for key in ("force", "height_mm", "orientation_deg", "objective"):
+                rows.append([key] + [_fmt(cal[f"series_errors_{when}"][split].get(key))
+                                     for when in ("before", "after") for split in ("train", "held_out")])
+            out += [("h", 3, v),
+                    ("p", f"{cal['evaluations']} evaluations on {len(cal['train'])} training scenarios "
+                          f"({', '.join(cal['train'])}); held out: {', '.join(cal['held_out']) or 'none'}. "
+                          f"Written to {cal['written_to']}."),
+                    ("table", ["time-series error", "before (train)", "before (held out)", "after (train)",
+                               "after (held out)"], rows),
+                    ("table", ["parameter", "before", "after"], _param_rows(cal))]
+    out.append(("h", 2, "Per scenario"))
+    for v, f in report["fidelity"].items():
+        out += [("h", 3, v), ("table", ["scenario", *METRICS],
+                              [[n, *[_fmt(e.get(m)) for m in METRICS]] if not e.get("failed") else [n, "run failed"]
+                               for n, e in f["per_scenario"].items()])]
+    out.append(("h", 2, "Scalars per run"))
+    keys = ("peak_force_n", "impulse_ns", "settling_time_s", "final_height_m", "final_pitch_deg", "final_roll_deg",
+            "contacts", "cop_x_mm", "cop_y_mm", "spread_mm", "rebound_mm", "slip_mm", "max_penetration_mm")
+    for v, runs in report["runs"].items():
+        out += [("h", 3, v), ("table", ["scenario", *keys],
+                              [[n, *[_fmt(r["scalars"].get(k)) for k in keys]] for n, r in runs.items()])]
+    out.append(("h", 2, "Plots"))
+    for s in report["scenarios"]:
+        out.append(("img", f"plots/{s['name']}.png", s["name"]))
+    return out
+
+
+def _param_rows(cal: dict) -> list[list[str]]:
+    b, a = cal["parameters_before"], cal["parameters_after"]
+    rows = [[f"{j}.{k}", _fmt(b["joints"][j][k], 4), _fmt(a["joints"][j][k], 4)]
+            for j in b["joints"] for k in ("stiffness", "damping")]
+    return rows + [["sole_lift_m", _fmt(b["sole_lift_m"], 4), _fmt(a["sole_lift_m"], 4)]]
+
+
+def to_markdown(items: list[tuple]) -> str:
+    lines = []
+    for item in items:
+        if item[0] == "h":
+            lines += ["#" * item[1] + " " + item[2], ""]
+        elif item[0] == "p":
+            lines += [item[1], ""]
+        elif item[0] == "table":
+            lines += ["| " + " | ".join(item[1]) + " |", "|" + "---|" * len(item[1])]
+            lines += ["| " + " | ".join(row) + " |" for row in item[2]] + [""]
+        elif item[0] == "img":
+            lines += [f"![{item[2]}]({item[1]})", ""]
+    return "\n".join(lines)
+
+
+def to_html(items: list[tuple]) -> str:
+    e = html.escape
+    body = []
+    for item in items:
+        if item[0] == "h":
+            body.append(f"<h{item[1]}>{e(item[2])}</h{item[1]}>")
+        elif item[0] == "p":
+            body.append(f"<p>{e(item[1])}</p>")
+        elif item[0] == "table":
+            head = "".join(f"<th>{e(h)}</th>" for h in item[1])
+            rows = "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in item[2])
+            body.append(f"<table><tr>{head}</tr>{rows}</table>")
+        elif item[0] == "img":
+            body.append(f'<figure><img src="{e(item[1])}" alt="{e(item[2])}" width="900"><figcaption>{e(item[2])}'
+                        "</figcaption></figure>")
+    style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"
+             "font-size:12px;margin:8px 0}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}")
+    return f"<!doctype html><html><head><meta charset='utf-8'><title>footforge validate</title><style>{style}</style>" \
+           f"</head><body>{''.join(body)}</body></html>\n"
+
+
+def plot_scenario(report: dict, scenario: str, path: Path) -> None:
+    """Vertical force of each variant over the reference, sole pitch and roll, final footprint."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    for v, runs in report["runs"].items():
+        r = runs[scenario]
+        s, c = r["series"], COLOURS.get(v, None)
+        width = 2.0 if v == "full" else 1.0
+        axes[0].plot(s["time_s"], s["force_z_n"], color=c, lw=width, label=v)
+        if np.isfinite(s["pitch_rad"]).any():
+            axes[1].plot(s["time_s"], np.degrees(s["pitch_rad"]), color=c, lw=width, label=f"{v} pitch")
+            axes[1].plot(s["time_s"], np.degrees(s["roll_rad"]), color=c, lw=width, ls="--", label=f"{v} roll")
+        fp = r["footprint"]
+        if len(fp):
+            axes[2].scatter(fp[:, 0] * 1e3, fp[:, 1] * 1e3, s=10 + 60 * np.clip(fp[:, 2], 0, None) / max(fp[:, 2].max(), 1e-9),
+                            color=c, alpha=0.6, label=v)
+    axes[0].set(xlabel="time (s)", ylabel="vertical ground force (N)", title=f"{scenario}: force",
+                ylim=(0, 4 * max(r[scenario]["supported_weight_n"] for r in report["runs"].values())))
+    axes[1].set(xlabel="time (s)", ylabel="deg", title="sole pitch (solid) and roll (dashed)")
+    axes[2].set(xlabel="x (mm)", ylabel="y (mm)", title="settled contacts (size ~ force)", aspect="equal")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def _json_ready(report: dict) -> dict:
+    """The report without the time series (they go to series.npz)."""
+    out = {k: v for k, v in report.items() if k != "runs"}
+    out["runs"] = {v: {n: {k: r[k] for k in ("scalars", "failed", "wall_s", "steps", "timestep_s", "supported_weight_n")}
+                       for n, r in runs.items()} for v, runs in report["runs"].items()}
+    return out
+
+
+def _default(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(type(value))
+
+
+def write(report: dict, out_dir: Path, command: str) -> None:
+    with atomic_directory(out_dir) as tmp:
+        (tmp / "plots").mkdir()
+        for s in report["scenarios"]:
+            plot_scenario(report, s["name"], tmp / "plots" / f"{s['name']}.png")
+        items = blocks(report, command)
+        (tmp / "report.md").write_text(to_markdown(items))
+        (tmp / "report.html").write_text(to_html(items))
+        (tmp / "report.json").write_text(json.dumps(_json_ready(report), indent=1, default=_default) + "\n")
+        np.savez_compressed(tmp / "series.npz", **{f"{v}/{n}/{k}": a for v, runs in report["runs"].items()
+                                                   for n, r in runs.items() for k, a in r["series"].items()})

@@ -1,0 +1,200 @@
+"""`footforge validate`: drop every variant and the closed chain on the same scenarios, in
+parallel processes, and measure how far the variants are from the reference."""
+
+from __future__ import annotations
+
+import multiprocessing
+import platform
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from footforge import __version__
+from footforge.build import BuildOptions, Stages, versions, load_foot_source
+from footforge.errors import InputError
+from footforge.validate import fidelity, rigs, simulate
+from footforge.validate.scenarios import Scenario, select
+
+CLOSURE_LIMIT_MM = 0.5
+"""The closed chain is a trustworthy reference only if no loop opens by more than this."""
+ENERGY_GAIN_TOL_J = 1e-3
+"""Released at rest with only gravity, springs and dissipation acting, the rig's energy must not
+exceed its initial value by more than this (about 1e-4 of a 10 cm drop's energy)."""
+DERIVED = ("aof", "aff")
+
+
+@dataclass(frozen=True)
+class ValidateOptions:
+    variants: tuple[str, ...] = ("aof", "aff", "ball")
+    """Variants compared with the closed chain."""
+    scenarios: tuple[str, ...] = ("quick",)
+    """'quick', 'all' or scenario names."""
+    calibrate: bool = False
+    """Fit the AFF/AOF spring, damper and sole-lift parameters and write them to the parameter file."""
+    calibration_evaluations: int = 120
+    """Objective evaluations per calibrated variant (each runs the training scenarios)."""
+    jobs: int = 2
+    """Worker processes."""
+    thresholds: fidelity.Thresholds = field(default_factory=fidelity.Thresholds)
+    seed: int = 0
+    """Added to every random scenario's seed (rough patches)."""
+    build: BuildOptions = field(default_factory=lambda: BuildOptions(variant="full", out_dir=Path(".")))
+    """Foot description, sidecar, parameter file, packages and CoACD cache to build from."""
+
+
+def parse_variants(text: str) -> tuple[str, ...]:
+    if text == "all":
+        return ("aof", "aff", "ball")
+    names = tuple(v.strip() for v in text.split(",") if v.strip())
+    bad = [v for v in names if v not in ("aof", "aff", "ball")]
+    if bad or not names:
+        raise InputError(f"unknown variant '{', '.join(bad)}' for validate", fix="use aof, aff, ball or all")
+    return names
+
+
+def training_split(scenarios: list[Scenario]) -> tuple[list[Scenario], list[Scenario]]:
+    """Calibration scenarios and held-out ones: every third scenario (in the listed order) is
+    held out, so each obstacle family has members on both sides."""
+    held = [s for i, s in enumerate(scenarios) if i % 3 == 2]
+    return [s for s in scenarios if s not in held], held
+
+
+class Pool:
+    """Worker processes that simulate rig cases; `map` keeps the input order."""
+
+    def __init__(self, jobs: int):
+        self.jobs = max(1, int(jobs))
+        self._pool = (ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"))
+                      if self.jobs > 1 else None)
+
+    def map(self, cases: list[simulate.RigCase], progress: Callable[[], None] | None = None) -> list[dict]:
+        results = []
+        iterator = map(simulate.run, cases) if self._pool is None else self._pool.map(simulate.run, cases)
+        for result in iterator:
+            results.append(result)
+            if progress:
+                progress()
+        return results
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+
+
+def _seeded(scenarios: list[Scenario], seed: int) -> list[Scenario]:
+    from dataclasses import replace
+    return [replace(s, seed=s.seed + seed) if s.obstacle == "rough" else s for s in scenarios]
+
+
+class Session:
+    """The models of one validation: the foot source, each variant's foot, the sole extent."""
+
+    def __init__(self, options: ValidateOptions, stage: Stages):
+        self.options = options
+        self.report: dict = {}
+        self.source = load_foot_source(options.build, stage, self.report)
+        self.feet = rigs.build_feet(self.source, options.variants)
+        self.sole = rigs.sole_extent(self.feet["full"])
+
+    def reload(self, variant: str, params_path: Path) -> None:
+        """Rebuilds `variant`'s foot from an updated parameter file."""
+        from dataclasses import replace
+
+        from footforge import foot as foot_lib
+        from footforge.params import load_params
+        self.source = replace(self.source, params=load_params(params_path))
+        self.feet[variant] = foot_lib.build_derived(self.source, variant, full=self.feet["full"])
+
+    def cases(self, variant: str, scenarios: list[Scenario], patch: dict | None = None) -> list[simulate.RigCase]:
+        out = []
+        for s in scenarios:
+            case = rigs.rig_case(self.feet[variant], variant, s, self.sole, self.source.params,
+                                 self.source.sidecar.friction)
+            out.append(simulate.RigCase(case.scenario, variant, case.xml, case.assets, patch))
+        return out
+
+
+def reference_checks(runs: dict[str, dict]) -> dict:
+    """The closed chain's own trustworthiness over the scenarios run."""
+    per = {}
+    for name, r in runs.items():
+        sc = r["scalars"]
+        per[name] = {"failed": r["failed"], "max_closure_gap_mm": sc.get("max_closure_gap_mm"),
+                     "energy_gain_j": sc.get("energy_gain_j")}
+    ok = [p for p in per.values() if not p["failed"]]
+    worst_gap = max((p["max_closure_gap_mm"] for p in ok), default=float("nan"))
+    worst_gain = max((p["energy_gain_j"] for p in ok), default=float("nan"))
+    passed = len(ok) == len(per) and worst_gap <= CLOSURE_LIMIT_MM and worst_gain <= ENERGY_GAIN_TOL_J
+    return {"per_scenario": per, "max_closure_gap_mm": worst_gap, "closure_limit_mm": CLOSURE_LIMIT_MM,
+            "max_energy_gain_j": worst_gain, "energy_gain_tolerance_j": ENERGY_GAIN_TOL_J, "passed": passed}
+
+
+def speed(runs: dict[str, dict]) -> dict:
+    """Simulated seconds per wall-clock second, summed over the scenarios."""
+    simulated = sum(r["steps"] * r["timestep_s"] for r in runs.values())
+    wall = sum(r["wall_s"] for r in runs.values())
+    return {"simulated_s": simulated, "wall_s": wall, "realtime_factor": simulated / wall if wall else float("nan")}
+
+
+def compare(variant_runs: dict[str, dict], full_runs: dict[str, dict], thresholds: fidelity.Thresholds) -> dict:
+    per = {name: fidelity.errors(run, full_runs[name]) for name, run in variant_runs.items()}
+    return {"per_scenario": per, "summary": fidelity.summarise(per, thresholds)}
+
+
+def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callable[[], None]] | None = None) -> dict:
+    """Runs the validation; returns the report (figures, series, definitions) without writing it.
+
+    `progress(description, total)` returns a callback to advance by one finished run.
+    """
+    from footforge.validate import calibrate as calibration
+
+    scenarios = _seeded(select(list(options.scenarios)), options.seed)
+    stage = Stages(None)
+    session = Session(options, stage)
+    advance = (lambda d, n: progress(d, n)) if progress else (lambda d, n: None)
+    pool = Pool(options.jobs)
+    try:
+        variants = ("full",) + options.variants
+        cases = [c for v in variants for c in session.cases(v, scenarios)]
+        results = pool.map(cases, advance("drop tests", len(cases)))
+        runs = {v: {} for v in variants}
+        for r in results:
+            runs[r["variant"]][r["scenario"]] = r
+        report = {
+            "footforge": __version__, "versions": versions(), "machine": platform.platform(),
+            "seed": options.seed, "jobs": options.jobs, "thresholds": options.thresholds.as_dict(),
+            "params": str(session.source.params.source),
+            "scenarios": [s.describe() for s in scenarios], "sole_extent_m": asdict(session.sole),
+            "reference": reference_checks(runs["full"]), "runs": runs,
+            "speed": {v: speed(runs[v]) for v in variants},
+            "fidelity": {v: compare(runs[v], runs["full"], options.thresholds) for v in options.variants},
+        }
+        base = report["speed"]["full"]["realtime_factor"]
+        for v in variants:
+            report["speed"][v]["vs_full"] = report["speed"][v]["realtime_factor"] / base
+        if options.calibrate:
+            report["calibration"] = calibration.calibrate(session, pool, scenarios, runs, options, advance)
+            for v, cal in report["calibration"].items():
+                runs[v] = cal.pop("runs")
+                report["speed"][v] = speed(runs[v]) | {"vs_full": speed(runs[v])["realtime_factor"] / base}
+                report["fidelity"][v] = compare(runs[v], runs["full"], options.thresholds)
+    finally:
+        pool.close()
+    report["passed"] = bool(report["reference"]["passed"]
+                            and all(f["summary"]["passed"] for f in report["fidelity"].values()))
+    return report
+
+
+def variant_params_summary(session: Session, variant: str) -> dict:
+    params = session.source.params
+    joints = params.aff if variant == "aff" else params.aof
+    return {"joints": {n: {"stiffness": j.stiffness, "damping": j.damping} for n, j in joints.items()},
+            "sole_lift_m": params.sole_lift_m[variant]}
+
+
+def mean_series_errors(runs: dict[str, dict], full_runs: dict[str, dict], names) -> dict:
+    errs = [fidelity.series_errors(runs[n], full_runs[n]) for n in names]
+    return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]} if errs else {}
