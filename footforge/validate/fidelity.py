@@ -59,7 +59,7 @@ def errors(variant: dict, full: dict) -> dict:
     if variant["scalars"].get("failed") or full["scalars"].get("failed"):
         return {"failed": True}
     sv, sf = variant["series"], full["series"]
-    n = min(len(sv["force_z_n"]), len(sf["force_z_n"]))
+    n = _common_samples(sv, sf)
     fv, ff = sv["force_z_n"][:n], sf["force_z_n"][:n]
     span = max(float(np.nanmax(ff) - np.nanmin(ff)), 1e-9)
     a, b = variant["scalars"], full["scalars"]
@@ -75,18 +75,32 @@ def errors(variant: dict, full: dict) -> dict:
     }
 
 
+def _common_samples(sv: dict, sf: dict) -> int:
+    """Number of samples both runs share; they must be on the same time grid."""
+    n = min(len(sv["time_s"]), len(sf["time_s"]))
+    if not np.allclose(sv["time_s"][:n], sf["time_s"][:n], atol=1e-9):
+        raise ValueError("runs sampled at different instants cannot be compared")
+    return n
+
+
 def series_errors(variant: dict, full: dict) -> dict:
-    """Time-series errors, smooth in the parameters (the calibration's objective terms):
-    force RMS over the force range, height RMS (mm), sole pitch and roll RMS (deg)."""
+    """Time-series errors, smooth in the parameters (the calibration's objective terms): force
+    RMS over the force range, and from the reference's first contact on (before it both fall
+    alike, only offset by where their soles sit) height RMS (mm) and sole pitch/roll RMS (deg)."""
     sv, sf = variant["series"], full["series"]
-    n = min(len(sv["force_z_n"]), len(sf["force_z_n"]))
+    n = _common_samples(sv, sf)
+    touched = np.flatnonzero(sf["force_z_n"][:n] > 1e-6)
+    after = slice(int(touched[0]) if touched.size else 0, n)
     ff = sf["force_z_n"][:n]
     span = max(float(np.nanmax(ff) - np.nanmin(ff)), 1e-9)
-    rms = lambda x: float(np.sqrt(np.nanmean(x ** 2)))  # noqa: E731
+
+    def rms(x):
+        x = x[np.isfinite(x)]
+        return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
     return {"force": rms(sv["force_z_n"][:n] - ff) / span,
-            "height_mm": rms(sv["height_m"][:n] - sf["height_m"][:n]) * 1e3,
-            "orientation_deg": float(np.degrees(np.hypot(rms(sv["pitch_rad"][:n] - sf["pitch_rad"][:n]),
-                                                         rms(sv["roll_rad"][:n] - sf["roll_rad"][:n]))))}
+            "height_mm": rms(sv["height_m"][after] - sf["height_m"][after]) * 1e3,
+            "orientation_deg": float(np.degrees(np.hypot(rms(sv["pitch_rad"][after] - sf["pitch_rad"][after]),
+                                                         rms(sv["roll_rad"][after] - sf["roll_rad"][after]))))}
 
 
 def summarise(per_scenario: dict[str, dict], thresholds: Thresholds) -> dict:

@@ -32,8 +32,8 @@ def blocks(report: dict, command: str) -> list[tuple]:
                         ("p", f"footforge {report['footforge']}, mujoco {report['versions'].get('mujoco')}, "
                               f"machine {report['machine']}, seed {report['seed']}, {report['jobs']} worker(s); "
                               f"parameters {report['params']}."),
-                        ("p", "Verdict: " + ("PASS" if report["passed"] else "FAIL") + " (reference trustworthy and "
-                              "every variant's mean errors within the thresholds).")]
+                        ("p", "Verdict: " + ("PASS" if report["passed"] else "FAIL") + ". A pass needs a trustworthy "
+                              "reference and every variant's mean errors within the thresholds.")]
     ref = report["reference"]
     out += [("h", 2, "The closed-chain reference"),
             ("p", f"Largest closure opening {_fmt(ref['max_closure_gap_mm'])} mm (limit {ref['closure_limit_mm']} mm); "

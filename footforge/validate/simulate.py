@@ -14,8 +14,9 @@ import numpy as np
 from footforge.foot import geom_points
 from footforge.validate.scenarios import Scenario
 
-SAMPLE_DT_S = 0.001
-"""Recording interval, s (every variant is sampled on the same grid)."""
+SAMPLE_DT_S = 0.002
+"""Recording interval, s: a multiple of every variant's timestep (0.25 ms full, 2 ms others), so
+all variants are sampled at the same instants."""
 SOLE_BODY_PREFIXES = ("chain_", "sole")
 """Bodies (after the `foot/` prefix) whose bottoms form the sole: the closed chain's links, the
 derived feet's sole bodies."""
@@ -60,7 +61,10 @@ def _foot_bodies(model: mujoco.MjModel) -> np.ndarray:
 
 def _sole_points(model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[int, np.ndarray]]:
     """Material points on the bottom of each sole body (within 1 mm of its lowest collision
-    point at the reference pose), as (body, point in the body frame)."""
+    point along the foot mount's z axis, at the reference pose), as (body, point in the body
+    frame). Measured in the mount frame, so a tilted leg selects the same points."""
+    mount = model.site("mount").id
+    R_mount, p_mount = data.site_xmat[mount].reshape(3, 3), data.site_xpos[mount]
     out = []
     for b in range(model.nbody):
         name = model.body(b).name
@@ -71,7 +75,8 @@ def _sole_points(model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[int, 
         if not pts:
             continue
         pts = np.concatenate(pts)
-        bottom = pts[pts[:, 2] <= pts[:, 2].min() + 1e-3]
+        height = (pts - p_mount) @ R_mount[:, 2]
+        bottom = pts[height <= height.min() + 1e-3]
         Rb, pb = data.xmat[b].reshape(3, 3), data.xpos[b]
         out += [(b, (q - pb) @ Rb) for q in bottom]
     return out

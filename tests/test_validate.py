@@ -1,0 +1,151 @@
+"""`footforge validate`: the closed-chain reference, drop-test physics, fidelity, calibration."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from footforge.cli import main
+from footforge.errors import InputError
+from footforge.params import load_params
+from footforge.validate import fidelity
+from footforge.validate.calibrate import write_params
+from footforge.validate.runner import CLOSURE_LIMIT_MM, ENERGY_GAIN_TOL_J, ValidateOptions, validate
+from footforge.validate.scenarios import QUICK, SCENARIOS, select
+
+from conftest import REPO
+
+PARAMS = REPO / "descriptions/softfoot_q/config/variant_params.yaml"
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """The quick set end to end through the command line, as CI runs it: (exit code, report.json, folder)."""
+    out = tmp_path_factory.mktemp("validate") / "report"
+    code = main(["validate", "--scenarios", "quick", "--jobs", "2", "--out", str(out)])
+    return code, json.loads((out / "report.json").read_text()), out
+
+
+@pytest.fixture(scope="module")
+def extra():
+    """Scenarios outside the quick set that the physics checks need, full chain and AOF."""
+    return validate(ValidateOptions(variants=("aof",), jobs=2,
+                                    scenarios=("rock_middle", "leg_roll_+10deg", "leg_roll_-10deg", "rough_seed0")))
+
+
+def test_quick_run_writes_every_output(quick):
+    code, report, out = quick
+    assert code == (0 if report["passed"] else 1)
+    for name in ("report.md", "report.html", "report.json", "series.npz"):
+        assert (out / name).is_file()
+    assert sorted(p.stem for p in (out / "plots").iterdir()) == sorted(QUICK)
+    assert [s["name"] for s in report["scenarios"]] == list(QUICK)
+    assert set(report["fidelity"]) == {"aof", "aff", "ball"}
+    assert report["versions"]["mujoco"] and report["seed"] == 0
+    series = np.load(out / "series.npz")
+    assert series["full/flat_2cm/force_z_n"].shape == series["aof/flat_2cm/force_z_n"].shape
+    html = (out / "report.html").read_text()
+    assert "<table>" in html and "plots/flat_2cm.png" in html
+
+
+def test_closed_chain_reference_is_trustworthy(quick, extra):
+    """Loops stay shut within 0.5 mm, nothing blows up, and the energy never exceeds its start."""
+    _, report, _ = quick
+    for ref in (report["reference"], extra["reference"]):
+        assert ref["passed"]
+        assert ref["max_closure_gap_mm"] < CLOSURE_LIMIT_MM
+        assert ref["max_energy_gain_j"] <= ENERGY_GAIN_TOL_J
+        assert not any(p["failed"] for p in ref["per_scenario"].values())
+
+
+def test_settled_force_on_flat_ground_equals_the_supported_weight(quick):
+    _, report, _ = quick
+    for variant, runs in report["runs"].items():
+        run = runs["flat_2cm"]
+        assert run["scalars"]["final_force_n"] == pytest.approx(run["supported_weight_n"], rel=0.01), variant
+
+
+def test_symmetric_obstacle_gives_a_symmetric_response(extra):
+    """A rock under the middle of the sole: no roll, no lateral centre of pressure; a leg tilted
+    +10 or -10 degrees in roll: mirror images."""
+    for variant, runs in extra["runs"].items():
+        rock = runs["rock_middle"]["scalars"]
+        assert abs(rock["final_roll_deg"]) < 0.1 and abs(rock["cop_y_mm"]) < 0.5, variant
+        plus, minus = runs["leg_roll_+10deg"]["scalars"], runs["leg_roll_-10deg"]["scalars"]
+        assert plus["final_roll_deg"] == pytest.approx(-minus["final_roll_deg"], abs=0.05), variant
+        assert plus["cop_y_mm"] == pytest.approx(-minus["cop_y_mm"], abs=0.5), variant
+        assert plus["final_height_m"] == pytest.approx(minus["final_height_m"], abs=1e-5), variant
+
+
+def test_reference_against_itself_has_zero_error(extra):
+    for name, run in extra["runs"]["full"].items():
+        errors = fidelity.errors(run, run)
+        assert all(errors[k] == 0.0 for k in ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg",
+                                               "cop_mm", "slip_mm")), name
+
+
+def test_same_seed_same_figures_other_seed_other_terrain(extra):
+    again = validate(ValidateOptions(variants=("aof",), jobs=1, scenarios=("rough_seed0",)))
+    assert again["runs"]["aof"]["rough_seed0"]["scalars"] == extra["runs"]["aof"]["rough_seed0"]["scalars"]
+    other = validate(ValidateOptions(variants=("aof",), jobs=1, scenarios=("rough_seed0",), seed=7))
+    assert other["runs"]["aof"]["rough_seed0"]["scalars"] != extra["runs"]["aof"]["rough_seed0"]["scalars"]
+
+
+def test_scenario_sets():
+    assert len(SCENARIOS) >= 24 and 5 <= len(QUICK) <= 7
+    assert {s.obstacle for s in SCENARIOS} == {"flat", "slope", "step", "cylinder", "rock", "rough"}
+    assert {s.drop_height_m for s in SCENARIOS} >= {0.02, 0.05, 0.10}
+    assert [s.name for s in select("all")] == [s.name for s in SCENARIOS]
+    assert [s.name for s in select(["rock_front,flat_2cm"])] == ["rock_front", "flat_2cm"]
+    with pytest.raises(InputError, match="unknown scenario"):
+        select(["flat_2cm", "lava"])
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--scenarios", "lava"], "unknown scenario(s): lava"),
+    (["--threshold", "cop_mm=-1"], "not a positive number"),
+    (["--threshold", "beauty=1"], "unknown threshold 'beauty'"),
+    (["--variant", "hoof"], "unknown variant 'hoof'"),
+    (["--jobs", "0"], "--jobs 0 must be at least 1"),
+])
+def test_bad_arguments_exit_2_with_a_message(tmp_path, capsys, argv, message):
+    assert main(["validate", *argv, "--out", str(tmp_path / "v")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "v").exists()
+
+
+def test_write_params_keeps_comments_and_other_values(tmp_path):
+    path = tmp_path / "params.yaml"
+    shutil.copy(PARAMS, path)
+    before = path.read_text()
+    write_params(path, "aof", {"ankle_pitch": {"stiffness": 1.25, "damping": 0.5}}, 0.0123)
+    after = path.read_text()
+    params = load_params(path)
+    assert params.aof["ankle_pitch"].stiffness == 1.25 and params.aof["ankle_pitch"].damping == 0.5
+    assert params.sole_lift_m["aof"] == 0.0123
+    assert params.aff == load_params(PARAMS).aff  # the other section is untouched
+    comments = lambda text: [line for line in text.splitlines() if line.strip().startswith("#")]  # noqa: E731
+    assert comments(after) == comments(before)
+    with pytest.raises(InputError, match="no aff.heel"):
+        write_params(path, "aff", {"heel": {"stiffness": 1.0, "damping": 1.0}}, 0.0)
+
+
+def test_calibration_writes_the_parameter_file_and_reports_before_after(tmp_path):
+    params = tmp_path / "params.yaml"
+    shutil.copy(PARAMS, params)
+    out = tmp_path / "cal"
+    code = main(["validate", "--variant", "aff", "--scenarios", "flat_2cm", "step_toe", "rock_front",
+                 "--calibrate", "--evaluations", "4", "--jobs", "2", "--params", str(params), "--out", str(out)])
+    report = json.loads((out / "report.json").read_text())
+    assert code == (0 if report["passed"] else 1)
+    cal = report["calibration"]["aff"]
+    assert cal["train"] == ["flat_2cm", "step_toe"] and cal["held_out"] == ["rock_front"]
+    assert cal["objective_after"] <= cal["objective_before"]
+    written = load_params(params)
+    after = cal["parameters_after"]
+    assert written.aff["ankle_pitch"].stiffness == after["joints"]["ankle_pitch"]["stiffness"]
+    assert written.sole_lift_m["aff"] == after["sole_lift_m"]
+    # The reported runs are of the foot rebuilt from the written file.
+    assert report["calibration"]["aff"]["series_errors_after"]["train"]["objective"] == pytest.approx(
+        cal["objective_after"], rel=1e-6)
