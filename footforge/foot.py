@@ -27,6 +27,7 @@ import pinocchio as pin
 from dm_control import mjcf
 
 from footforge import kinematics
+from footforge.errors import InputError
 from footforge.collision import DecompositionConfig, Hulls, decompose
 from footforge.params import PassiveJoint, VariantParams
 from footforge.sidecar import FAMILIES, Sidecar
@@ -271,11 +272,32 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
             add_body(roll_body, roll_frame, frame_at(oMi[pivot_joint].translation), body_name,
                      split[body_name], body_name, axis, params.aof_sole_range,
                      [(body_name, split[body_name])])
+    clearance = sole_clearance(root)
+    if clearance < 0.001:
+        raise InputError(f"sole_lift_m {sole_lift:g} m raises the {variant} sole to within 1 mm of the foot's other "
+                         f"collision boxes (clearance {clearance * 1e3:.1f} mm)", file=str(params.source),
+                         element=f"{variant}.sole_lift_m",
+                         fix=f"keep sole_lift_m below {sole_lift + clearance - 0.001:.4f} m so the sole stays the lowest part")
     names = ["ankle_pitch", "ankle_roll"] + ([] if variant == "aff" else ["sole_front", "sole_back"])
     info = {"replaced_links": {k: [parsed.link_of(j) for j in v] for k, v in split.items()},
             "reference_pose_closure_error_m": source.reference.closure_error_m}
     return _finish(FootModel(variant, root, parsed.root_link, {n: 0.0 for n in names}, names,
                              np.zeros(3), info))
+
+
+def sole_clearance(root: mjcf.RootElement) -> float:
+    """How far the lowest collision point of the foot's other bodies lies above the sole's, at
+    the reference pose (m): the most a sole lift can add before the sole stops being the part
+    that touches the ground."""
+    model = compile_model(root)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    lowest = {True: np.inf, False: np.inf}
+    for g in range(model.ngeom):
+        if model.geom_group[g] == 3:
+            is_sole = model.geom(g).name.startswith("sole")
+            lowest[is_sole] = min(lowest[is_sole], geom_points(model, data, g)[:, 2].min())
+    return float(lowest[False] - lowest[True])
 
 
 def _joint_range(parsed: ParsedURDF, joint_id: int) -> tuple[float, float]:

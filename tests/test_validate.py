@@ -149,3 +149,13 @@ def test_calibration_writes_the_parameter_file_and_reports_before_after(tmp_path
     # The reported runs are of the foot rebuilt from the written file.
     assert report["calibration"]["aff"]["series_errors_after"]["train"]["objective"] == pytest.approx(
         cal["objective_after"], rel=1e-6)
+
+
+def test_a_sole_lift_above_the_other_collision_boxes_is_refused(tmp_path, capsys):
+    params = tmp_path / "params.yaml"
+    shutil.copy(PARAMS, params)
+    write_params(params, "aff", {}, 0.04)
+    assert main(["build", "--variant", "aff", "--params", str(params), "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert "sole_lift_m 0.04 m raises the aff sole" in err and "keep sole_lift_m below" in err
+    assert not (tmp_path / "b").exists()

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
+from footforge import foot as foot_lib
 from footforge.errors import InputError
 from footforge.params import load_params
 from footforge.validate import fidelity
@@ -32,7 +33,8 @@ LOG_STIFFNESS = (-3.0, 2.3)
 LOG_DAMPING = (-4.0, 1.3)
 """log10 bounds, N m s/rad (1e-4 .. 20)."""
 LIFT_CM = (0.0, 3.0)
-"""Sole lift bounds, cm (the optimiser works in cm to keep the simplex balanced)."""
+"""Sole lift bounds, cm (the optimiser works in cm to keep the simplex balanced); the upper bound
+is lowered to keep the sole 1 mm below the foot's other collision boxes (foot.sole_clearance)."""
 HEIGHT_SCALE_MM = 5.0
 ORIENTATION_SCALE_DEG = 5.0
 
@@ -86,7 +88,8 @@ def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
             return value
 
         x0 = _vector(params, variant)
-        bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [LIFT_CM]
+        max_lift_cm = 100.0 * (params.sole_lift_m[variant] + foot_lib.sole_clearance(session.feet[variant].mjcf) - 0.0011)
+        bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [(LIFT_CM[0], min(LIFT_CM[1], max_lift_cm))]
         simplex = [x0] + [x0 + np.eye(len(x0))[i] * (0.5 if i < len(x0) - 1 else 0.5) for i in range(len(x0))]
         simplex = np.array([np.clip(p, [b[0] for b in bounds], [b[1] for b in bounds]) for p in simplex])
         for i in range(1, len(simplex)):  # a step that hit a bound goes the other way

@@ -178,6 +178,7 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
         if options.calibrate:
             report["calibration"] = calibration.calibrate(session, pool, scenarios, runs, options, advance)
             for v, cal in report["calibration"].items():
+                cal["fidelity_summary_before"] = report["fidelity"][v]["summary"]
                 runs[v] = cal.pop("runs")
                 report["speed"][v] = speed(runs[v]) | {"vs_full": speed(runs[v])["realtime_factor"] / base}
                 report["fidelity"][v] = compare(runs[v], runs["full"], options.thresholds)
