@@ -35,13 +35,6 @@ LOG_DAMPING = (-4.0, 1.3)
 LIFT_CM = (0.0, 3.0)
 """Sole lift bounds, cm (the optimiser works in cm to keep the simplex balanced); the upper bound
 is lowered to keep the sole 1 mm below the foot's other collision boxes (foot.sole_clearance)."""
-HEIGHT_SCALE_MM = 5.0
-ORIENTATION_SCALE_DEG = 5.0
-
-
-def objective_terms(errors: dict) -> float:
-    return (errors["force"] ** 2 + (errors["height_mm"] / HEIGHT_SCALE_MM) ** 2
-            + (0.0 if math.isnan(errors["orientation_deg"]) else (errors["orientation_deg"] / ORIENTATION_SCALE_DEG) ** 2))
 
 
 def _vector(params, variant: str) -> np.ndarray:
@@ -81,7 +74,7 @@ def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
             joints, lift = _values(x, variant)
             patch = {"joints": joints, "sole_lift_delta_m": lift - params.sole_lift_m[variant]}
             results = pool.map([replace(c, patch=patch) for c in cases])
-            value = float(np.mean([objective_terms(fidelity.series_errors(r, full[r["scenario"]]))
+            value = float(np.mean([fidelity.objective(fidelity.series_errors(r, full[r["scenario"]]))
                                    if not r["failed"] else 1e6 for r in results]))
             history.append(value)
             tick()
@@ -114,10 +107,6 @@ def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
             "series_errors_after": {"train": mean_series_errors(new_runs, full, [s.name for s in train]),
                                     "held_out": mean_series_errors(new_runs, full, [s.name for s in held])},
             "runs": new_runs}
-        for key in ("series_errors_before", "series_errors_after"):
-            for split in ("train", "held_out"):
-                e = out[variant][key][split]
-                e["objective"] = objective_terms(e) if e else None
     return out
 
 

@@ -103,6 +103,18 @@ def series_errors(variant: dict, full: dict) -> dict:
                                                          rms(sv["roll_rad"][after] - sf["roll_rad"][after]))))}
 
 
+HEIGHT_SCALE_MM = 5.0
+ORIENTATION_SCALE_DEG = 5.0
+
+
+def objective(errors: dict) -> float:
+    """The calibration objective of one scenario: (force error)^2 + (height error / 5 mm)^2 +
+    (orientation error / 5 deg)^2 (the last left out where the variant has no sole)."""
+    orientation = errors["orientation_deg"]
+    return (errors["force"] ** 2 + (errors["height_mm"] / HEIGHT_SCALE_MM) ** 2
+            + (0.0 if math.isnan(orientation) else (orientation / ORIENTATION_SCALE_DEG) ** 2))
+
+
 def summarise(per_scenario: dict[str, dict], thresholds: Thresholds) -> dict:
     """Mean and worst of each error over the scenarios, and pass/fail against the thresholds
     (a metric that is undefined for the variant, like the ball's sole orientation, is skipped)."""

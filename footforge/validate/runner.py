@@ -197,5 +197,9 @@ def variant_params_summary(session: Session, variant: str) -> dict:
 
 
 def mean_series_errors(runs: dict[str, dict], full_runs: dict[str, dict], names) -> dict:
+    """Each time-series error and the calibration objective, averaged over `names`."""
     errs = [fidelity.series_errors(runs[n], full_runs[n]) for n in names]
-    return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]} if errs else {}
+    if not errs:
+        return {}
+    return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]} | {
+        "objective": float(np.mean([fidelity.objective(e) for e in errs]))}
