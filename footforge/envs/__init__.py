@@ -1,0 +1,49 @@
+"""MJX locomotion environments for ANYmal C with any foot variant, and their registry.
+
+    env = footforge.envs.make("flat", feet="aof", policy="BH")
+
+Tasks x feet x policy types: flat x {ball, aff, aof} x {B, BH} (BH needs adaptive feet).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from footforge.envs.config import EnvConfig
+from footforge.errors import InputError
+
+TASKS = {"flat": ("B", "BH")}
+FEET = ("ball", "aff", "aof")
+
+
+def default_config(task: str, feet: str, policy: str) -> EnvConfig:
+    """The task's configuration for (feet, policy).
+
+    Raises:
+      InputError: an unknown task, feet or policy type, or a haptic policy on ball feet.
+    """
+    if task not in TASKS:
+        raise InputError(f"unknown task '{task}'", fix=f"use one of {', '.join(TASKS)}")
+    if feet not in FEET:
+        raise InputError(f"unknown feet '{feet}' for training", fix=f"use one of {', '.join(FEET)} "
+                         "(the full closed chain is for evaluation on the CPU)")
+    if policy not in TASKS[task]:
+        raise InputError(f"policy type '{policy}' is not available for the {task} task",
+                         fix=f"use one of {', '.join(TASKS[task])}")
+    if policy in ("BH", "PH") and feet == "ball":
+        raise InputError(f"policy type {policy} reads the feet's passive joints; the ball foot has none",
+                         fix="use B with ball feet, or aff/aof feet")
+    return EnvConfig(feet=feet, policy=policy, action="velocity")
+
+
+def make(task: str, feet: str, policy: str, **overrides):
+    """An environment of the registry; `overrides` replace EnvConfig fields (e.g. build_dir)."""
+    from footforge.envs.locomotion import LocomotionEnv
+
+    return LocomotionEnv(replace(default_config(task, feet, policy), **overrides))
+
+
+def registry() -> list[tuple[str, str, str]]:
+    """Every valid (task, feet, policy) combination."""
+    return [(t, f, p) for t, policies in TASKS.items() for f in FEET for p in policies
+            if not (p in ("BH", "PH") and f == "ball")]

@@ -1,0 +1,102 @@
+"""ANYmal C as built by `footforge build`, prepared for MJX: indices, geom groups, solver settings.
+
+The model is the build's scene.xml (robot.xml plus a floor), never a second hand-written model.
+For MJX the only changes are the step, the solver iterations, and switching off collisions that
+no task needs (hips and shank tubes; the feet, the base and the thighs keep theirs: the feet
+walk, the base and thighs end episodes on contact).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from footforge import constants as C
+from footforge.envs.config import EnvConfig
+from footforge.errors import InputError
+
+FLOOR_GEOM = "floor"
+GEOM_NONE, GEOM_BASE, GEOM_FOOT = 0, 1, 2
+"""Geom categories for contact checks; thigh geoms of leg i are 3 + i."""
+
+
+@dataclass(frozen=True)
+class Robot:
+    model: mujoco.MjModel
+    home_qpos: np.ndarray
+    actuated_qpos: np.ndarray
+    """qpos addresses of the 12 actuated joints, in constants.ACTUATED_JOINTS order."""
+    actuated_dof: np.ndarray
+    actuator_ids: np.ndarray
+    """Actuator of each actuated joint, same order."""
+    default_q: np.ndarray
+    """Default joint angles (rad), same order."""
+    q_limits: np.ndarray
+    """(12, 2) joint ranges, rad."""
+    haa: np.ndarray
+    """Indices of the HAA joints within the 12."""
+    passive_qpos: np.ndarray
+    """qpos addresses of the passive foot joints (leg by leg), empty for ball feet."""
+    passive_dof: np.ndarray
+    passive_names: tuple[str, ...]
+    geom_category: np.ndarray
+    """Per geom: GEOM_NONE, GEOM_BASE, GEOM_FOOT or 3 + leg index (thigh)."""
+    floor_geom: int
+    base_body: int
+
+
+def build_dir(config: EnvConfig) -> Path:
+    return Path(config.build_dir) if config.build_dir else Path("build") / config.feet
+
+
+def ensure_built(config: EnvConfig) -> Path:
+    """The build folder of config.feet; runs `footforge build` there if it has no scene.xml."""
+    folder = build_dir(config)
+    if not (folder / "scene.xml").is_file():
+        if config.build_dir:
+            raise InputError(f"{folder} holds no scene.xml", file=str(folder),
+                             fix=f"run footforge build --variant {config.feet} --out {folder}")
+        from footforge.build import BuildOptions, build
+        build(BuildOptions(variant=config.feet, out_dir=folder, formats=("mjcf",)))
+    return folder
+
+
+def load_robot(config: EnvConfig) -> Robot:
+    """The build's scene, set up for MJX as described in the module docstring."""
+    folder = ensure_built(config)
+    model = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
+    model.opt.timestep = config.sim_dt
+    model.opt.iterations = config.solver_iterations
+    model.opt.ls_iterations = config.solver_ls_iterations
+    category = np.zeros(model.ngeom, np.int32)
+    body_names = [model.body(b).name for b in range(model.nbody)]
+    for g in range(model.ngeom):
+        if not (model.geom_contype[g] or model.geom_conaffinity[g]):
+            continue
+        body = body_names[model.geom_bodyid[g]]
+        if g == model.geom(FLOOR_GEOM).id:
+            continue
+        if body == C.BASE_BODY:
+            category[g] = GEOM_BASE
+        elif "_foot/" in body or (body.endswith("_SHANK") and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE):
+            category[g] = GEOM_FOOT
+        elif body.endswith("_THIGH"):
+            category[g] = 3 + C.LEGS.index(body.split("_")[0])
+        else:  # hips and shank tubes: no task needs them to touch the ground
+            model.geom_contype[g] = model.geom_conaffinity[g] = 0
+    joints = [model.joint(n) for n in C.ACTUATED_JOINTS]
+    actuators = np.array([model.actuator(n).id for n in C.ACTUATED_JOINTS])
+    passive = [model.joint(j).name for j in range(model.njnt)
+               if "_foot/" in model.joint(j).name and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    passive.sort(key=lambda n: (C.LEGS.index(n.split("_")[0]), n))
+    return Robot(
+        model=model, home_qpos=model.key("home").qpos.copy(),
+        actuated_qpos=np.array([j.qposadr[0] for j in joints]), actuated_dof=np.array([j.dofadr[0] for j in joints]),
+        actuator_ids=actuators, default_q=np.array([C.DEFAULT_JOINT_ANGLES_RAD[n] for n in C.ACTUATED_JOINTS]),
+        q_limits=np.array([j.range for j in joints]), haa=np.array([i for i, n in enumerate(C.ACTUATED_JOINTS) if n.endswith("HAA")]),
+        passive_qpos=np.array([model.joint(n).qposadr[0] for n in passive], int),
+        passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int), passive_names=tuple(passive),
+        geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id, base_body=model.body(C.BASE_BODY).id)

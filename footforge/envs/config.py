@@ -1,0 +1,132 @@
+"""Configuration of the locomotion environments: frozen dataclasses, one docstring per field.
+
+Defaults are the paper's and, where it is silent, its public baseline's (OmniIsaacGymEnvs ANYmal;
+see ../shared/reference/paper_setup.md). PPO hyperparameters live apart, in footforge.train.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+PolicyType = Literal["B", "BH", "P", "PH"]
+Feet = Literal["ball", "aff", "aof"]
+
+
+@dataclass(frozen=True)
+class CommandConfig:
+    lin_vel_x_range: tuple[float, float] = (-2.0, 2.0)
+    """Forward velocity command at reset, m/s (flat baseline)."""
+    lin_vel_y_range: tuple[float, float] = (-1.0, 1.0)
+    """Lateral velocity command, m/s."""
+    heading_range: tuple[float, float] = (-3.141592653589793, 3.141592653589793)
+    """Target heading at reset, rad; the yaw-rate command follows it."""
+    heading_gain: float = 0.5
+    """Yaw-rate command = clip(gain * heading error, yaw_rate_limit), 1/s."""
+    yaw_rate_limit: float = 1.0
+    """rad/s."""
+    zero_below: float = 0.0
+    """Planar commands slower than this (m/s) are set to zero (the rough baseline uses 0.25)."""
+    resample_s: float = 10.0
+    """Commands are redrawn this often within an episode, s."""
+
+
+@dataclass(frozen=True)
+class RewardScales:
+    """Scale of each of the paper's ten terms (each term is multiplied by the policy step dt)."""
+
+    lin_vel_xy: float = 1.0
+    """exp(-|v_xy,cmd - v_xy|^2 / sigma)."""
+    yaw_rate: float = 0.5
+    """exp(-(w_z,cmd - w_z)^2 / sigma)."""
+    lin_vel_z: float = -4.0
+    """v_z^2, (m/s)^2."""
+    ang_vel_xy: float = -0.05
+    """Roll and pitch rate, |w_xy|^2, (rad/s)^2."""
+    orientation: float = -1.0
+    """|projected gravity_xy|^2 (unpublished value; the paper turns the term on)."""
+    base_height: float = -10.0
+    """(h - target)^2, m^2, with h the base height over the ground (unpublished value)."""
+    torques: float = -2e-5
+    """sum tau^2, (N m)^2."""
+    joint_acc: float = -5e-4
+    """sum qdd^2 of the actuated joints, (rad/s^2)^2."""
+    action_rate: float = -0.01
+    """sum (a - a_prev)^2."""
+    hip: float = -0.06
+    """sum |q_HAA - default|, rad."""
+    tracking_sigma: float = 0.25
+    """Width of the tracking kernels, (m/s)^2 and (rad/s)^2."""
+    base_height_target_m: float = 0.52
+    clip_total_at_zero: bool = True
+    """The baseline clips the summed reward at zero from below."""
+
+
+@dataclass(frozen=True)
+class ObservationConfig:
+    """Scales and uniform noise (before scaling) of each observation group."""
+
+    lin_vel_scale: float = 2.0
+    ang_vel_scale: float = 0.25
+    command_scale: tuple[float, float, float] = (2.0, 2.0, 0.25)
+    joint_pos_scale: float = 1.0
+    joint_vel_scale: float = 0.05
+    foot_joint_pos_scale: float = 1.0
+    """Haptic observations (BH/PH): passive foot joint angles, rad."""
+    foot_joint_vel_scale: float = 0.05
+    lin_vel_noise: float = 0.1
+    ang_vel_noise: float = 0.2
+    gravity_noise: float = 0.05
+    joint_pos_noise: float = 0.01
+    joint_vel_noise: float = 1.5
+    foot_joint_pos_noise: float = 0.01
+    foot_joint_vel_noise: float = 1.5
+    noise: bool = True
+    """Add the uniform noise (off for evaluation of the noiseless state)."""
+    clip: float = 5.0
+
+
+@dataclass(frozen=True)
+class PushConfig:
+    interval_s: float = 15.0
+    """Every this many seconds the base's planar velocity is set at random, s."""
+    max_speed: float = 1.0
+    """|v_x|, |v_y| drawn in [-max, max], m/s."""
+    enabled: bool = True
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    feet: Feet = "aof"
+    """Foot variant; the model is `footforge build --variant <feet>`'s scene.xml."""
+    policy: PolicyType = "B"
+    """B blind; BH blind + haptic (passive foot joint positions and velocities)."""
+    build_dir: str | None = None
+    """Folder of the build outputs; default build/<feet> (built on first use if missing)."""
+    sim_dt: float = 0.005
+    """Physics step, s (MuJoCo clamps contact time constants to at least 2 steps)."""
+    decimation: int = 4
+    """Physics steps per policy step (50 Hz)."""
+    episode_length_s: float = 20.0
+    """Time-outs end an episode as a truncation (PPO bootstraps them)."""
+    action: Literal["velocity", "position"] = "velocity"
+    """velocity: targets = q + action_scale * a * dt (flat task); position: targets = default + action_scale * a."""
+    action_scale: float = 13.5
+    """rad/s per unit action (velocity) or rad per unit action (position)."""
+    solver_iterations: int = 4
+    """MJX Newton iterations per step (Playground uses 1-4)."""
+    solver_ls_iterations: int = 8
+    commands: CommandConfig = field(default_factory=CommandConfig)
+    rewards: RewardScales = field(default_factory=RewardScales)
+    observations: ObservationConfig = field(default_factory=ObservationConfig)
+    pushes: PushConfig = field(default_factory=PushConfig)
+    terminate_on_knees: int = 2
+    """A step with at least this many thigh (knee) contacts ends the episode; any base contact does."""
+
+    @property
+    def policy_dt(self) -> float:
+        return self.sim_dt * self.decimation
+
+    @property
+    def episode_steps(self) -> int:
+        return int(round(self.episode_length_s / self.policy_dt))

@@ -1,0 +1,234 @@
+"""ANYmal C walking on flat ground under velocity commands: an MJX environment for Brax's PPO.
+
+One robot per environment (Brax's wrappers batch it). Actions are joint velocities integrated
+onto the current joint positions (flat task) or offsets from the default pose, turned into
+torques by the model's PD actuators (kp 80, kd 2, +-80 N m) at every physics step.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jp
+from brax.envs.base import Env, State
+from mujoco import mjx
+
+from footforge.envs import observations, rewards
+from footforge.envs.anymal import GEOM_BASE, Robot, load_robot
+from footforge.envs.config import EnvConfig
+
+
+def _rotate_inverse(quat, v):
+    """v (world) in the frame of the body with orientation quat (wxyz)."""
+    w, xyz = quat[0], quat[1:]
+    t = 2.0 * jp.cross(xyz, v)
+    return v - w * t + jp.cross(xyz, t)
+
+
+def _yaw(quat):
+    w, x, y, z = quat
+    return jp.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _wrap(angle):
+    return jp.arctan2(jp.sin(angle), jp.cos(angle))
+
+
+class LocomotionEnv(Env):
+    def __init__(self, config: EnvConfig, robot: Robot | None = None):
+        if config.policy in ("BH", "PH") and config.feet == "ball":
+            raise ValueError("haptic policies (BH, PH) need adaptive feet: the ball foot has no passive joints")
+        self.config = config
+        self.robot = robot or load_robot(config)
+        r = self.robot
+        self.mjx_model = mjx.put_model(r.model)
+        self._n_passive = len(r.passive_qpos)
+        self._obs_size = observations.size(config, self._n_passive)
+        self._geom_category = jp.asarray(r.geom_category)
+        self._home = jp.asarray(r.home_qpos)
+        self._ctrl_order = jp.asarray(r.actuator_ids)
+        self._default_q = jp.asarray(r.default_q)
+        self._q_lo, self._q_hi = jp.asarray(r.q_limits[:, 0]), jp.asarray(r.q_limits[:, 1])
+        self._push_every = max(1, int(round(config.pushes.interval_s / config.policy_dt)))
+        self._command_every = max(1, int(round(config.commands.resample_s / config.policy_dt)))
+
+    # Brax Env interface -------------------------------------------------------------------
+    @property
+    def observation_size(self) -> int:
+        return self._obs_size
+
+    @property
+    def action_size(self) -> int:
+        return 12
+
+    @property
+    def backend(self) -> str:
+        return "mjx"
+
+    def reset(self, rng: jax.Array) -> State:
+        r = self.robot
+        rng, key_cmd = jax.random.split(rng)
+        data = mjx.make_data(self.mjx_model)
+        qpos = self._home
+        qvel = jp.zeros(self.mjx_model.nv)
+        ctrl = jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(qpos[r.actuated_qpos])
+        data = data.replace(qpos=qpos, qvel=qvel, ctrl=ctrl)
+        data = mjx.forward(self.mjx_model, data)
+        command, heading = self._sample_command(key_cmd)
+        info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(12),
+                "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32),
+                "episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(())}
+        command = self._heading_command(info, data)
+        info["command"] = command
+        metrics = {f"reward/{t}": jp.zeros(()) for t in rewards.TERMS}
+        metrics |= {"error/lin_vel_x": jp.zeros(()), "error/lin_vel_y": jp.zeros(()), "error/yaw_rate": jp.zeros(()),
+                    "base_height_m": jp.zeros(())}
+        rng, key_obs = jax.random.split(rng)
+        info["rng"] = rng
+        obs = self._observe(data, info, key_obs)
+        return State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info)
+
+    def step(self, state: State, action: jax.Array) -> State:
+        cfg, r = self.config, self.robot
+        data, info = state.pipeline_state, dict(state.info)
+        rng, key_push, key_cmd, key_obs = jax.random.split(info["rng"], 4)
+        q = data.qpos[r.actuated_qpos]
+        if cfg.action == "velocity":
+            target = q + cfg.action_scale * action * cfg.policy_dt
+        else:
+            target = self._default_q + cfg.action_scale * action
+        target = jp.clip(target, self._q_lo, self._q_hi)
+        data = data.replace(ctrl=data.ctrl.at[self._ctrl_order].set(target))
+
+        def physics(d, _):
+            return mjx.step(self.mjx_model, d), None
+        data, _ = jax.lax.scan(physics, data, None, length=cfg.decimation)
+
+        step = info["step"] + 1
+        if cfg.pushes.enabled:
+            push = jax.random.uniform(key_push, (2,), minval=-cfg.pushes.max_speed, maxval=cfg.pushes.max_speed)
+            qvel = jp.where(step % self._push_every == 0, data.qvel.at[:2].set(push), data.qvel)
+            data = data.replace(qvel=qvel)
+        new_command, new_heading = self._sample_command(key_cmd)
+        resample = step % self._command_every == 0
+        info["command"] = jp.where(resample, new_command, info["command"])
+        info["heading_target"] = jp.where(resample, new_heading, info["heading_target"])
+        info["command"] = self._heading_command(info, data)
+
+        terms, errors = self._reward_terms(data, info, action)
+        scales = cfg.rewards
+        weighted = {t: terms[t] * getattr(scales, t) * cfg.policy_dt for t in rewards.TERMS}
+        reward = sum(weighted.values())
+        if scales.clip_total_at_zero:
+            reward = jp.maximum(reward, 0.0)
+        terminated = self._terminated(data)
+        finite = jp.isfinite(data.qpos).all() & jp.isfinite(data.qvel).all()
+        terminated = jp.where(finite, terminated, 1.0)
+        reward = jp.where(finite, reward, 0.0)
+        # Episode steps: Brax's EpisodeWrapper counts them in info['steps'] (zeroed after an
+        # auto-reset); alone, the environment counts its own. A time-out is reported as done with
+        # info['time_out'] = 1, which PPO (bootstrap_on_timeout) bootstraps instead of treating as
+        # a fall.
+        episode_step = info.get("steps", info["episode_step"]).astype(jp.int32) + 1
+        time_out = jp.where((episode_step >= cfg.episode_steps) & (terminated == 0), 1.0, 0.0)
+        done = jp.maximum(terminated, time_out)
+
+        info.update(rng=rng, last_action=action, last_joint_vel=data.qvel[r.actuated_dof], step=step,
+                    episode_step=jp.where(done > 0, 0, episode_step), time_out=time_out)
+        obs = self._observe(data, info, key_obs)
+        metrics = dict(state.metrics)  # Brax's wrappers add keys of their own: keep them
+        metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors)
+        return state.replace(pipeline_state=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
+
+    # Pieces --------------------------------------------------------------------------------
+    def _sample_command(self, key):
+        c = self.config.commands
+        kx, ky, kh = jax.random.split(key, 3)
+        vx = jax.random.uniform(kx, minval=c.lin_vel_x_range[0], maxval=c.lin_vel_x_range[1])
+        vy = jax.random.uniform(ky, minval=c.lin_vel_y_range[0], maxval=c.lin_vel_y_range[1])
+        heading = jax.random.uniform(kh, minval=c.heading_range[0], maxval=c.heading_range[1])
+        keep = jp.hypot(vx, vy) > c.zero_below
+        return jp.array([vx, vy, 0.0]) * keep, heading
+
+    def _heading_command(self, info, data):
+        """The yaw-rate command steers the base toward the target heading."""
+        c = self.config.commands
+        error = _wrap(info["heading_target"] - _yaw(data.qpos[3:7]))
+        yaw_rate = jp.clip(c.heading_gain * error, -c.yaw_rate_limit, c.yaw_rate_limit)
+        return info["command"].at[2].set(yaw_rate)
+
+    def base_state(self, data):
+        """(linear velocity, angular velocity, projected gravity) in the base frame."""
+        quat = data.qpos[3:7]
+        lin = _rotate_inverse(quat, data.qvel[:3])
+        ang = data.qvel[3:6]  # MuJoCo's free-joint angular velocity is already in the body frame
+        gravity = _rotate_inverse(quat, jp.array([0.0, 0.0, -1.0]))
+        return lin, ang, gravity
+
+    def _observe(self, data, info, key):
+        cfg, r = self.config.observations, self.robot
+        lin, ang, gravity = self.base_state(data)
+        parts = {
+            "base_lin_vel": (lin * cfg.lin_vel_scale, cfg.lin_vel_noise * cfg.lin_vel_scale),
+            "base_ang_vel": (ang * cfg.ang_vel_scale, cfg.ang_vel_noise * cfg.ang_vel_scale),
+            "projected_gravity": (gravity, cfg.gravity_noise),
+            "command": (info["command"] * jp.asarray(cfg.command_scale), 0.0),
+            "joint_pos": ((data.qpos[r.actuated_qpos] - self._default_q) * cfg.joint_pos_scale,
+                          cfg.joint_pos_noise * cfg.joint_pos_scale),
+            "joint_vel": (data.qvel[r.actuated_dof] * cfg.joint_vel_scale, cfg.joint_vel_noise * cfg.joint_vel_scale),
+            "last_action": (info["last_action"], 0.0),
+            "foot_joint_pos": (data.qpos[r.passive_qpos] * cfg.foot_joint_pos_scale,
+                               cfg.foot_joint_pos_noise * cfg.foot_joint_pos_scale),
+            "foot_joint_vel": (data.qvel[r.passive_dof] * cfg.foot_joint_vel_scale,
+                               cfg.foot_joint_vel_noise * cfg.foot_joint_vel_scale),
+        }
+        chunks = []
+        keys = jax.random.split(key, len(parts))
+        for (name, width), k in zip(observations.layout(self.config, self._n_passive), keys):
+            value, noise = parts[name]
+            if cfg.noise and noise:
+                value = value + jax.random.uniform(k, (width,), minval=-noise, maxval=noise)
+            chunks.append(value)
+        return jp.clip(jp.concatenate(chunks), -cfg.clip, cfg.clip)
+
+    def base_height(self, data):
+        """Height of the base over the ground under it (flat ground: z)."""
+        return data.qpos[2]
+
+    def _reward_terms(self, data, info, action):
+        cfg, r = self.config.rewards, self.robot
+        lin, ang, gravity = self.base_state(data)
+        command = info["command"]
+        qvel = data.qvel[r.actuated_dof]
+        terms = {
+            "lin_vel_xy": rewards.lin_vel_xy(command[:2], lin[:2], cfg.tracking_sigma),
+            "yaw_rate": rewards.yaw_rate(command[2], ang[2], cfg.tracking_sigma),
+            "lin_vel_z": rewards.lin_vel_z(lin[2]),
+            "ang_vel_xy": rewards.ang_vel_xy(ang),
+            "orientation": rewards.orientation(gravity),
+            "base_height": rewards.base_height(self.base_height(data), cfg.base_height_target_m),
+            "torques": rewards.torques(data.actuator_force[self._ctrl_order]),
+            "joint_acc": rewards.joint_acc(qvel, info["last_joint_vel"], self.config.policy_dt),
+            "action_rate": rewards.action_rate(action, info["last_action"]),
+            "hip": rewards.hip(data.qpos[r.actuated_qpos][r.haa], self._default_q[r.haa]),
+        }
+        errors = {"error/lin_vel_x": jp.abs(command[0] - lin[0]), "error/lin_vel_y": jp.abs(command[1] - lin[1]),
+                  "error/yaw_rate": jp.abs(command[2] - ang[2]), "base_height_m": self.base_height(data)}
+        return terms, errors
+
+    def contact_flags(self, data):
+        """(base touches the ground, number of legs whose thigh touches it)."""
+        geoms = data._impl.contact.geom if hasattr(data, "_impl") else data.contact.geom
+        dist = data._impl.contact.dist if hasattr(data, "_impl") else data.contact.dist
+        touching = dist < 0
+        category = self._geom_category[geoms]  # (ncon, 2)
+        floor = geoms == self.robot.floor_geom
+        other = jp.where(floor[:, 0], category[:, 1], category[:, 0])
+        hit = touching & (floor[:, 0] | floor[:, 1])
+        base = jp.any(hit & (other == GEOM_BASE))
+        knees = sum(jp.any(hit & (other == 3 + i)) for i in range(4))
+        return base, knees
+
+    def _terminated(self, data):
+        base, knees = self.contact_flags(data)
+        return jp.where(base | (knees >= self.config.terminate_on_knees), 1.0, 0.0)
+

@@ -1,0 +1,35 @@
+"""The observation vector, documented in one place: what each slice holds, its unit and scale."""
+
+from __future__ import annotations
+
+from footforge.envs.config import EnvConfig
+
+# name, width (None: one per passive foot joint), content
+LAYOUT = (
+    ("base_lin_vel", 3, "base linear velocity in the base frame, m/s x lin_vel_scale"),
+    ("base_ang_vel", 3, "base angular velocity in the base frame, rad/s x ang_vel_scale"),
+    ("projected_gravity", 3, "unit gravity direction in the base frame"),
+    ("command", 3, "vx, vy (m/s), yaw rate (rad/s) x command_scale"),
+    ("joint_pos", 12, "actuated joint angles minus the defaults, rad"),
+    ("joint_vel", 12, "actuated joint velocities, rad/s x joint_vel_scale"),
+    ("last_action", 12, "the previous policy output"),
+    ("foot_joint_pos", None, "BH/PH only: passive foot joint angles, rad"),
+    ("foot_joint_vel", None, "BH/PH only: passive foot joint velocities, rad/s x foot_joint_vel_scale"),
+)
+
+
+def layout(config: EnvConfig, n_passive: int) -> list[tuple[str, int]]:
+    """(name, width) of each slice of the observation, in order, for this policy type."""
+    haptic = config.policy in ("BH", "PH")
+    out = []
+    for name, width, _ in LAYOUT:
+        if width is None:
+            if haptic:
+                out.append((name, n_passive))
+        else:
+            out.append((name, width))
+    return out
+
+
+def size(config: EnvConfig, n_passive: int) -> int:
+    return sum(w for _, w in layout(config, n_passive))
