@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from footforge.envs.config import EnvConfig
+from footforge.envs.config import EnvConfig, RewardScales
 from footforge.errors import InputError
 
 TASKS = {"flat": ("B", "BH")}
@@ -33,7 +33,9 @@ def default_config(task: str, feet: str, policy: str) -> EnvConfig:
     if policy in ("BH", "PH") and feet == "ball":
         raise InputError(f"policy type {policy} reads the feet's passive joints; the ball foot has none",
                          fix="use B with ball feet, or aff/aof feet")
-    return EnvConfig(feet=feet, policy=policy, action="velocity")
+    # The flat baseline's published scales where it has them (the rest: the rough baseline's).
+    flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
+    return EnvConfig(feet=feet, policy=policy, action="velocity", rewards=flat_rewards)
 
 
 def make(task: str, feet: str, policy: str, **overrides):

@@ -50,7 +50,7 @@ class RewardScales:
     torques: float = -2e-5
     """sum tau^2, (N m)^2."""
     joint_acc: float = -5e-4
-    """sum qdd^2 of the actuated joints, (rad/s^2)^2."""
+    """sum (qd - qd_prev)^2 of the actuated joints over a policy step, (rad/s)^2 (as the baseline)."""
     action_rate: float = -0.01
     """sum (a - a_prev)^2."""
     hip: float = -0.06

@@ -80,8 +80,8 @@ class LocomotionEnv(Env):
         command = self._heading_command(info, data)
         info["command"] = command
         metrics = {f"reward/{t}": jp.zeros(()) for t in rewards.TERMS}
-        metrics |= {"error/lin_vel_x": jp.zeros(()), "error/lin_vel_y": jp.zeros(()), "error/yaw_rate": jp.zeros(()),
-                    "base_height_m": jp.zeros(())}
+        metrics |= {"error/lin_vel_x_per_step": jp.zeros(()), "error/lin_vel_y_per_step": jp.zeros(()), "error/yaw_rate_per_step": jp.zeros(()),
+                    "base_height_m_per_step": jp.zeros(())}
         rng, key_obs = jax.random.split(rng)
         info["rng"] = rng
         obs = self._observe(data, info, key_obs)
@@ -207,28 +207,33 @@ class LocomotionEnv(Env):
             "orientation": rewards.orientation(gravity),
             "base_height": rewards.base_height(self.base_height(data), cfg.base_height_target_m),
             "torques": rewards.torques(data.actuator_force[self._ctrl_order]),
-            "joint_acc": rewards.joint_acc(qvel, info["last_joint_vel"], self.config.policy_dt),
+            "joint_acc": rewards.joint_acc(qvel, info["last_joint_vel"]),
             "action_rate": rewards.action_rate(action, info["last_action"]),
             "hip": rewards.hip(data.qpos[r.actuated_qpos][r.haa], self._default_q[r.haa]),
         }
-        errors = {"error/lin_vel_x": jp.abs(command[0] - lin[0]), "error/lin_vel_y": jp.abs(command[1] - lin[1]),
-                  "error/yaw_rate": jp.abs(command[2] - ang[2]), "base_height_m": self.base_height(data)}
+        errors = {"error/lin_vel_x_per_step": jp.abs(command[0] - lin[0]), "error/lin_vel_y_per_step": jp.abs(command[1] - lin[1]),
+                  "error/yaw_rate_per_step": jp.abs(command[2] - ang[2]), "base_height_m_per_step": self.base_height(data)}
         return terms, errors
 
     def contact_flags(self, data):
         """(base touches the ground, number of legs whose thigh touches it)."""
-        geoms = data._impl.contact.geom if hasattr(data, "_impl") else data.contact.geom
-        dist = data._impl.contact.dist if hasattr(data, "_impl") else data.contact.dist
-        touching = dist < 0
-        category = self._geom_category[geoms]  # (ncon, 2)
-        floor = geoms == self.robot.floor_geom
-        other = jp.where(floor[:, 0], category[:, 1], category[:, 0])
-        hit = touching & (floor[:, 0] | floor[:, 1])
-        base = jp.any(hit & (other == GEOM_BASE))
-        knees = sum(jp.any(hit & (other == 3 + i)) for i in range(4))
-        return base, knees
+        contact = data._impl.contact if hasattr(data, "_impl") else data.contact
+        return ground_contacts(self._geom_category, self.robot.floor_geom, contact.geom, contact.dist)
 
     def _terminated(self, data):
         base, knees = self.contact_flags(data)
         return jp.where(base | (knees >= self.config.terminate_on_knees), 1.0, 0.0)
 
+
+
+def ground_contacts(geom_category, floor_geom, geoms, dist):
+    """(any base geom touches the floor, number of legs with a thigh geom touching it), from
+    MJX's fixed-size contact arrays (geom pairs (ncon, 2), signed distances (ncon,))."""
+    touching = dist < 0
+    category = geom_category[geoms]
+    floor = geoms == floor_geom
+    other = jp.where(floor[:, 0], category[:, 1], category[:, 0])
+    hit = touching & (floor[:, 0] | floor[:, 1])
+    base = jp.any(hit & (other == GEOM_BASE))
+    knees = sum(jp.any(hit & (other == 3 + i)).astype(jp.int32) for i in range(4))
+    return base, knees

@@ -38,8 +38,10 @@ def torques(tau):
     return jp.sum(jp.square(tau))
 
 
-def joint_acc(qvel, qvel_prev, dt):
-    return jp.sum(jp.square((qvel - qvel_prev) / dt))
+def joint_acc(qvel, qvel_prev):
+    """sum of squared joint-velocity changes over one policy step, (rad/s)^2: how the paper's
+    baseline computes its "joint accelerations" term (the change, not divided by the step)."""
+    return jp.sum(jp.square(qvel - qvel_prev))
 
 
 def action_rate(action, action_prev):

@@ -1,0 +1,229 @@
+"""Brax PPO training of the locomotion environments, with checkpoints that survive a kill.
+
+Brax's own checkpoints hold the policy, value and normaliser parameters but restart the step
+count on resume; footforge keeps its own: after every epoch the parameters go to
+`<run>/checkpoints/<global step>/` (Brax's format) and `<run>/progress.json` records the global
+step. `--resume` restores the latest checkpoint and trains the remaining steps with a new seed
+(the same seed would replay the same experience). Adam's moments are not in Brax's checkpoints
+and restart: a resumed run continues from the same policy, not the same optimiser state.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, fields, is_dataclass
+from pathlib import Path
+from typing import Callable
+
+from footforge.envs.config import EnvConfig
+from footforge.errors import InputError
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """PPO hyperparameters (Brax), defaults after the paper (flat task) and its baseline."""
+
+    num_timesteps: int = 100_000_000
+    """Environment steps in total."""
+    num_envs: int = 2048
+    """Parallel robots (the paper's 2048)."""
+    unroll_length: int = 48
+    """Policy steps per robot per PPO iteration (the paper's 48)."""
+    num_minibatches: int = 4
+    batch_size: int = 512
+    """Trajectories per minibatch; batch_size * num_minibatches must be a multiple of num_envs."""
+    num_updates_per_batch: int = 5
+    """Epochs over each batch."""
+    learning_rate: float = 3e-4
+    adaptive_kl: float = 0.008
+    """Desired KL of the adaptive learning-rate schedule; 0 keeps the rate fixed."""
+    entropy_cost: float = 0.001
+    discounting: float = 0.99
+    gae_lambda: float = 0.95
+    clipping_epsilon: float = 0.2
+    vf_loss_coefficient: float = 2.0
+    max_grad_norm: float = 1.0
+    reward_scaling: float = 1.0
+    normalize_observations: bool = True
+    policy_hidden_layers: tuple[int, ...] = (256, 128, 64)
+    """The paper's flat-task network; state-independent Gaussian std."""
+    value_hidden_layers: tuple[int, ...] = (256, 128, 64)
+    init_noise_std: float = 1.0
+    checkpoint_every_steps: int = 5_000_000
+    """Environment steps between checkpoints (each one is also an evaluation)."""
+    num_eval_envs: int = 128
+    seed: int = 0
+
+    def check(self) -> None:
+        """Raises InputError on values Brax would reject later with a cryptic assertion."""
+        for f in ("num_timesteps", "num_envs", "unroll_length", "num_minibatches", "batch_size",
+                  "num_updates_per_batch", "checkpoint_every_steps", "num_eval_envs"):
+            if getattr(self, f) < 1:
+                raise InputError(f"{f} must be positive, got {getattr(self, f)}", fix=f"give a positive {f}")
+        if (self.batch_size * self.num_minibatches) % self.num_envs:
+            raise InputError(f"batch_size x num_minibatches ({self.batch_size} x {self.num_minibatches}) is not a "
+                             f"multiple of num_envs ({self.num_envs})",
+                             fix="e.g. num_envs = batch_size x num_minibatches (the defaults: 2048 = 512 x 4)")
+
+    @property
+    def steps_per_iteration(self) -> int:
+        return self.batch_size * self.num_minibatches * self.unroll_length
+
+
+def to_dict(config) -> dict:
+    return asdict(config)
+
+
+def from_dict(cls, data: dict):
+    """A (nested) frozen dataclass from its asdict() form; tuples restored from lists."""
+    kwargs = {}
+    types = {f.name: f for f in fields(cls)}
+    for name, value in data.items():
+        default = types[name].default_factory() if callable(types[name].default_factory) else types[name].default
+        if is_dataclass(default):
+            value = from_dict(type(default), value)
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[name] = value
+    return cls(**kwargs)
+
+
+def network_factory(ppo: PPOConfig):
+    from brax.training.agents.ppo import networks as ppo_networks
+    from flax import linen
+
+    return functools.partial(
+        ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=ppo.policy_hidden_layers,
+        value_hidden_layer_sizes=ppo.value_hidden_layers, activation=linen.elu,
+        distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std)
+
+
+def latest_checkpoint(run_dir: Path) -> tuple[int, Path] | None:
+    folder = Path(run_dir) / "checkpoints"
+    steps = sorted(int(p.name) for p in folder.iterdir() if p.name.isdigit()) if folder.is_dir() else []
+    return (steps[-1], folder / f"{steps[-1]:012d}") if steps else None
+
+
+def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False,
+          progress: Callable[[int, int, dict], None] | None = None) -> dict:
+    """Trains a policy; writes checkpoints, TensorBoard logs and the final policy into run_dir.
+
+    Returns the final metrics. `progress(global_step, total_steps, metrics)` is called after each
+    evaluation.
+
+    Raises:
+      InputError: bad hyperparameters, or --resume without a checkpoint / with other configs.
+    """
+    from brax.training.agents.ppo import checkpoint as brax_checkpoint
+    from brax.training.agents.ppo import train as ppo_train
+    from tensorboardX import SummaryWriter
+
+    from footforge.envs.locomotion import LocomotionEnv
+
+    ppo.check()
+    run_dir = Path(run_dir).resolve()
+    state_file = run_dir / "progress.json"
+    offset, restore, resumes = 0, None, 0
+    if resume:
+        found = latest_checkpoint(run_dir)
+        if found is None:
+            raise InputError(f"nothing to resume in {run_dir}", file=str(run_dir),
+                             fix="start without --resume, or point --out at an earlier run")
+        saved = json.loads((run_dir / "config.json").read_text())
+        if saved["env"] != to_dict(env_config) or saved["ppo"] | {"num_timesteps": 0} != to_dict(ppo) | {"num_timesteps": 0}:
+            raise InputError("the run was started with other settings", file=str(run_dir / "config.json"),
+                             fix="resume with the same options as the original run")
+        offset, path = found
+        restore = brax_checkpoint.load(str(path))
+        resumes = json.loads(state_file.read_text()).get("resumes", 0) + 1 if state_file.exists() else 1
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "config.json").write_text(json.dumps({"env": to_dict(env_config), "ppo": to_dict(ppo)}, indent=2))
+    remaining = ppo.num_timesteps - offset
+    if remaining <= 0:
+        return json.loads(state_file.read_text()).get("metrics", {})
+
+    env = LocomotionEnv(env_config)
+    eval_env = LocomotionEnv(env_config)
+    writer = SummaryWriter(str(run_dir / "tensorboard"))
+    epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
+    last: dict = {}
+    t0 = time.time()
+
+    def save(step: int, make_policy, params) -> None:
+        global_step = offset + step
+        if step == 0:
+            return
+        brax_checkpoint.save(str(run_dir / "checkpoints"), global_step, params,
+                             brax_checkpoint.network_config(env.observation_size, env.action_size,
+                                                            ppo.normalize_observations, network_factory(ppo)))
+        state_file.write_text(json.dumps({"global_step": global_step, "resumes": resumes, "metrics": last,
+                                          "wall_s": time.time() - t0}, indent=1, default=float))
+
+    def log(step: int, metrics: dict) -> None:
+        global_step = offset + step
+        for key, value in metrics.items():
+            try:
+                writer.add_scalar(key, float(value), global_step)
+            except (TypeError, ValueError):
+                continue
+        writer.flush()
+        last.clear()
+        last.update({k: float(v) for k, v in metrics.items() if hasattr(v, "__float__")})
+        if progress:
+            progress(global_step, ppo.num_timesteps, last)
+
+    _, params, _ = ppo_train.train(
+        environment=env, eval_env=eval_env, num_timesteps=remaining, episode_length=env_config.episode_steps,
+        num_envs=ppo.num_envs, unroll_length=ppo.unroll_length, batch_size=ppo.batch_size,
+        num_minibatches=ppo.num_minibatches, num_updates_per_batch=ppo.num_updates_per_batch,
+        learning_rate=ppo.learning_rate, entropy_cost=ppo.entropy_cost, discounting=ppo.discounting,
+        gae_lambda=ppo.gae_lambda, clipping_epsilon=ppo.clipping_epsilon, vf_loss_coefficient=ppo.vf_loss_coefficient,
+        max_grad_norm=ppo.max_grad_norm, reward_scaling=ppo.reward_scaling,
+        normalize_observations=ppo.normalize_observations, bootstrap_on_timeout=True,
+        learning_rate_schedule="ADAPTIVE_KL" if ppo.adaptive_kl else None, desired_kl=ppo.adaptive_kl or 0.01,
+        network_factory=network_factory(ppo), seed=ppo.seed + 1000 * resumes, num_evals=epochs + 1,
+        num_eval_envs=ppo.num_eval_envs, progress_fn=log, policy_params_fn=save,
+        restore_params=tuple(restore) if restore is not None else None)
+    writer.close()
+    final = latest_checkpoint(run_dir)
+    if final is not None:  # the policy folder: the last checkpoint plus the configs beside it
+        policy_dir = run_dir / "policy"
+        brax_checkpoint.save(str(run_dir), 0, params, brax_checkpoint.network_config(
+            env.observation_size, env.action_size, ppo.normalize_observations, network_factory(ppo)))
+        tmp = run_dir / f"{0:012d}"
+        if policy_dir.exists():
+            import shutil
+            shutil.rmtree(policy_dir)
+        os.replace(tmp, policy_dir)
+        (policy_dir / "footforge.json").write_text(json.dumps(
+            {"env": to_dict(env_config), "ppo": to_dict(ppo), "global_step": final[0]}, indent=2))
+    return last
+
+
+def load_policy(policy_dir: Path, *, deterministic: bool = True):
+    """(policy function obs, key -> (action, extras), EnvConfig, PPOConfig) of a saved policy."""
+    import jax
+    from brax.training.acme import running_statistics
+    from brax.training.agents.ppo import checkpoint as brax_checkpoint
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    policy_dir = Path(policy_dir).resolve()
+    meta_file = policy_dir / "footforge.json"
+    if not meta_file.is_file():
+        raise InputError(f"{policy_dir} is not a footforge policy (no footforge.json)", file=str(policy_dir),
+                         fix="pass the policy/ folder of a train_flat.py run")
+    meta = json.loads(meta_file.read_text())
+    env_config, ppo = from_dict(EnvConfig, meta["env"]), from_dict(PPOConfig, meta["ppo"])
+    params = brax_checkpoint.load(str(policy_dir))
+    cfg = json.loads((policy_dir / "ppo_network_config.json").read_text())
+    size = cfg["observation_size"]
+    size = size["shape"][0] if isinstance(size, dict) else int(size)  # Brax writes an array spec
+    networks = network_factory(ppo)(
+        observation_size=size, action_size=cfg["action_size"],
+        preprocess_observations_fn=running_statistics.normalize if ppo.normalize_observations else (lambda x, y: x))
+    make = ppo_networks.make_inference_fn(networks)
+    return jax.jit(make(tuple(params), deterministic=deterministic)), env_config, ppo

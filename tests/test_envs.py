@@ -1,0 +1,119 @@
+"""MJX locomotion environments: registry, observation layout, reset/step, rewards, termination."""
+
+import math
+
+import jax
+import jax.numpy as jp
+import numpy as np
+import pytest
+from mujoco import mjx
+
+from footforge import envs
+from footforge.envs import observations, rewards
+from footforge.envs.anymal import GEOM_BASE
+from footforge.envs.config import EnvConfig
+from footforge.envs.locomotion import LocomotionEnv, ground_contacts
+from footforge.errors import InputError
+
+
+def test_registry_and_its_errors():
+    assert envs.registry() == [("flat", "ball", "B"), ("flat", "aff", "B"), ("flat", "aff", "BH"),
+                               ("flat", "aof", "B"), ("flat", "aof", "BH")]
+    with pytest.raises(InputError, match="ball foot has none"):
+        envs.default_config("flat", "ball", "BH")
+    with pytest.raises(InputError, match="unknown task 'stairs'"):
+        envs.default_config("stairs", "aof", "B")
+    with pytest.raises(InputError, match="unknown feet 'full'"):
+        envs.default_config("flat", "full", "B")
+
+
+def test_observation_layout_is_documented_and_sized():
+    b, bh = EnvConfig(policy="B"), EnvConfig(policy="BH")
+    assert observations.size(b, 16) == 48  # the baseline's 48
+    assert observations.size(bh, 8) == 48 + 16 and observations.size(bh, 16) == 48 + 32
+    assert [name for name, _ in observations.layout(bh, 16)][-2:] == ["foot_joint_pos", "foot_joint_vel"]
+    assert all(len(entry) == 3 and entry[2] for entry in observations.LAYOUT)
+
+
+@pytest.fixture(scope="module")
+def rollouts(built):
+    """Every registered (feet, policy): reset and 3 steps of random actions, compiled once each."""
+    out = {}
+    for task, feet, policy in envs.registry():
+        env = envs.make(task, feet, policy, build_dir=str(built[feet][0]))
+
+        def run(key, env=env):
+            state = env.reset(key)
+            states = [state]
+            for k in jax.random.split(key, 3):
+                state = env.step(state, jax.random.normal(k, (env.action_size,)))
+                states.append(state)
+            return states
+        out[(feet, policy)] = (env, jax.jit(run)(jax.random.PRNGKey(0)))
+    return out
+
+
+def test_reset_and_step_every_registered_env(rollouts):
+    for (feet, policy), (env, states) in rollouts.items():
+        n_passive = {"ball": 0, "aff": 8, "aof": 16}[feet]
+        assert len(env.robot.passive_qpos) == n_passive
+        assert env.observation_size == observations.size(env.config, n_passive)
+        for state in states:
+            assert state.obs.shape == (env.observation_size,)
+            assert bool(jp.isfinite(state.obs).all()) and bool(jp.isfinite(state.reward))
+            assert float(jp.abs(state.obs).max()) <= env.config.observations.clip
+        assert set(states[-1].metrics) == set(states[0].metrics)
+        assert {f"reward/{t}" for t in rewards.TERMS} <= set(states[-1].metrics)
+        # Home pose: the robot starts standing, 12 joints at the published defaults.
+        q0 = states[0].pipeline_state.qpos[env.robot.actuated_qpos]
+        np.testing.assert_allclose(q0, env.robot.default_q, atol=1e-9)
+
+
+def test_reward_terms_on_known_states():
+    sigma = 0.25
+    assert float(rewards.lin_vel_xy(jp.array([1.0, 0.0]), jp.array([1.0, 0.0]), sigma)) == pytest.approx(1.0)
+    assert float(rewards.lin_vel_xy(jp.array([1.0, 0.0]), jp.array([0.5, 0.0]), sigma)) == pytest.approx(math.exp(-1))
+    assert float(rewards.yaw_rate(0.5, 0.0, sigma)) == pytest.approx(math.exp(-1))
+    assert float(rewards.lin_vel_z(0.3)) == pytest.approx(0.09)
+    assert float(rewards.ang_vel_xy(jp.array([0.1, 0.2, 5.0]))) == pytest.approx(0.05)
+    assert float(rewards.orientation(jp.array([0.0, 0.0, -1.0]))) == 0.0
+    tilt = math.radians(30)  # base rolled by 30 deg: gravity has sin(30) along base y
+    assert float(rewards.orientation(jp.array([0.0, math.sin(tilt), -math.cos(tilt)]))) == pytest.approx(0.25)
+    assert float(rewards.base_height(0.42, 0.52)) == pytest.approx(0.01)
+    assert float(rewards.torques(jp.full(12, 10.0))) == pytest.approx(1200.0)
+    assert float(rewards.joint_acc(jp.ones(12), jp.zeros(12))) == pytest.approx(12.0)
+    assert float(rewards.action_rate(jp.ones(12), jp.ones(12))) == 0.0
+    assert float(rewards.hip(jp.array([0.13, -0.13, 0.03, -0.03]), jp.array([0.03, -0.03, 0.03, -0.03]))) == pytest.approx(0.2)
+
+
+def test_ground_contacts_count_base_and_knees():
+    category = jp.array([0, GEOM_BASE, 3, 4, 5, 6])  # geom 0 is the floor
+    geoms = jp.array([[0, 1], [0, 3], [4, 0], [0, 5]])
+    base, knees = ground_contacts(category, 0, geoms, jp.array([0.01, -0.001, -0.002, 0.02]))
+    assert not bool(base) and int(knees) == 2  # thighs of legs 0 and 1 touch; leg 2's is 2 cm above
+    base, knees = ground_contacts(category, 0, geoms, jp.array([-0.001, 0.01, 0.01, 0.01]))
+    assert bool(base) and int(knees) == 0
+
+
+def test_base_on_the_ground_terminates_and_time_out_is_a_truncation(rollouts):
+    env, states = rollouts[("ball", "B")]
+    state = states[0]
+    data = state.pipeline_state
+    sunk = mjx.forward(env.mjx_model, data.replace(qpos=data.qpos.at[2].set(0.05)))
+    base, _ = env.contact_flags(sunk)
+    assert bool(base)
+    last = state.replace(info=state.info | {"episode_step": jp.array(env.config.episode_steps - 1, jp.int32)})
+    after = jax.jit(env.step)(last, jp.zeros(12))
+    assert float(after.info["time_out"]) == 1.0 and float(after.done) == 1.0
+    assert int(after.info["episode_step"]) == 0
+
+
+def test_position_actions_hold_the_robot_up(built):
+    """Zero position actions keep the default pose under PD: the robot stands 1 s on MJX."""
+    env = LocomotionEnv(EnvConfig(feet="aof", action="position", build_dir=str(built["aof"][0])))
+    step = jax.jit(env.step)
+    state = jax.jit(env.reset)(jax.random.PRNGKey(1))
+    for _ in range(50):
+        state = step(state, jp.zeros(12))
+    assert float(state.done) == 0.0
+    assert 0.3 < float(state.pipeline_state.qpos[2]) < 0.65  # kp 80 lets the 54 kg robot sag
