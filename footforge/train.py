@@ -1,6 +1,7 @@
 """Brax PPO training of the locomotion environments, with checkpoints that survive a kill.
 
-Brax's own checkpoints hold the policy, value and normaliser parameters but restart the step
+Also written: `<run>/metrics.jsonl` (every evaluation's metrics: the reward curve) and
+`<run>/tensorboard/`. Brax's own checkpoints hold the policy, value and normaliser parameters but restart the step
 count on resume; footforge keeps its own: after every epoch the parameters go to
 `<run>/checkpoints/<global step>/` (Brax's format) and `<run>/progress.json` records the global
 step. `--resume` restores the latest checkpoint and trains the remaining steps with a new seed
@@ -134,7 +135,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
             raise InputError(f"nothing to resume in {run_dir}", file=str(run_dir),
                              fix="start without --resume, or point --out at an earlier run")
         saved = json.loads((run_dir / "config.json").read_text())
-        if saved["env"] != to_dict(env_config) or saved["ppo"] | {"num_timesteps": 0} != to_dict(ppo) | {"num_timesteps": 0}:
+        now = json.loads(json.dumps({"env": to_dict(env_config), "ppo": to_dict(ppo)}))  # tuples as lists
+        if saved["env"] != now["env"] or saved["ppo"] | {"num_timesteps": 0} != now["ppo"] | {"num_timesteps": 0}:
             raise InputError("the run was started with other settings", file=str(run_dir / "config.json"),
                              fix="resume with the same options as the original run")
         offset, path = found
@@ -173,6 +175,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         writer.flush()
         last.clear()
         last.update({k: float(v) for k, v in metrics.items() if hasattr(v, "__float__")})
+        with open(run_dir / "metrics.jsonl", "a") as f:  # the reward curve, one line per evaluation
+            f.write(json.dumps({"global_step": global_step, "wall_s": time.time() - t0} | last) + "\n")
         if progress:
             progress(global_step, ppo.num_timesteps, last)
 

@@ -19,8 +19,9 @@ from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 
 FLOOR_GEOM = "floor"
-GEOM_NONE, GEOM_BASE, GEOM_FOOT = 0, 1, 2
-"""Geom categories for contact checks; thigh geoms of leg i are 3 + i."""
+GEOM_NONE, GEOM_BASE = 0, 1
+"""Geom categories for contact checks; thigh geoms of leg i are 3 + i, its foot geoms 10 + i."""
+GEOM_THIGH, GEOM_FOOT = 3, 10
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,9 @@ class Robot:
     passive_dof: np.ndarray
     passive_names: tuple[str, ...]
     geom_category: np.ndarray
-    """Per geom: GEOM_NONE, GEOM_BASE, GEOM_FOOT or 3 + leg index (thigh)."""
+    """Per geom: GEOM_NONE, GEOM_BASE, GEOM_THIGH + leg index or GEOM_FOOT + leg index."""
+    foot_sites: np.ndarray
+    """Touchdown site of each leg's foot (LF, RF, LH, RH)."""
     floor_geom: int
     base_body: int
 
@@ -82,9 +85,9 @@ def load_robot(config: EnvConfig) -> Robot:
         if body == C.BASE_BODY:
             category[g] = GEOM_BASE
         elif "_foot/" in body or (body.endswith("_SHANK") and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE):
-            category[g] = GEOM_FOOT
+            category[g] = GEOM_FOOT + C.LEGS.index(body.split("_")[0])
         elif body.endswith("_THIGH"):
-            category[g] = 3 + C.LEGS.index(body.split("_")[0])
+            category[g] = GEOM_THIGH + C.LEGS.index(body.split("_")[0])
         else:  # hips and shank tubes: no task needs them to touch the ground
             model.geom_contype[g] = model.geom_conaffinity[g] = 0
     joints = [model.joint(n) for n in C.ACTUATED_JOINTS]
@@ -99,4 +102,12 @@ def load_robot(config: EnvConfig) -> Robot:
         q_limits=np.array([j.range for j in joints]), haa=np.array([i for i, n in enumerate(C.ACTUATED_JOINTS) if n.endswith("HAA")]),
         passive_qpos=np.array([model.joint(n).qposadr[0] for n in passive], int),
         passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int), passive_names=tuple(passive),
-        geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id, base_body=model.body(C.BASE_BODY).id)
+        geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id, base_body=model.body(C.BASE_BODY).id,
+        foot_sites=np.array([_foot_site(model, leg) for leg in C.LEGS]))
+
+
+def _foot_site(model: mujoco.MjModel, leg: str) -> int:
+    for name in (f"{C.FOOT_MODEL_NAME.format(leg=leg)}/touchdown", f"{leg}_touchdown"):
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) >= 0:
+            return model.site(name).id
+    raise InputError(f"the model has no touchdown site for leg {leg}", fix="rebuild it with footforge build")

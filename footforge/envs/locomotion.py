@@ -13,7 +13,7 @@ from brax.envs.base import Env, State
 from mujoco import mjx
 
 from footforge.envs import observations, rewards
-from footforge.envs.anymal import GEOM_BASE, Robot, load_robot
+from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, load_robot
 from footforge.envs.config import EnvConfig
 
 
@@ -226,14 +226,24 @@ class LocomotionEnv(Env):
 
 
 
+
+def _floor_hits(geom_category, floor_geom, geoms, dist):
+    """Which contacts touch the floor, and the category of the geom touching it."""
+    floor = geoms == floor_geom
+    other = jp.where(floor[:, 0], geom_category[geoms[:, 1]], geom_category[geoms[:, 0]])
+    return (dist < 0) & (floor[:, 0] | floor[:, 1]), other
+
+
 def ground_contacts(geom_category, floor_geom, geoms, dist):
     """(any base geom touches the floor, number of legs with a thigh geom touching it), from
     MJX's fixed-size contact arrays (geom pairs (ncon, 2), signed distances (ncon,))."""
-    touching = dist < 0
-    category = geom_category[geoms]
-    floor = geoms == floor_geom
-    other = jp.where(floor[:, 0], category[:, 1], category[:, 0])
-    hit = touching & (floor[:, 0] | floor[:, 1])
+    hit, other = _floor_hits(geom_category, floor_geom, geoms, dist)
     base = jp.any(hit & (other == GEOM_BASE))
-    knees = sum(jp.any(hit & (other == 3 + i)).astype(jp.int32) for i in range(4))
+    knees = sum(jp.any(hit & (other == GEOM_THIGH + i)).astype(jp.int32) for i in range(4))
     return base, knees
+
+
+def foot_contacts(geom_category, floor_geom, geoms, dist):
+    """Per leg (LF, RF, LH, RH): does any of its foot geoms touch the floor."""
+    hit, other = _floor_hits(geom_category, floor_geom, geoms, dist)
+    return jp.stack([jp.any(hit & (other == GEOM_FOOT + i)) for i in range(4)])

@@ -1,0 +1,151 @@
+"""The paper's evaluation of a trained policy: many robots walking under random commands and
+pushes, and the mean and standard deviation over all policy steps of its indices.
+
+Indices, per policy step of every robot still standing: forward and lateral velocity tracking
+errors |v_cmd - v| (m/s), yaw-rate tracking error (rad/s), action rate |a_t - a_t-1| (the change
+of the desired joint positions' increment), joint velocity rate |qd_t - qd_t-1| (rad/s per step),
+joint torques |tau| (N m), base height (m). Foot slippage (Catalano et al. 2022): the summed
+horizontal displacement of every foot while it touches the ground, over the distance the base
+travelled.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from footforge.errors import InputError
+
+INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
+           "base_height")
+
+
+def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024, seconds: float = 60.0,
+             seed: int = 0, build_dir: str | None = None) -> dict:
+    """Runs `policy_dir`'s policy on `feet` (default: the feet it was trained on).
+
+    Returns {"indices": {name: {"mean", "std"}}, "slippage", "falls", "traces": {...}} where the
+    traces (robot 0's foot contacts, the mean base velocity error) feed the plots.
+
+    Raises:
+      InputError: a haptic policy on feet whose passive joints differ from its training feet.
+    """
+    import jax
+    import jax.numpy as jp
+
+    from footforge.envs.locomotion import LocomotionEnv, foot_contacts
+    from footforge.train import load_policy
+
+    policy, env_config, _ = load_policy(policy_dir)
+    feet = feet or env_config.feet
+    if env_config.policy in ("BH", "PH") and feet != env_config.feet:
+        raise InputError(f"a {env_config.policy} policy trained on {env_config.feet} reads that foot's passive "
+                         f"joints; it cannot run on {feet}", fix="evaluate blind (B, P) policies zero-shot")
+    steps = int(round(seconds / env_config.policy_dt))
+    config = replace(env_config, feet=feet, build_dir=build_dir, episode_length_s=seconds + 1.0)
+    env = LocomotionEnv(config)
+    robot = env.robot
+
+    def one_step(carry, key):
+        state, prev_qd, alive, feet_xy = carry
+        k_act, _ = jax.random.split(key)
+        action, _ = policy(state.obs, k_act)
+        action = jp.clip(action, -10.0, 10.0)
+        last_action = state.info["last_action"]
+        state = env.step(state, action)
+        d = state.pipeline_state
+        lin, ang, _ = env.base_state(d)
+        cmd = state.info["command"]
+        qd = d.qvel[robot.actuated_dof]
+        contact = d._impl.contact if hasattr(d, "_impl") else d.contact
+        touching = foot_contacts(env._geom_category, robot.floor_geom, contact.geom, contact.dist)
+        xy = d.site_xpos[robot.foot_sites][:, :2]
+        slip = jp.sum(jp.linalg.norm(xy - feet_xy, axis=1) * touching)
+        alive = alive & (state.done == 0)
+        row = {"lin_vel_x_error": jp.abs(cmd[0] - lin[0]), "lin_vel_y_error": jp.abs(cmd[1] - lin[1]),
+               "yaw_rate_error": jp.abs(cmd[2] - ang[2]), "action_rate": jp.linalg.norm(action - last_action),
+               "joint_vel_rate": jp.linalg.norm(qd - prev_qd), "torques": jp.linalg.norm(d.actuator_force),
+               "base_height": env.base_height(d), "alive": alive, "slip": slip,
+               "travel": jp.linalg.norm(d.qvel[:2]) * env.config.policy_dt, "contacts": touching,
+               "base_vx_error": cmd[0] - lin[0]}
+        state = state.replace(done=jp.zeros(()))  # keep walking (no reset) and mask fallen robots
+        return (state, qd, alive, xy), row
+
+    def rollout(key):
+        k_reset, k_run = jax.random.split(key)
+        state = env.reset(k_reset)
+        d = state.pipeline_state
+        carry = (state, d.qvel[robot.actuated_dof], jp.array(True), d.site_xpos[robot.foot_sites][:, :2])
+        _, rows = jax.lax.scan(one_step, carry, jax.random.split(k_run, steps))
+        return rows
+
+    rows = jax.jit(jax.vmap(rollout))(jax.random.split(jax.random.PRNGKey(seed), num_envs))
+    rows = jax.tree.map(np.asarray, rows)
+    alive = rows["alive"]
+    indices = {name: {"mean": float(rows[name][alive].mean()), "std": float(rows[name][alive].std())}
+               for name in INDICES}
+    travel = float((rows["travel"] * alive).sum())
+    slippage = float((rows["slip"] * alive).sum() / travel) if travel > 0 else float("nan")
+    return {"policy": str(policy_dir), "trained_on": env_config.feet, "feet": feet, "policy_type": env_config.policy,
+            "num_envs": num_envs, "seconds": seconds, "seed": seed, "policy_dt_s": env_config.policy_dt,
+            "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
+            "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": rows["base_vx_error"].mean(axis=0)}}
+
+
+def comparison_markdown(results: list[dict]) -> str:
+    """One row per (policy, feet): every index as mean +- std (the paper's Figure 8 as a table)."""
+    head = ["policy", "type", "trained on", "feet", *INDICES, "slippage", "falls"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in results:
+        cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
+        cells += [f"{r['indices'][k]['mean']:.3f} ± {r['indices'][k]['std']:.3f}" for k in INDICES]
+        cells += [f"{r['slippage']:.3f}", f"{r['falls']}/{r['num_envs']}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(results: list[dict], out_dir: Path) -> list[str]:
+    """comparison.png (indices per policy and feet), contacts_<i>.png (robot 0's feet contact
+    schedule over the first 4 s), push_response_<i>.png (mean forward velocity error over time;
+    pushes every 15 s)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = []
+    fig, axes = plt.subplots(1, len(INDICES), figsize=(3 * len(INDICES), 3.5))
+    labels = [f"{Path(r['policy']).parent.name}\non {r['feet']}" for r in results]
+    for ax, name in zip(axes, INDICES):
+        ax.bar(range(len(results)), [r["indices"][name]["mean"] for r in results],
+               yerr=[r["indices"][name]["std"] for r in results], capsize=3)
+        ax.set_title(name, fontsize=9)
+        ax.set_xticks(range(len(results)), labels, fontsize=6, rotation=45)
+    fig.tight_layout()
+    fig.savefig(out_dir / "comparison.png", dpi=90)
+    plt.close(fig)
+    files.append("comparison.png")
+    for i, r in enumerate(results):
+        dt = r["policy_dt_s"]
+        contacts = np.asarray(r["traces"]["contacts_robot0"])[: int(4.0 / dt)]
+        fig, ax = plt.subplots(figsize=(8, 2.2))
+        for leg in range(4):
+            on = np.flatnonzero(contacts[:, leg])
+            ax.broken_barh([(k * dt, dt) for k in on], (leg - 0.4, 0.8), color="k")
+        ax.set(yticks=range(4), yticklabels=["LF", "RF", "LH", "RH"], xlabel="time (s)",
+               title=f"feet contact schedule: {labels[i].replace(chr(10), ' ')}")
+        fig.tight_layout()
+        fig.savefig(out_dir / f"contacts_{i}.png", dpi=90)
+        plt.close(fig)
+        err = np.asarray(r["traces"]["base_vx_error_mean"])
+        fig, ax = plt.subplots(figsize=(8, 2.5))
+        ax.plot(np.arange(len(err)) * dt, err)
+        for t in np.arange(15.0, r["seconds"], 15.0):
+            ax.axvline(t, color="r", ls="--", lw=0.8)
+        ax.set(xlabel="time (s)", ylabel="mean vx command - vx (m/s)", title="push response (pushes: red)")
+        fig.tight_layout()
+        fig.savefig(out_dir / f"push_response_{i}.png", dpi=90)
+        plt.close(fig)
+        files += [f"contacts_{i}.png", f"push_response_{i}.png"]
+    return files

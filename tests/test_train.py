@@ -1,0 +1,104 @@
+"""Flat-task training: hyperparameter checks, config round trip, a run killed with SIGKILL and
+resumed from its last checkpoint, and the saved policy loaded for inference."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import jax
+import jax.numpy as jp
+import numpy as np
+import pytest
+
+from footforge import envs
+from footforge.envs.config import EnvConfig
+from footforge.errors import InputError
+from footforge.train import PPOConfig, from_dict, latest_checkpoint, load_policy, to_dict
+
+from conftest import REPO
+
+TINY = ["--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
+        "--eval-envs", "4", "--checkpoint-every", "32"]
+
+
+def test_bad_hyperparameters_are_input_errors():
+    with pytest.raises(InputError, match="not a multiple of num_envs"):
+        PPOConfig(num_envs=100, batch_size=64, num_minibatches=1).check()
+    with pytest.raises(InputError, match="num_envs must be positive"):
+        PPOConfig(num_envs=0).check()
+
+
+def test_configs_round_trip_through_json():
+    env = envs.default_config("flat", "aof", "BH")
+    assert from_dict(EnvConfig, json.loads(json.dumps(to_dict(env)))) == env
+    ppo = PPOConfig(policy_hidden_layers=(8, 4))
+    assert from_dict(PPOConfig, json.loads(json.dumps(to_dict(ppo)))) == ppo
+
+
+def _train(out, build_dir, timesteps, *extra):
+    return [sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--build-dir", str(build_dir),
+            "--timesteps", str(timesteps), "--out", str(out), *TINY, *extra]
+
+
+@pytest.fixture(scope="module")
+def resumed(built, tmp_path_factory):
+    """A tiny run killed with SIGKILL after its second checkpoint, then resumed: (run dir, step at the kill)."""
+    out = tmp_path_factory.mktemp("train") / "run"
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(_train(out, built["ball"][0], 100_000), env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 600
+    while time.time() < deadline and (latest_checkpoint(out) is None or latest_checkpoint(out)[0] < 64):
+        assert proc.poll() is None, "training stopped before its second checkpoint"
+        time.sleep(1)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    killed_at, _ = latest_checkpoint(out)
+    assert not (out / "policy").exists()
+    # Resume with the same options and a total just past the checkpoint: it must continue, not restart.
+    done = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume"), env=env,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    return out, killed_at
+
+
+def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
+    out, killed_at = resumed
+    assert killed_at >= 64
+    progress = json.loads((out / "progress.json").read_text())
+    assert progress["resumes"] == 1 and killed_at < progress["global_step"] < 2 * (killed_at + 64)
+    assert (out / "tensorboard").is_dir() and len(list((out / "tensorboard").iterdir())) >= 2
+    # Resuming with other options (here another seed) is refused.
+    other = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume", "--seed", "3"),
+                           capture_output=True, text=True)
+    assert other.returncode == 2 and "other settings" in other.stdout + other.stderr
+
+
+def test_saved_policy_loads_for_inference(resumed):
+    out, _ = resumed
+    policy, env_config, ppo = load_policy(out / "policy")
+    assert env_config.feet == "ball" and env_config.policy == "B" and ppo.num_envs == 8
+    action, _ = policy(jp.zeros(48), jax.random.PRNGKey(0))
+    assert action.shape == (12,) and bool(jp.isfinite(action).all())
+    with pytest.raises(InputError, match="not a footforge policy"):
+        load_policy(out / "checkpoints")
+
+
+def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path):
+    from footforge.evaluate import INDICES
+    out, _ = resumed
+    report = tmp_path / "eval"
+    code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(out / "policy"),
+                           "--feet", "aff", "--num-envs", "2", "--seconds", "0.4", "--build-dir",
+                           str(built["aff"][0]), "--out", str(report)], capture_output=True, text=True)
+    assert code.returncode == 0, code.stderr[-2000:]
+    metrics = json.loads((report / "metrics.json").read_text())
+    assert metrics[0]["feet"] == "aff" and metrics[0]["trained_on"] == "ball"  # the zero-shot case
+    for name in INDICES:
+        assert np.isfinite(metrics[0]["indices"][name]["mean"]), name
+    assert np.isfinite(metrics[0]["slippage"]) or metrics[0]["falls"] == 2
+    for name in ("comparison.md", "comparison.png", "contacts_0.png", "push_response_0.png"):
+        assert (report / name).is_file()
