@@ -121,9 +121,14 @@ class LocomotionEnv(Env):
         if scales.clip_total_at_zero:
             reward = jp.maximum(reward, 0.0)
         terminated = self._terminated(data)
-        finite = jp.isfinite(data.qpos).all() & jp.isfinite(data.qvel).all()
+        # A robot whose simulation diverged ends its episode with zero reward and zero metrics;
+        # its NaNs must reach neither the returns nor the policy's inputs.
+        finite = (jp.isfinite(data.qpos).all() & jp.isfinite(data.qvel).all() & jp.isfinite(reward)
+                  & jp.isfinite(data.actuator_force).all())
         terminated = jp.where(finite, terminated, 1.0)
         reward = jp.where(finite, reward, 0.0)
+        weighted = {t: jp.where(finite, v, 0.0) for t, v in weighted.items()}
+        errors = {k: jp.where(finite, v, 0.0) for k, v in errors.items()}
         # Episode steps: Brax's EpisodeWrapper counts them in info['steps'] (zeroed after an
         # auto-reset); alone, the environment counts its own. A time-out is reported as done with
         # info['time_out'] = 1, which PPO (bootstrap_on_timeout) bootstraps instead of treating as
@@ -134,7 +139,7 @@ class LocomotionEnv(Env):
 
         info.update(rng=rng, last_action=action, last_joint_vel=data.qvel[r.actuated_dof], step=step,
                     episode_step=jp.where(done > 0, 0, episode_step), time_out=time_out)
-        obs = self._observe(data, info, key_obs)
+        obs = jp.nan_to_num(self._observe(data, info, key_obs), nan=0.0, posinf=0.0, neginf=0.0)
         metrics = dict(state.metrics)  # Brax's wrappers add keys of their own: keep them
         metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors)
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
