@@ -139,6 +139,10 @@ class LocomotionEnv(Env):
 
         info.update(rng=rng, last_action=action, last_joint_vel=data.qvel[r.actuated_dof], step=step,
                     episode_step=jp.where(done > 0, 0, episode_step), time_out=time_out)
+        # Strong float32 / int32 everywhere: a weakly typed leaf would make jit trace step twice.
+        f32 = jp.float32
+        info.update(time_out=info["time_out"].astype(f32), episode_step=info["episode_step"].astype(jp.int32))
+        reward, done = reward.astype(f32), done.astype(f32)
         obs = jp.nan_to_num(self._observe(data, info, key_obs), nan=0.0, posinf=0.0, neginf=0.0)
         metrics = dict(state.metrics)  # Brax's wrappers add keys of their own: keep them
         metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors)
