@@ -54,7 +54,7 @@ def rollouts(built):
 
 
 def test_reset_and_step_every_registered_env(rollouts):
-    for (feet, policy), (env, states) in rollouts.items():
+    for (feet, _policy), (env, states) in rollouts.items():
         n_passive = {"ball": 0, "aff": 8, "aof": 16}[feet]
         assert len(env.robot.passive_qpos) == n_passive
         assert env.observation_size == observations.size(env.config, n_passive)

@@ -12,13 +12,18 @@ import jax
 import jax.numpy as jp
 import numpy as np
 import pytest
+from conftest import REPO
 
 from footforge import envs
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
-from footforge.train import PPOConfig, from_dict, latest_checkpoint, load_policy, to_dict
-
-from conftest import REPO
+from footforge.train import (
+    PPOConfig,
+    from_dict,
+    latest_checkpoint,
+    load_policy,
+    to_dict,
+)
 
 TINY = ["--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
         "--eval-envs", "4", "--checkpoint-every", "32"]

@@ -5,16 +5,20 @@ import shutil
 
 import numpy as np
 import pytest
+from conftest import REPO
 
 from footforge.cli import main
 from footforge.errors import InputError
 from footforge.params import load_params
 from footforge.validate import fidelity
 from footforge.validate.calibrate import write_params
-from footforge.validate.runner import CLOSURE_LIMIT_MM, ENERGY_GAIN_TOL_J, ValidateOptions, validate
+from footforge.validate.runner import (
+    CLOSURE_LIMIT_MM,
+    ENERGY_GAIN_TOL_J,
+    ValidateOptions,
+    validate,
+)
 from footforge.validate.scenarios import QUICK, SCENARIOS, select
-
-from conftest import REPO
 
 PARAMS = REPO / "descriptions/softfoot_q/config/variant_params.yaml"
 

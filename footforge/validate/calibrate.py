@@ -68,30 +68,7 @@ def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
         cases = session.cases(variant, train)
         full = runs["full"]
         tick = advance(f"calibrating {variant}", options.calibration_evaluations)
-        history = []
-
-        def objective(x):
-            joints, lift = _values(x, variant)
-            patch = {"joints": joints, "sole_lift_delta_m": lift - params.sole_lift_m[variant]}
-            results = pool.map([replace(c, patch=patch) for c in cases])
-            value = float(np.mean([fidelity.objective(fidelity.series_errors(r, full[r["scenario"]]))
-                                   if not r["failed"] else 1e6 for r in results]))
-            history.append(value)
-            tick()
-            return value
-
-        x0 = _vector(params, variant)
-        max_lift_cm = 100.0 * (params.sole_lift_m[variant] + foot_lib.sole_clearance(session.feet[variant].mjcf) - 0.0011)
-        bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [(LIFT_CM[0], min(LIFT_CM[1], max_lift_cm))]
-        simplex = [x0] + [x0 + np.eye(len(x0))[i] * (0.5 if i < len(x0) - 1 else 0.5) for i in range(len(x0))]
-        simplex = np.array([np.clip(p, [b[0] for b in bounds], [b[1] for b in bounds]) for p in simplex])
-        for i in range(1, len(simplex)):  # a step that hit a bound goes the other way
-            if np.allclose(simplex[i], x0):
-                simplex[i] = x0 - np.eye(len(x0))[i - 1] * 0.5
-        result = minimize(objective, x0, method="Nelder-Mead", bounds=bounds,
-                          options={"maxfev": options.calibration_evaluations, "initial_simplex": simplex,
-                                   "xatol": 1e-3, "fatol": 1e-5})
-        best = result.x if result.fun <= history[0] else x0
+        best, history = _fit(pool, cases, full, params, variant, session.feet[variant], options, tick)
         joints, lift = _values(best, variant)
         write_params(params.source, variant, joints, lift)
         session.reload(variant, params.source)
@@ -108,6 +85,35 @@ def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
                                     "held_out": mean_series_errors(new_runs, full, [s.name for s in held])},
             "runs": new_runs}
     return out
+
+
+def _fit(pool, cases, full: dict, params, variant: str, foot, options, tick) -> tuple[np.ndarray, list[float]]:
+    """Nelder-Mead over the variant's free parameters; returns the best point and the objective
+    of every evaluation (the first is the starting point)."""
+    history: list[float] = []
+
+    def objective(x):
+        joints, lift = _values(x, variant)
+        patch = {"joints": joints, "sole_lift_delta_m": lift - params.sole_lift_m[variant]}
+        results = pool.map([replace(c, patch=patch) for c in cases])
+        value = float(np.mean([fidelity.objective(fidelity.series_errors(r, full[r["scenario"]]))
+                               if not r["failed"] else 1e6 for r in results]))
+        history.append(value)
+        tick()
+        return value
+
+    x0 = _vector(params, variant)
+    max_lift_cm = 100.0 * (params.sole_lift_m[variant] + foot_lib.sole_clearance(foot.mjcf) - 0.0011)
+    bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [(LIFT_CM[0], min(LIFT_CM[1], max_lift_cm))]
+    lower, upper = [b[0] for b in bounds], [b[1] for b in bounds]
+    simplex = np.array([x0] + [np.clip(x0 + 0.5 * e, lower, upper) for e in np.eye(len(x0))])
+    for i in range(1, len(simplex)):  # a step that hit a bound goes the other way
+        if np.allclose(simplex[i], x0):
+            simplex[i] = x0 - 0.5 * np.eye(len(x0))[i - 1]
+    result = minimize(objective, x0, method="Nelder-Mead", bounds=bounds,
+                      options={"maxfev": options.calibration_evaluations, "initial_simplex": simplex,
+                               "xatol": 1e-3, "fatol": 1e-5})
+    return (result.x if result.fun <= history[0] else x0), history
 
 
 def write_params(path: Path, variant: str, joints: dict[str, dict], lift_m: float) -> None:

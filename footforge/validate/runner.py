@@ -13,7 +13,7 @@ from typing import Callable
 import numpy as np
 
 from footforge import __version__
-from footforge.build import BuildOptions, Stages, versions, load_foot_source
+from footforge.build import BuildOptions, Stages, load_foot_source, versions
 from footforge.errors import InputError
 from footforge.validate import fidelity, rigs, simulate
 from footforge.validate.scenarios import Scenario, select
