@@ -47,7 +47,8 @@ class YamlReader:
         sub = f"{self.path}.{key}" if self.path else key
         if key not in m:
             if default is ...:
-                raise YamlReader(None, sub, self.file).fail("missing", f"add '{key}:' to the sidecar")
+                where = f"under '{self.path}' in" if self.path else "to"
+                raise YamlReader(None, sub, self.file).fail("missing", f"add '{key}:' {where} {Path(self.file).name}")
             return YamlReader(default, sub, self.file)
         return YamlReader(m[key], sub, self.file)
 
