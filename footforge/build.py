@@ -311,7 +311,7 @@ def _export_usd(options: BuildOptions, stage: Stages, report: dict, stages: dict
         findings = usd.validate_stage(exported.stage)
         comparison = usd.compare_with_model(exported.stage, model, keyframe=keyframe)
     errors = [f for f in findings if f["severity"] == "error"]
-    report["usd"][stem] = {"files": [f"{stem}.usda", f"{stem}.usd"], "keyframe": keyframe,
+    report["usd"][stem] = {"files": list(usd.stage_files(stem)), "keyframe": keyframe,
                            "validation": findings, "vs_mjcf": comparison, "tolerances": usd.TOLERANCES,
                            **exported.report()}
     if errors:

@@ -6,6 +6,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from footforge.inertia import principal_moments
+
 
 def body_inertia_world(model: mujoco.MjModel, data: mujoco.MjData, body_id: int) -> pin.Inertia:
     """Spatial inertia of one body in world coordinates (after mj_kinematics)."""
@@ -26,10 +28,12 @@ def subtree_inertia(model: mujoco.MjModel, data: mujoco.MjData, body_id: int) ->
     return total
 
 
-def at_keyframe(model: mujoco.MjModel, key: str, *, free_joint_qpos=None) -> mujoco.MjData:
-    """Data at keyframe `key` after kinematics; `free_joint_qpos` (7) overrides the root pose."""
+def at_keyframe(model: mujoco.MjModel, key: str | None, *, free_joint_qpos=None) -> mujoco.MjData:
+    """Data at keyframe `key` (None: qpos0) after kinematics; `free_joint_qpos` (7) overrides
+    the root pose."""
     data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key(key).id)
+    if key is not None:
+        mujoco.mj_resetDataKeyframe(model, data, model.key(key).id)
     if free_joint_qpos is not None:
         data.qpos[:7] = free_joint_qpos
     mujoco.mj_kinematics(model, data)
@@ -54,9 +58,9 @@ def weld_group_inertia(model: mujoco.MjModel, data: mujoco.MjData, root_id: int)
 
 
 def principal_axes(inertia_3x3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Principal moments (ascending) and the rotation (wxyz quaternion, right-handed) whose
-    columns are the principal axes: inertia = R diag(moments) R^T."""
-    moments, axes = np.linalg.eigh(0.5 * (inertia_3x3 + inertia_3x3.T))
+    """Principal moments and the rotation (wxyz quaternion, right-handed) whose columns are the
+    principal axes: inertia = R diag(moments) R^T."""
+    moments, axes = principal_moments(inertia_3x3)
     if np.linalg.det(axes) < 0:
         axes[:, 2] *= -1.0
     quat = np.zeros(4)

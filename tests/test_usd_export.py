@@ -317,3 +317,26 @@ def test_unsupported_constructs_are_named_not_dropped_silently():
     assert not [f for f in validate_stage(exported.stage) if f["severity"] == "error"]
     token, _ = axis_frame(model.jnt_axis[1])
     assert token == "X"  # a skew axis: the joint frame is rotated instead
+
+
+def test_unnamed_bodies_motors_and_clashing_names_export_cleanly():
+    """An unnamed body, a body called like a footforge scope, a motor (not a servo): the stage
+    validates and matches the model; the motor is reported, not counted as a drive."""
+    xml = """<mujoco>
+      <worldbody>
+        <body name="joints" pos="0 0 1">
+          <freejoint/>
+          <geom type="box" size=".1 .1 .1"/>
+          <body pos="0 0 -.3">
+            <joint name="h" axis="0 1 0" range="-1 1"/>
+            <geom type="capsule" size=".02 .1"/>
+          </body>
+        </body>
+      </worldbody>
+      <actuator><motor joint="h"/></actuator>
+    </mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    exported = export_model(model, name="odd")
+    assert not [f for f in validate_stage(exported.stage) if f["severity"] == "error"]
+    assert comparison_failures(compare_with_model(exported.stage, model)) == []
+    assert any(u.element == "actuator 'actuator_0'" for u in exported.unsupported)

@@ -7,7 +7,7 @@ from footforge.usd.checks import (
            validate_stage,
 )
 from footforge.usd.context import Unsupported
-from footforge.usd.export import Exported, export_model, write_stage
+from footforge.usd.export import Exported, export_model, stage_files, write_stage
 
 __all__ = ["TOLERANCES", "Exported", "Unsupported", "compare_with_model", "comparison_failures", "export_model",
-           "validate_stage", "write_stage"]
+           "stage_files", "validate_stage", "write_stage"]

@@ -16,18 +16,16 @@ import numpy as np
 from pxr import Gf, UsdGeom, UsdPhysics, Vt
 
 from footforge import massprops
-from footforge.usd.context import ExportContext, quat_conj, quat_mul, quat_rotate
+from footforge.usd.context import IDENTITY_QUAT, ExportContext, Pose, mj_name, mul_pose, neg_pose
 
 
-def body_in_group_frame(ctx: ExportContext, body: int) -> tuple[np.ndarray, np.ndarray]:
-    """Pose (pos, wxyz quat) of `body` in the frame of its weld-group root (rigid, so read at
-    the exported pose)."""
+def body_in_group_frame(ctx: ExportContext, body: int) -> Pose:
+    """Pose of `body` in the frame of its weld-group root (rigid, so read at the exported pose)."""
     m, d = ctx.model, ctx.data
     root = int(m.body_weldid[body])
     if root == body:
-        return np.zeros(3), np.array([1.0, 0, 0, 0])
-    inv = quat_conj(d.xquat[root])
-    return quat_rotate(inv, d.xpos[body] - d.xpos[root]), quat_mul(inv, d.xquat[body])
+        return np.zeros(3), IDENTITY_QUAT.copy()
+    return mul_pose(neg_pose((d.xpos[root], d.xquat[root])), (d.xpos[body], d.xquat[body]))
 
 
 def set_pose(xformable: UsdGeom.Xformable, pos, quat_wxyz, scale=None) -> None:
@@ -48,40 +46,35 @@ def add_bodies(ctx: ExportContext) -> None:
     for b in range(1, m.nbody):
         if m.body_weldid[b] != b:
             continue
-        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or f"body_{b}"
+        name = mj_name(m, mujoco.mjtObj.mjOBJ_BODY, b, "body")
         xform = UsdGeom.Xform.Define(stage, ctx.child_path(ctx.root, name))
         set_pose(xform, d.xpos[b], d.xquat[b])
         prim = xform.GetPrim()
-        members = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, o) or f"body_{o}"
-                   for o in range(1, m.nbody) if m.body_weldid[o] == b]
+        members = [o for o in range(1, m.nbody) if m.body_weldid[o] == b]
         prim.SetCustomDataByKey("footforge:mjcfName", name)
         if len(members) > 1:
-            prim.SetCustomDataByKey("footforge:weldedBodies", Vt.StringArray(members))
+            prim.SetCustomDataByKey("footforge:weldedBodies", Vt.StringArray(
+                [mj_name(m, mujoco.mjtObj.mjOBJ_BODY, o, "body") for o in members]))
         UsdPhysics.RigidBodyAPI.Apply(prim)
-        _author_mass(ctx, prim, b)
+        _author_mass(ctx, prim, b, len(members))
         ctx.body_paths[b] = xform.GetPath()
     for b in range(1, m.nbody):  # welded members resolve to their group's prim
         ctx.body_paths.setdefault(b, ctx.body_paths[int(m.body_weldid[b])])
-    free = [int(m.jnt_bodyid[j]) for j in range(m.njnt) if int(m.jnt_type[j]) == mujoco.mjtJoint.mjJNT_FREE]
-    for b in free:
-        UsdPhysics.ArticulationRootAPI.Apply(stage.GetPrimAtPath(ctx.body_paths[b]))
 
 
-def _author_mass(ctx: ExportContext, prim, body: int) -> None:
+def _author_mass(ctx: ExportContext, prim, body: int, members: int) -> None:
     m, d = ctx.model, ctx.data
-    group = massprops.weld_group_inertia(m, d, body)
-    inv = quat_conj(d.xquat[body])
-    com_local = quat_rotate(inv, np.asarray(group.lever) - d.xpos[body])
-    R = d.xmat[body].reshape(3, 3)
-    inertia_local = R.T @ np.asarray(group.inertia) @ R
-    if np.count_nonzero(m.body_weldid[1:] == body) == 1:
-        # A body on its own: MuJoCo's compiled principal frame, exactly as simulated.
-        moments, axes = m.body_inertia[body].copy(), m.body_iquat[body].copy()
-        com_local = m.body_ipos[body].copy()
+    if members == 1:  # a body on its own: MuJoCo's compiled principal frame, exactly as simulated
+        total = float(m.body_mass[body])
+        com_local, moments, axes = m.body_ipos[body], m.body_inertia[body], m.body_iquat[body]
     else:
-        moments, axes = massprops.principal_axes(inertia_local)
+        group = massprops.weld_group_inertia(m, d, body)
+        total = float(group.mass)
+        com_local = mul_pose(neg_pose((d.xpos[body], d.xquat[body])), (np.asarray(group.lever), IDENTITY_QUAT))[0]
+        R = d.xmat[body].reshape(3, 3)
+        moments, axes = massprops.principal_axes(R.T @ np.asarray(group.inertia) @ R)
     mass = UsdPhysics.MassAPI.Apply(prim)
-    mass.CreateMassAttr(float(group.mass))
+    mass.CreateMassAttr(total)
     mass.CreateCenterOfMassAttr(Gf.Vec3f(*map(float, com_local)))
     mass.CreateDiagonalInertiaAttr(Gf.Vec3f(*map(float, moments)))
     mass.CreatePrincipalAxesAttr(Gf.Quatf(float(axes[0]), Gf.Vec3f(*map(float, axes[1:]))))
@@ -93,7 +86,7 @@ def add_sites(ctx: ExportContext) -> None:
     m = ctx.model
     for s in range(m.nsite):
         b = int(m.site_bodyid[s])
-        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, s) or f"site_{s}"
+        name = mj_name(m, mujoco.mjtObj.mjOBJ_SITE, s, "site")
         pos, quat = site_in_body_frame(ctx, s)
         parent = ctx.body_paths[b].AppendChild("sites")
         if not ctx.stage.GetPrimAtPath(parent):
@@ -103,14 +96,9 @@ def add_sites(ctx: ExportContext) -> None:
         xform.GetPrim().SetCustomDataByKey("footforge:mjcfName", name)
 
 
-def site_in_body_frame(ctx: ExportContext, site: int) -> tuple[np.ndarray, np.ndarray]:
+def site_in_body_frame(ctx: ExportContext, site: int) -> Pose:
     """A site's pose in the frame of the USD body that carries it."""
     m = ctx.model
     b = int(m.site_bodyid[site])
-    return compose(body_in_group_frame(ctx, b), (m.site_pos[site], m.site_quat[site]))
-
-
-def compose(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Pose a * pose b, each (pos, wxyz quat)."""
-    return a[0] + quat_rotate(a[1], b[0]), quat_mul(a[1], b[1])
+    return mul_pose(body_in_group_frame(ctx, b), (m.site_pos[site], m.site_quat[site]))
 

@@ -11,7 +11,9 @@ import mujoco
 import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdPhysics, UsdValidation
 
-from footforge import units
+from footforge import massprops, units
+from footforge.usd.context import mj_name
+from footforge.usd.joints import servo_joint
 
 VALIDATOR_KEYWORDS = ("UsdCoreValidators", "UsdGeomValidators", "UsdPhysicsValidators", "UsdShadeValidators")
 FLOAT32_RTOL = 2.0 ** -23
@@ -107,13 +109,12 @@ def compare_with_model(stage: Usd.Stage, model: mujoco.MjModel, *, keyframe: str
     Returns a dict of figures (relative for masses, inertias, limits and gains; metres and
     radians for anchors and axes) plus the lists of missing or extra bodies and joints.
     """
-    data = mujoco.MjData(model)
-    if keyframe is not None:
-        mujoco.mj_resetDataKeyframe(model, data, model.key(keyframe).id)
-    mujoco.mj_kinematics(model, data)
-    mujoco.mj_comPos(model, data)
+    data = massprops.at_keyframe(model, keyframe)
     usd = read_stage(stage)
-    name = lambda obj, i: mujoco.mj_id2name(model, obj, i)
+
+    def name(obj, i):  # the exporter's names, fallbacks for unnamed elements included
+        return mj_name(model, obj, i, {mujoco.mjtObj.mjOBJ_BODY: "body", mujoco.mjtObj.mjOBJ_JOINT: "joint",
+                                       mujoco.mjtObj.mjOBJ_EQUALITY: "equality"}[obj])
     roots = {name(mujoco.mjtObj.mjOBJ_BODY, b): b for b in range(1, model.nbody) if model.body_weldid[b] == b}
     out = {"bodies_missing": sorted(set(roots) - set(usd["bodies"])),
            "bodies_extra": sorted(set(usd["bodies"]) - set(roots)),
@@ -128,8 +129,9 @@ def compare_with_model(stage: Usd.Stage, model: mujoco.MjModel, *, keyframe: str
         R = u["rotation"] @ u["principal_axes"]
         usd_inertia = R @ np.diag(u["diagonal_inertia"]) @ R.T
         scale = np.linalg.norm(inertia)
+        moments = np.linalg.eigvalsh(inertia)
         out["principal_inertia_rel"] = max(out["principal_inertia_rel"], float(np.max(
-            np.abs(np.sort(u["diagonal_inertia"]) - np.linalg.eigvalsh(inertia)) / np.linalg.eigvalsh(inertia).max())))
+            np.abs(np.sort(u["diagonal_inertia"]) - moments) / moments.max())))
         out["inertia_tensor_rel"] = max(out["inertia_tensor_rel"], float(np.linalg.norm(usd_inertia - inertia) / scale))
 
     kinds = {int(mujoco.mjtJoint.mjJNT_HINGE): "RevoluteJoint", int(mujoco.mjtJoint.mjJNT_SLIDE): "PrismaticJoint",
@@ -170,7 +172,7 @@ def compare_with_model(stage: Usd.Stage, model: mujoco.MjModel, *, keyframe: str
             out["limit_rel"] = max(out["limit_rel"], float(np.abs(np.array([lo, hi]) + q0 - model.jnt_range[j]).max() / span))
         in_tendon = any(model.wrap_objid[w] == j and int(model.wrap_type[w]) == mujoco.mjtWrap.mjWRAP_JOINT
                         for w in range(model.nwrap))
-        servos = [a for a in range(model.nu) if model.actuator_trnid[a][0] == j]
+        servos = [a for a in range(model.nu) if servo_joint(model, a) == j]  # the ones a drive carries
         want = {"stiffness": model.jnt_stiffness[j] + sum(model.actuator_gainprm[a][0] for a in servos),
                 "damping": model.dof_damping[model.jnt_dofadr[j]] - sum(model.actuator_biasprm[a][2] for a in servos)}
         if in_tendon:

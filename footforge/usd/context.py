@@ -34,9 +34,13 @@ class ExportContext:
     model: mujoco.MjModel
     data: mujoco.MjData
     """Kinematics at the exported pose (the model's home keyframe)."""
+    keyframe: str | None
+    """The pose's keyframe; None for qpos0."""
     stage: Usd.Stage
     root: Sdf.Path
     """The default prim; every body is a direct child (a flat articulation, as Isaac expects)."""
+    joints_scope: Sdf.Path | None = None
+    """Where joints (and loop closures) go."""
     body_paths: dict[int, Sdf.Path] = field(default_factory=dict)
     """MuJoCo body id -> its prim; the world body maps to a static `world` Xform."""
     unsupported: list[Unsupported] = field(default_factory=list)
@@ -60,17 +64,21 @@ def mj_name(model: mujoco.MjModel, obj: mujoco.mjtObj, index: int, fallback: str
     return name if name else f"{fallback}_{index}"
 
 
-def quat_rotate(quat_wxyz: np.ndarray, v: np.ndarray) -> np.ndarray:
-    out = np.zeros(3)
-    mujoco.mju_rotVecQuat(out, np.asarray(v, float), np.asarray(quat_wxyz, float))
-    return out
+Pose = tuple[np.ndarray, np.ndarray]
+"""(position, wxyz quaternion)."""
+IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
 
 
-def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    out = np.zeros(4)
-    mujoco.mju_mulQuat(out, np.asarray(a, float), np.asarray(b, float))
-    return out
+def mul_pose(a: Pose, b: Pose) -> Pose:
+    """Pose a * pose b (MuJoCo's mju_mulPose)."""
+    pos, quat = np.zeros(3), np.zeros(4)
+    mujoco.mju_mulPose(pos, quat, np.asarray(a[0], float), np.asarray(a[1], float),
+                       np.asarray(b[0], float), np.asarray(b[1], float))
+    return pos, quat
 
 
-def quat_conj(q: np.ndarray) -> np.ndarray:
-    return np.array([q[0], -q[1], -q[2], -q[3]], float)
+def neg_pose(a: Pose) -> Pose:
+    """The inverse pose (MuJoCo's mju_negPose)."""
+    pos, quat = np.zeros(3), np.zeros(4)
+    mujoco.mju_negPose(pos, quat, np.asarray(a[0], float), np.asarray(a[1], float))
+    return pos, quat

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdPhysics
 
+from footforge import massprops
 from footforge.usd import bodies, geoms, joints
 from footforge.usd.context import ExportContext, Unsupported
 
@@ -37,10 +38,7 @@ def export_model(model: mujoco.MjModel, *, name: str, keyframe: str | None = Non
       name: the default prim's name (a valid USD identifier is made from it).
       keyframe: the pose the bodies are authored at; an engine reads initial joint angles from it.
     """
-    data = mujoco.MjData(model)
-    if keyframe is not None:
-        mujoco.mj_resetDataKeyframe(model, data, model.key(keyframe).id)
-    mujoco.mj_kinematics(model, data)
+    data = massprops.at_keyframe(model, keyframe)
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)
@@ -48,14 +46,14 @@ def export_model(model: mujoco.MjModel, *, name: str, keyframe: str | None = Non
     root = UsdGeom.Xform.Define(stage, Sdf.Path.absoluteRootPath.AppendChild(Tf.MakeValidIdentifier(name)))
     stage.SetDefaultPrim(root.GetPrim())
     root.GetPrim().SetCustomDataByKey("footforge:source", "footforge build (from the compiled MJCF)")
-    ctx = ExportContext(model, data, stage, root.GetPath())
+    ctx = ExportContext(model, data, keyframe, stage, root.GetPath())
     _physics_scene(ctx)
     bodies.add_bodies(ctx)
     joint_paths = joints.add_joints(ctx)
     joints.add_equalities(ctx, joint_paths)
     geoms.add_geoms(ctx)
     bodies.add_sites(ctx)
-    _fixed_base_articulation(ctx, joint_paths)
+    _articulation_roots(ctx, joint_paths)
     _report_model_level(ctx, keyframe)
     world = stage.GetPrimAtPath(ctx.body_paths[0])
     if not world.GetChildren():
@@ -72,20 +70,23 @@ def _physics_scene(ctx: ExportContext) -> None:
     scene.CreateGravityMagnitudeAttr(magnitude)
 
 
-def _fixed_base_articulation(ctx: ExportContext, joint_paths: dict[int, Sdf.Path]) -> None:
-    """A model without a free joint (the drop rig: a carriage on a vertical slider) is a tree
-    hung from the world. PhysX articulations attach to the world only rigidly, so the joints to
-    the world are kept out of the articulation (simulated as ordinary joints) and the
-    articulation root goes on the bodies they carry."""
+def _articulation_roots(ctx: ExportContext, joint_paths: dict[int, Sdf.Path]) -> None:
+    """ArticulationRootAPI on each floating base (a body with a free joint). A model without one
+    (the drop rig: a carriage on a vertical slider) is a tree hung from the world; PhysX
+    articulations attach to the world only rigidly, so the joints to the world are kept out of
+    the articulation (simulated as ordinary joints) and the root goes on the bodies they carry."""
     m = ctx.model
-    if any(int(m.jnt_type[j]) == mujoco.mjtJoint.mjJNT_FREE for j in range(m.njnt)):
+    free = [int(m.jnt_bodyid[j]) for j in range(m.njnt) if int(m.jnt_type[j]) == mujoco.mjtJoint.mjJNT_FREE]
+    for b in free:
+        UsdPhysics.ArticulationRootAPI.Apply(ctx.stage.GetPrimAtPath(ctx.body_paths[b]))
+    if free:
         return
     for j, path in joint_paths.items():
         b = int(m.jnt_bodyid[j])
         if m.body_weldid[m.body_parentid[b]] == 0:
             UsdPhysics.Joint(ctx.stage.GetPrimAtPath(path)).CreateExcludeFromArticulationAttr(True)
             UsdPhysics.ArticulationRootAPI.Apply(ctx.stage.GetPrimAtPath(ctx.body_paths[b]))
-            ctx.notes.append(f"joint '{Path(str(path)).name}' to the world is excluded from the articulation "
+            ctx.notes.append(f"joint '{path.name}' to the world is excluded from the articulation "
                              "(PhysX articulations attach to the world only through a fixed joint)")
 
 
@@ -106,9 +107,14 @@ def _report_model_level(ctx: ExportContext, keyframe: str | None) -> None:
                  + (f"'{keyframe}' keyframe" if keyframe else "reference pose"))
 
 
+def stage_files(stem: str) -> dict[str, str]:
+    """The files one stage is written to, with their format: text and binary crate."""
+    return {f"{stem}.usda": "usda", f"{stem}.usd": "usdc"}
+
+
 def write_stage(stage: Usd.Stage, folder: Path, stem: str) -> list[str]:
     """Writes `<stem>.usda` (text) and `<stem>.usd` (binary crate); returns the file names."""
-    names = {f"{stem}.usda": "usda", f"{stem}.usd": "usdc"}
+    names = stage_files(stem)
     for n, fmt in names.items():
         if not stage.GetRootLayer().Export(str(Path(folder) / n), args={"format": fmt}):
             raise OSError(f"could not write {Path(folder) / n}")

@@ -9,14 +9,12 @@ approximation; CoACD already split the non-convex parts into hulls of at most 64
 
 from __future__ import annotations
 
-import itertools
-
 import mujoco
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, UsdShade, Vt
 
-from footforge.usd.bodies import body_in_group_frame, compose, set_pose
-from footforge.usd.context import ExportContext, mj_name
+from footforge.usd.bodies import body_in_group_frame, set_pose
+from footforge.usd.context import ExportContext, mj_name, mul_pose
 
 PHYSX_HULL_VERTEX_LIMIT = 64
 GEOM = mujoco.mjtGeom
@@ -29,7 +27,8 @@ def is_collider(model: mujoco.MjModel, g: int) -> bool:
 def add_geoms(ctx: ExportContext) -> None:
     m = ctx.model
     materials = _friction_materials(ctx)
-    colliders: list[Sdf.Path] = []
+    colliders: dict[int, Sdf.Path] = {}
+    """Colliders of moving bodies: geom id -> prim."""
     for g in range(m.ngeom):
         b = int(m.geom_bodyid[g])
         collider = is_collider(m, g)
@@ -37,7 +36,7 @@ def add_geoms(ctx: ExportContext) -> None:
         if not ctx.stage.GetPrimAtPath(scope):
             UsdGeom.Scope.Define(ctx.stage, scope)
         name = mj_name(m, mujoco.mjtObj.mjOBJ_GEOM, g, "geom")
-        prim = _define_shape(ctx, ctx.child_path(scope, name), g, compose(
+        prim = _define_shape(ctx, ctx.child_path(scope, name), g, f"geom '{name}'", mul_pose(
             body_in_group_frame(ctx, b), (m.geom_pos[g], m.geom_quat[g])), collider)
         if prim is None:
             continue
@@ -47,8 +46,8 @@ def add_geoms(ctx: ExportContext) -> None:
             UsdGeom.Imageable(prim).CreatePurposeAttr(UsdGeom.Tokens.guide)
             UsdShade.MaterialBindingAPI.Apply(prim).Bind(
                 materials[float(m.geom_friction[g][0])], UsdShade.Tokens.weakerThanDescendants, "physics")
-            if m.geom_bodyid[g] and m.body_weldid[b]:
-                colliders.append(prim.GetPath())
+            if m.body_weldid[b]:
+                colliders[g] = prim.GetPath()
         else:
             rgba = m.mat_rgba[m.geom_matid[g]] if m.geom_matid[g] >= 0 else m.geom_rgba[g]
             gprim = UsdGeom.Gprim(prim)
@@ -59,10 +58,9 @@ def add_geoms(ctx: ExportContext) -> None:
     _report_contact_settings(ctx)
 
 
-def _define_shape(ctx: ExportContext, path: Sdf.Path, g: int, pose, collider: bool) -> Usd.Prim | None:
+def _define_shape(ctx: ExportContext, path: Sdf.Path, g: int, name: str, pose, collider: bool) -> Usd.Prim | None:
     m, stage = ctx.model, ctx.stage
     kind, size = int(m.geom_type[g]), m.geom_size[g]
-    name = f"geom '{mj_name(m, mujoco.mjtObj.mjOBJ_GEOM, g, 'geom')}'"
     scale = None
     if kind == GEOM.mjGEOM_BOX:
         shape = UsdGeom.Cube.Define(stage, path)
@@ -121,7 +119,7 @@ def _friction_materials(ctx: ExportContext) -> dict[float, UsdShade.Material]:
     values = sorted({float(m.geom_friction[g][0]) for g in range(m.ngeom) if is_collider(m, g)})
     materials = {}
     if values:
-        scope = UsdGeom.Scope.Define(ctx.stage, ctx.root.AppendChild("physics_materials")).GetPath()
+        scope = UsdGeom.Scope.Define(ctx.stage, ctx.child_path(ctx.root, "physics_materials")).GetPath()
         for mu in values:
             material = UsdShade.Material.Define(ctx.stage, ctx.child_path(scope, f"friction_{mu:g}".replace(".", "_")))
             api = UsdPhysics.MaterialAPI.Apply(material.GetPrim())
@@ -134,26 +132,25 @@ def _friction_materials(ctx: ExportContext) -> dict[float, UsdShade.Material]:
     return materials
 
 
-def _self_collision_group(ctx: ExportContext, colliders: list[Sdf.Path]) -> None:
+def _self_collision_group(ctx: ExportContext, colliders: dict[int, Sdf.Path]) -> None:
     """MuJoCo's contype/conaffinity bits decide which geom pairs may touch. When no pair of the
     moving bodies' colliders can, they form one collision group that filters itself, and still
     collide with the world (ground, obstacles)."""
-    m = ctx.model
-    moving = [g for g in range(m.ngeom) if is_collider(m, g) and m.body_weldid[m.geom_bodyid[g]]]
-    def can_touch(a, b):
-        return bool((m.geom_contype[a] & m.geom_conaffinity[b]) or (m.geom_contype[b] & m.geom_conaffinity[a]))
-    touching = any(can_touch(a, b) for a, b in itertools.combinations(moving, 2)
-                   if m.body_weldid[m.geom_bodyid[a]] != m.body_weldid[m.geom_bodyid[b]])
     if not colliders:
         return
+    m = ctx.model
+    g = np.array(list(colliders))
+    contype, conaffinity, weld = m.geom_contype[g], m.geom_conaffinity[g], m.body_weldid[m.geom_bodyid[g]]
+    pairs = (contype[:, None] & conaffinity[None, :]) != 0
+    touching = ((pairs | pairs.T) & (weld[:, None] != weld[None, :])).any()
     if touching:
         ctx.notes.append("self-collision: some colliders of different bodies may touch (contype/conaffinity); "
                          "PhysX's articulation self-collision filtering may differ from MuJoCo's parent-child rule")
         return
-    group = UsdPhysics.CollisionGroup.Define(ctx.stage, ctx.root.AppendChild("self_collisions"))
+    group = UsdPhysics.CollisionGroup.Define(ctx.stage, ctx.child_path(ctx.root, "self_collisions"))
     group.CreateFilteredGroupsRel().SetTargets([group.GetPath()])
     collection = group.GetCollidersCollectionAPI()
-    collection.CreateIncludesRel().SetTargets(colliders)
+    collection.CreateIncludesRel().SetTargets(list(colliders.values()))
 
 
 def _report_contact_settings(ctx: ExportContext) -> None:

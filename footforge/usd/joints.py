@@ -17,11 +17,10 @@ import numpy as np
 from pxr import Gf, Sdf, UsdGeom, UsdPhysics, Vt
 
 from footforge import units
-from footforge.usd.bodies import body_in_group_frame, compose, site_in_body_frame
-from footforge.usd.context import ExportContext, mj_name, quat_conj
+from footforge.usd.bodies import body_in_group_frame, site_in_body_frame
+from footforge.usd.context import IDENTITY_QUAT, ExportContext, mj_name, mul_pose, neg_pose
 
 _AXES = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}
-_IDENTITY = np.array([1.0, 0, 0, 0])
 JNT = mujoco.mjtJoint
 
 
@@ -31,7 +30,7 @@ def axis_frame(axis: np.ndarray) -> tuple[str, np.ndarray]:
     a = np.asarray(axis, float) / np.linalg.norm(axis)
     for token, e in _AXES.items():
         if np.allclose(a, e, rtol=0, atol=1e-12):
-            return token, _IDENTITY.copy()
+            return token, IDENTITY_QUAT.copy()
     x = _AXES["X"]
     w = 1.0 + float(x @ a)
     if w < 1e-12:  # -X: half a turn about Z
@@ -68,7 +67,8 @@ class DriveTerms:
 def add_joints(ctx: ExportContext) -> dict[int, Sdf.Path]:
     """Defines a USD joint per MuJoCo hinge/slide/ball joint; returns joint id -> prim path."""
     m = ctx.model
-    scope = UsdGeom.Scope.Define(ctx.stage, ctx.root.AppendChild("joints")).GetPath()
+    # Named after the bodies exist, so a body called "joints" keeps its name and this moves aside.
+    scope = ctx.joints_scope = UsdGeom.Scope.Define(ctx.stage, ctx.child_path(ctx.root, "joints")).GetPath()
     terms = _drive_terms(ctx)
     paths: dict[int, Sdf.Path] = {}
     for b in range(1, m.nbody):
@@ -92,7 +92,7 @@ def _add_joint(ctx: ExportContext, scope: Sdf.Path, j: int, terms: DriveTerms | 
     kind = int(m.jnt_type[j])
     token, rot = axis_frame(m.jnt_axis[j])
     frame1 = (m.jnt_pos[j].copy(), rot)
-    frame0 = compose(compose(body_in_group_frame(ctx, parent), (m.body_pos[b], m.body_quat[b])), frame1)
+    frame0 = mul_pose(mul_pose(body_in_group_frame(ctx, parent), (m.body_pos[b], m.body_quat[b])), frame1)
     path = ctx.child_path(scope, name)
     if kind == JNT.mjJNT_HINGE:
         joint = UsdPhysics.RevoluteJoint.Define(ctx.stage, path)
@@ -155,21 +155,17 @@ def _drive_terms(ctx: ExportContext) -> dict[int, DriveTerms]:
         if int(m.jnt_type[j]) in (JNT.mjJNT_HINGE, JNT.mjJNT_SLIDE):
             t = terms[j] = DriveTerms(damping=float(m.dof_damping[m.jnt_dofadr[j]]))
             t.add_spring(m.jnt_stiffness[j], m.qpos_spring[m.jnt_qposadr[j]])
-    ctrl = _home_ctrl(ctx)
     for a in range(m.nu):
         name = mj_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
-        j = int(m.actuator_trnid[a][0])
-        servo = (int(m.actuator_trntype[a]) == mujoco.mjtTrn.mjTRN_JOINT and j in terms
-                 and int(m.actuator_gaintype[a]) == mujoco.mjtGain.mjGAIN_FIXED
-                 and int(m.actuator_biastype[a]) == mujoco.mjtBias.mjBIAS_AFFINE
-                 and m.actuator_biasprm[a][0] == 0 and m.actuator_biasprm[a][1] == -m.actuator_gainprm[a][0]
-                 and m.actuator_gear[a][0] == 1.0)
-        if not servo:
-            ctx.lose(f"actuator '{name}'", "not a unit-gear position servo on a joint", "dropped")
+        j = servo_joint(m, a)
+        if j is None:
+            ctx.lose(f"actuator '{name}'", "not a unit-gear position servo on a hinge or slide joint", "dropped")
             continue
+        # The servo's target at the exported pose: the keyframe's ctrl, else the joint's angle there.
+        target = ctx.data.ctrl[a] if ctx.keyframe is not None else ctx.data.qpos[m.jnt_qposadr[j]]
         t = terms[j]
         t.role = "actuated"
-        t.add_spring(m.actuator_gainprm[a][0], ctrl[a])
+        t.add_spring(m.actuator_gainprm[a][0], target)
         t.damping += float(-m.actuator_biasprm[a][2])
         if m.actuator_forcelimited[a]:
             lo, hi = m.actuator_forcerange[a]
@@ -181,12 +177,18 @@ def _drive_terms(ctx: ExportContext) -> dict[int, DriveTerms]:
     return terms
 
 
-def _home_ctrl(ctx: ExportContext) -> np.ndarray:
-    """Servo targets at the exported pose: the keyframe's ctrl, else the joints' home angles."""
-    m, d = ctx.model, ctx.data
-    if d.ctrl.any() or not m.nu:
-        return d.ctrl.copy()
-    return np.array([d.qpos[m.jnt_qposadr[m.actuator_trnid[a][0]]] for a in range(m.nu)])
+def servo_joint(model: mujoco.MjModel, actuator: int) -> int | None:
+    """The hinge or slide joint `actuator` drives when it is a unit-gear position servo (what a
+    USD drive can carry: kp (q* - q) - kv qd), else None."""
+    m, a = model, actuator
+    j = int(m.actuator_trnid[a][0])
+    servo = (int(m.actuator_trntype[a]) == mujoco.mjtTrn.mjTRN_JOINT
+             and int(m.jnt_type[j]) in (JNT.mjJNT_HINGE, JNT.mjJNT_SLIDE)
+             and int(m.actuator_gaintype[a]) == mujoco.mjtGain.mjGAIN_FIXED
+             and int(m.actuator_biastype[a]) == mujoco.mjtBias.mjBIAS_AFFINE
+             and m.actuator_biasprm[a][0] == 0 and m.actuator_biasprm[a][1] == -m.actuator_gainprm[a][0]
+             and m.actuator_gear[a][0] == 1.0)
+    return j if servo else None
 
 
 def _tendon_springs(ctx: ExportContext, terms: dict[int, DriveTerms]) -> None:
@@ -228,7 +230,7 @@ def add_equalities(ctx: ExportContext, joint_paths: dict[int, Sdf.Path]) -> None
     """connect -> spherical joint excluded from the articulation (PhysX articulations are trees);
     joint couplings and other kinds are reported."""
     m = ctx.model
-    scope = ctx.root.AppendChild("joints")
+    scope = ctx.joints_scope
     for e in range(m.neq):
         name = mj_name(m, mujoco.mjtObj.mjOBJ_EQUALITY, e, "equality")
         kind = int(m.eq_type[e])
@@ -259,12 +261,13 @@ def _add_loop_closure(ctx: ExportContext, scope: Sdf.Path, e: int, name: str) ->
         p1, p2 = site_in_body_frame(ctx, s1)[0], site_in_body_frame(ctx, s2)[0]
     else:  # anchors given in each body's frame
         b1, b2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
-        p1 = compose(body_in_group_frame(ctx, b1), (m.eq_data[e][0:3], _IDENTITY))[0]
-        p2 = compose(body_in_group_frame(ctx, b2), (m.eq_data[e][3:6], _IDENTITY))[0]
+        p1 = mul_pose(body_in_group_frame(ctx, b1), (m.eq_data[e][0:3], IDENTITY_QUAT))[0]
+        p2 = mul_pose(body_in_group_frame(ctx, b2), (m.eq_data[e][3:6], IDENTITY_QUAT))[0]
     g1, g2 = int(m.body_weldid[b1]), int(m.body_weldid[b2])
     joint = UsdPhysics.SphericalJoint.Define(ctx.stage, ctx.child_path(scope, name))
     # Frames aligned with the world at the exported pose, so both sides agree on orientation.
-    _connect(ctx, joint, b1, b2, (p1, quat_conj(d.xquat[g1])), (p2, quat_conj(d.xquat[g2])))
+    world_aligned = [neg_pose((np.zeros(3), d.xquat[g]))[1] for g in (g1, g2)]
+    _connect(ctx, joint, b1, b2, (p1, world_aligned[0]), (p2, world_aligned[1]))
     joint.CreateExcludeFromArticulationAttr(True)
     prim = joint.GetPrim()
     prim.SetCustomDataByKey("footforge:mjcfName", name)
