@@ -33,7 +33,7 @@ from footforge.collision import DecompositionConfig
 from footforge.description import (Description, default_foot_description, default_robot_description,
                                    load_description)
 from footforge.errors import CheckFailure, InputError
-from footforge.params import load_params
+from footforge.params import VariantParams, load_params
 from footforge.robot import build_rig, build_robot, scene_xml
 from footforge.sidecar import Sidecar, default_sidecar_path, load_sidecar
 from footforge.urdf_check import Finding, check_urdf, format_findings, has_errors, repair_urdf
@@ -229,7 +229,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
     foot = full_foot = None
     sidecar = None
     if options.variant != "ball":
-        source = load_foot_source(options, stage, report)
+        source = load_foot_source(options, stage, report, params)
         sidecar = source.sidecar
         with stage(f"build {options.variant} foot"):
             full_foot = foot_lib.build_full(source)
@@ -325,14 +325,17 @@ def _export_usd(options: BuildOptions, stage: Stages, report: dict, stages: dict
     stages[stem] = exported.stage
 
 
-def load_foot_source(options: BuildOptions, stage: Stages, report: dict) -> foot_lib.FootSource:
+def load_foot_source(options: BuildOptions, stage: Stages, report: dict,
+                     params: VariantParams | None = None) -> foot_lib.FootSource:
     """Reads and checks the foot description and its sidecar, solves the reference pose and
     decomposes the collision meshes: everything every foot variant is built from.
+
+    `params` are the already loaded options.params, if the caller has them.
 
     Raises:
       InputError, CheckFailure: as `build`.
     """
-    params = load_params(options.params)
+    params = params or load_params(options.params)
     with stage("read foot description"):
         path = Path(options.foot_description or default_foot_description())
         description = load_description(path, args=options.foot_args, package_paths=options.package_paths)
@@ -403,13 +406,13 @@ def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dic
             for stem, usd_stage in stages.items():
                 outputs += write_stage(usd_stage, tmp, stem)
         report["outputs"] = outputs + ["build_report.json"]
-        (tmp / "build_report.json").write_text(json.dumps(report, indent=2, default=_json_default) + "\n")
+        (tmp / "build_report.json").write_text(json.dumps(report, indent=2, default=json_default) + "\n")
 
 
-def _json_default(value):
+def json_default(value):
     if isinstance(value, np.ndarray):
         return value.tolist()
-    if isinstance(value, (np.floating, np.integer)):
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
         return value.item()
     if isinstance(value, Path):
         return str(value)

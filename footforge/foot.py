@@ -200,7 +200,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
     `full` is the closed-chain foot of `source` when the caller already built it.
     """
     parsed, sidecar, params = source.parsed, source.sidecar, source.params
-    joints = params.aff if variant == "aff" else params.aof
+    joints = params.joints_for(variant)
     sole_lift = params.sole_lift_m[variant]
     ref_model, ref_data = _compiled_full(full or build_full(source, name="reference"))
     q = source.reference.q
@@ -280,6 +280,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
                          fix=f"keep sole_lift_m below {sole_lift + clearance - 0.001:.4f} m so the sole stays the lowest part")
     names = ["ankle_pitch", "ankle_roll"] + ([] if variant == "aff" else ["sole_front", "sole_back"])
     info = {"replaced_links": {k: [parsed.link_of(j) for j in v] for k, v in split.items()},
+            "sole_clearance_m": clearance,
             "reference_pose_closure_error_m": source.reference.closure_error_m}
     return _finish(FootModel(variant, root, parsed.root_link, {n: 0.0 for n in names}, names,
                              np.zeros(3), info))

@@ -68,6 +68,10 @@ class VariantParams:
     AFF, AOF and ball models: the sole pad's contact stiffness, dominant over the ground's (see
     urdf_import.CONTACT_SOLMIX). The closed chain has its own (full.contact_solref)."""
 
+    def joints_for(self, variant: str) -> dict[str, PassiveJoint]:
+        """The passive joints of a derived variant (aff or aof)."""
+        return self.aff if variant == "aff" else self.aof
+
     def contact_solref_for(self, variant: str) -> tuple[float, float]:
         return self.full.contact_solref if variant == "full" else self.contact_solref
 

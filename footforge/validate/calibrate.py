@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import shutil
 import tempfile
 from dataclasses import replace
 from pathlib import Path
@@ -21,9 +22,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
-from footforge import foot as foot_lib
 from footforge.errors import InputError
-from footforge.params import load_params
+from footforge.params import VariantParams, load_params
 from footforge.validate import fidelity
 
 GROUPS = {"aff": (("ankle_pitch",), ("ankle_roll",)),
@@ -38,7 +38,7 @@ is lowered to keep the sole 1 mm below the foot's other collision boxes (foot.so
 
 
 def _vector(params, variant: str) -> np.ndarray:
-    joints = params.aff if variant == "aff" else params.aof
+    joints = params.joints_for(variant)
     x = []
     for group in GROUPS[variant]:
         j = joints[group[0]]
@@ -55,9 +55,34 @@ def _values(x: np.ndarray, variant: str) -> tuple[dict, float]:
     return joints, float(f"{x[-1] / 100.0:.4g}")
 
 
-def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
-    from footforge.validate.runner import DERIVED, mean_series_errors, training_split, variant_params_summary
+DERIVED = ("aof", "aff")
+"""The variants with free parameters to calibrate."""
 
+
+def training_split(scenarios: list) -> tuple[list, list]:
+    """Calibration scenarios and held-out ones: every third scenario (in the listed order) is
+    held out, so each obstacle family has members on both sides."""
+    held = [s for i, s in enumerate(scenarios) if i % 3 == 2]
+    return [s for s in scenarios if s not in held], held
+
+
+def variant_params_summary(session, variant: str) -> dict:
+    params = session.source.params
+    joints = params.joints_for(variant)
+    return {"joints": {n: {"stiffness": j.stiffness, "damping": j.damping} for n, j in joints.items()},
+            "sole_lift_m": params.sole_lift_m[variant]}
+
+
+def mean_series_errors(runs: dict[str, dict], full_runs: dict[str, dict], names) -> dict:
+    """Each time-series error and the calibration objective, averaged over `names`."""
+    errs = [fidelity.series_errors(runs[n], full_runs[n]) for n in names]
+    if not errs:
+        return {}
+    return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]} | {
+        "objective": float(np.mean([fidelity.objective(e) for e in errs]))}
+
+
+def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
     train, held = training_split(scenarios)
     if not train:
         raise InputError("calibration needs scenarios to train on", fix="run --calibrate with --scenarios quick or all")
@@ -70,8 +95,7 @@ def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
         tick = advance(f"calibrating {variant}", options.calibration_evaluations)
         best, history = _fit(pool, cases, full, params, variant, session.feet[variant], options, tick)
         joints, lift = _values(best, variant)
-        write_params(params.source, variant, joints, lift)
-        session.reload(variant, params.source)
+        session.reload(variant, write_params(params.source, variant, joints, lift))
         new_runs = {r["scenario"]: r for r in pool.map(session.cases(variant, scenarios),
                                                        advance(f"re-running {variant}", len(scenarios)))}
         out[variant] = {
@@ -103,8 +127,9 @@ def _fit(pool, cases, full: dict, params, variant: str, foot, options, tick) -> 
         return value
 
     x0 = _vector(params, variant)
-    max_lift_cm = 100.0 * (params.sole_lift_m[variant] + foot_lib.sole_clearance(foot.mjcf) - 0.0011)
-    bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [(LIFT_CM[0], min(LIFT_CM[1], max_lift_cm))]
+    max_lift_cm = 100.0 * (params.sole_lift_m[variant] + foot.info["sole_clearance_m"] - 0.0011)
+    bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [
+        (LIFT_CM[0], max(LIFT_CM[0], min(LIFT_CM[1], max_lift_cm)))]
     lower, upper = [b[0] for b in bounds], [b[1] for b in bounds]
     simplex = np.array([x0] + [np.clip(x0 + 0.5 * e, lower, upper) for e in np.eye(len(x0))])
     for i in range(1, len(simplex)):  # a step that hit a bound goes the other way
@@ -116,9 +141,13 @@ def _fit(pool, cases, full: dict, params, variant: str, foot, options, tick) -> 
     return (result.x if result.fun <= history[0] else x0), history
 
 
-def write_params(path: Path, variant: str, joints: dict[str, dict], lift_m: float) -> None:
+def write_params(path: Path, variant: str, joints: dict[str, dict], lift_m: float) -> VariantParams:
     """Rewrites the `variant` section's joint stiffness/damping and sole_lift_m in place,
-    keeping every comment and other value; written atomically and read back to check.
+    keeping every comment, other value and the file's permissions; checked by reading the
+    written text back before it replaces the file.
+
+    Returns:
+      The parameters as now written.
 
     Raises:
       InputError: the file lacks the section or one of the joints.
@@ -151,11 +180,18 @@ def write_params(path: Path, variant: str, joints: dict[str, dict], lift_m: floa
         raise InputError(f"the parameter file has no {variant}.{', '.join(missing)} to update", file=str(path),
                          element=variant, fix="start from the project's variant_params.yaml")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    with os.fdopen(fd, "w") as f:
-        f.write("".join(lines))
-    os.replace(tmp, path)
-    check = load_params(path)
-    written = check.aff if variant == "aff" else check.aof
-    for name, values in joints.items():
-        assert math.isclose(written[name].stiffness, values["stiffness"]) and math.isclose(written[name].damping, values["damping"])
-    assert math.isclose(check.sole_lift_m[variant], lift_m)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write("".join(lines))
+        shutil.copymode(path, tmp)
+        written = load_params(tmp)
+        values = written.joints_for(variant)
+        if not (all(math.isclose(values[n].stiffness, v["stiffness"]) and math.isclose(values[n].damping, v["damping"])
+                    for n, v in joints.items()) and math.isclose(written.sole_lift_m[variant], lift_m)):
+            raise InputError("the rewritten parameter file does not read back as written", file=str(path),
+                             element=variant, fix="check the section's layout: one joint per line, flow mappings")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return replace(written, source=path.resolve())

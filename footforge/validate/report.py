@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from footforge.atomic import atomic_directory
+from footforge.build import json_default
 
 METRICS = ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm", "slip_mm")
 COLOURS = {"full": "black", "aof": "tab:blue", "aff": "tab:orange", "ball": "tab:green"}
@@ -163,16 +164,6 @@ def _json_ready(report: dict) -> dict:
     return out
 
 
-def _default(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(type(value))
-
-
 def write(report: dict, out_dir: Path, command: str) -> None:
     with atomic_directory(out_dir) as tmp:
         (tmp / "plots").mkdir()
@@ -181,6 +172,6 @@ def write(report: dict, out_dir: Path, command: str) -> None:
         items = blocks(report, command)
         (tmp / "report.md").write_text(to_markdown(items))
         (tmp / "report.html").write_text(to_html(items))
-        (tmp / "report.json").write_text(json.dumps(_json_ready(report), indent=1, default=_default) + "\n")
+        (tmp / "report.json").write_text(json.dumps(_json_ready(report), indent=1, default=json_default) + "\n")
         np.savez_compressed(tmp / "series.npz", **{f"{v}/{n}/{k}": a for v, runs in report["runs"].items()
                                                    for n, r in runs.items() for k, a in r["series"].items()})

@@ -12,7 +12,6 @@ from footforge.robot import build_rig
 from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
 from footforge.validate.simulate import SOLE_BODY_PREFIXES, RigCase
 
-VALIDATE_VARIANTS = ("full", "aof", "aff", "ball")
 
 
 def build_feet(source: foot_lib.FootSource, variants) -> dict[str, foot_lib.FootModel | None]:

@@ -6,15 +6,16 @@ from __future__ import annotations
 import multiprocessing
 import platform
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-
 from footforge import __version__
+from footforge import foot as foot_lib
 from footforge.build import BuildOptions, Stages, load_foot_source, versions
 from footforge.errors import InputError
+from footforge.params import VariantParams
+from footforge.validate import calibrate as calibration
 from footforge.validate import fidelity, rigs, simulate
 from footforge.validate.scenarios import Scenario, select
 
@@ -23,7 +24,6 @@ CLOSURE_LIMIT_MM = 0.5
 ENERGY_GAIN_TOL_J = 1e-3
 """Released at rest with only gravity, springs and dissipation acting, the rig's energy must not
 exceed its initial value by more than this (about 1e-4 of a 10 cm drop's energy)."""
-DERIVED = ("aof", "aff")
 
 
 @dataclass(frozen=True)
@@ -55,13 +55,6 @@ def parse_variants(text: str) -> tuple[str, ...]:
     return names
 
 
-def training_split(scenarios: list[Scenario]) -> tuple[list[Scenario], list[Scenario]]:
-    """Calibration scenarios and held-out ones: every third scenario (in the listed order) is
-    held out, so each obstacle family has members on both sides."""
-    held = [s for i, s in enumerate(scenarios) if i % 3 == 2]
-    return [s for s in scenarios if s not in held], held
-
-
 class Pool:
     """Worker processes that simulate rig cases; `map` keeps the input order."""
 
@@ -85,7 +78,6 @@ class Pool:
 
 
 def _seeded(scenarios: list[Scenario], seed: int) -> list[Scenario]:
-    from dataclasses import replace
     return [replace(s, seed=s.seed + seed) if s.obstacle == "rough" else s for s in scenarios]
 
 
@@ -93,28 +85,20 @@ class Session:
     """The models of one validation: the foot source, each variant's foot, the sole extent."""
 
     def __init__(self, options: ValidateOptions, stage: Stages):
-        self.options = options
-        self.report: dict = {}
-        self.source = load_foot_source(options.build, stage, self.report)
+        self.inputs: dict = {}
+        """Input files with their hashes, checks and warnings (build_report's form)."""
+        self.source = load_foot_source(options.build, stage, self.inputs)
         self.feet = rigs.build_feet(self.source, options.variants)
         self.sole = rigs.sole_extent(self.feet["full"])
 
-    def reload(self, variant: str, params_path: Path) -> None:
-        """Rebuilds `variant`'s foot from an updated parameter file."""
-        from dataclasses import replace
-
-        from footforge import foot as foot_lib
-        from footforge.params import load_params
-        self.source = replace(self.source, params=load_params(params_path))
+    def reload(self, variant: str, params: VariantParams) -> None:
+        """Rebuilds `variant`'s foot with updated parameters."""
+        self.source = replace(self.source, params=params)
         self.feet[variant] = foot_lib.build_derived(self.source, variant, full=self.feet["full"])
 
-    def cases(self, variant: str, scenarios: list[Scenario], patch: dict | None = None) -> list[simulate.RigCase]:
-        out = []
-        for s in scenarios:
-            case = rigs.rig_case(self.feet[variant], variant, s, self.sole, self.source.params,
-                                 self.source.sidecar.friction)
-            out.append(simulate.RigCase(case.scenario, variant, case.xml, case.assets, patch))
-        return out
+    def cases(self, variant: str, scenarios: list[Scenario]) -> list[simulate.RigCase]:
+        return [rigs.rig_case(self.feet[variant], variant, s, self.sole, self.source.params,
+                              self.source.sidecar.friction) for s in scenarios]
 
 
 def reference_checks(runs: dict[str, dict]) -> dict:
@@ -149,12 +133,10 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
 
     `progress(description, total)` returns a callback to advance by one finished run.
     """
-    from footforge.validate import calibrate as calibration
-
     scenarios = _seeded(select(list(options.scenarios)), options.seed)
     stage = Stages(None)
     session = Session(options, stage)
-    advance = (lambda d, n: progress(d, n)) if progress else (lambda d, n: None)
+    advance = progress or (lambda description, total: lambda: None)
     pool = Pool(options.jobs)
     try:
         variants = ("full",) + options.variants
@@ -166,7 +148,7 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
         report = {
             "footforge": __version__, "versions": versions(), "machine": platform.platform(),
             "seed": options.seed, "jobs": options.jobs, "thresholds": options.thresholds.as_dict(),
-            "params": str(session.source.params.source),
+            "params": str(session.source.params.source), "inputs": session.inputs.get("inputs", {}),
             "scenarios": [s.describe() for s in scenarios], "sole_extent_m": asdict(session.sole),
             "reference": reference_checks(runs["full"]), "runs": runs,
             "speed": {v: speed(runs[v]) for v in variants},
@@ -188,18 +170,3 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
                             and all(f["summary"]["passed"] for f in report["fidelity"].values()))
     return report
 
-
-def variant_params_summary(session: Session, variant: str) -> dict:
-    params = session.source.params
-    joints = params.aff if variant == "aff" else params.aof
-    return {"joints": {n: {"stiffness": j.stiffness, "damping": j.damping} for n, j in joints.items()},
-            "sole_lift_m": params.sole_lift_m[variant]}
-
-
-def mean_series_errors(runs: dict[str, dict], full_runs: dict[str, dict], names) -> dict:
-    """Each time-series error and the calibration objective, averaged over `names`."""
-    errs = [fidelity.series_errors(runs[n], full_runs[n]) for n in names]
-    if not errs:
-        return {}
-    return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]} | {
-        "objective": float(np.mean([fidelity.objective(e) for e in errs]))}

@@ -38,7 +38,7 @@ class Scenario:
     leg_pitch_deg: float = 0.0
     """Tilt of the foot mount about y (positive: toe down), deg."""
     leg_roll_deg: float = 0.0
-    """Tilt of the foot mount about x (positive: left side down), deg."""
+    """Tilt of the foot mount about x (positive: left side up), deg."""
     slope_deg: float = 0.0
     """slope: plane inclination, deg (toe or left side uphill)."""
     slope_axis: Literal["pitch", "roll"] = "pitch"

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from footforge.foot import geom_points
+from footforge.foot import collision_points
 from footforge.validate.scenarios import Scenario
 
 SAMPLE_DT_S = 0.002
@@ -54,41 +54,39 @@ def apply_patch(model: mujoco.MjModel, patch: dict | None) -> None:
                 model.geom_pos[g][2] += delta  # sole body frames are aligned with the mount
 
 
-def _foot_bodies(model: mujoco.MjModel) -> np.ndarray:
-    carriage = model.body("carriage").id
-    return np.array([b for b in range(model.nbody) if b and (b == carriage or model.body_rootid[b] == model.body_rootid[carriage])])
+def _foot_mask(model: mujoco.MjModel) -> np.ndarray:
+    """Per body: does it hang from the slider (the carriage and the foot)."""
+    return model.body_rootid == model.body_rootid[model.body("carriage").id]
 
 
-def _sole_points(model: mujoco.MjModel, data: mujoco.MjData) -> list[tuple[int, np.ndarray]]:
+def _sole_points(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
     """Material points on the bottom of each sole body (within 1 mm of its lowest collision
-    point along the foot mount's z axis, at the reference pose), as (body, point in the body
-    frame). Measured in the mount frame, so a tilted leg selects the same points."""
+    point along the foot mount's z axis, at the reference pose), as (body ids (N,), points in
+    the body frames (N, 3)). Measured in the mount frame, so a tilted leg selects the same points."""
     mount = model.site("mount").id
     R_mount, p_mount = data.site_xmat[mount].reshape(3, 3), data.site_xpos[mount]
-    out = []
+    bodies, local = [], []
     for b in range(model.nbody):
         name = model.body(b).name
         if not name.startswith("foot/") or not name[5:].startswith(SOLE_BODY_PREFIXES):
             continue
-        pts = [geom_points(model, data, g) for g in np.flatnonzero(model.geom_bodyid == b)
-               if model.geom_conaffinity[g] and int(model.geom_type[g]) in (mujoco.mjtGeom.mjGEOM_MESH, mujoco.mjtGeom.mjGEOM_BOX)]
-        if not pts:
+        pts = collision_points(model, data, [name])
+        if not len(pts):
             continue
-        pts = np.concatenate(pts)
         height = (pts - p_mount) @ R_mount[:, 2]
         bottom = pts[height <= height.min() + 1e-3]
-        Rb, pb = data.xmat[b].reshape(3, 3), data.xpos[b]
-        out += [(b, (q - pb) @ Rb) for q in bottom]
-    return out
+        local.append((bottom - data.xpos[b]) @ data.xmat[b].reshape(3, 3))
+        bodies += [b] * len(bottom)
+    return np.array(bodies, int), (np.concatenate(local) if local else np.zeros((0, 3)))
 
 
-def _sole_world(data: mujoco.MjData, points: list[tuple[int, np.ndarray]]) -> np.ndarray:
-    return np.array([data.xmat[b].reshape(3, 3) @ p + data.xpos[b] for b, p in points]).reshape(-1, 3)
+def _sole_world(data: mujoco.MjData, bodies: np.ndarray, local: np.ndarray) -> np.ndarray:
+    return np.einsum("nij,nj->ni", data.xmat[bodies].reshape(-1, 3, 3), local) + data.xpos[bodies]
 
 
 def _sole_orientation(world: np.ndarray) -> tuple[float, float]:
     """Pitch and roll (rad) of the least-squares plane through the sole points, world frame.
-    Pitch positive: toe down; roll positive: left side down (right-hand rotations about y, x)."""
+    Pitch positive: toe down; roll positive: left side up (right-hand rotations about y, x)."""
     if len(world) < 3:
         return float("nan"), float("nan")
     A = np.c_[np.ones(len(world)), world[:, 0], world[:, 1]]
@@ -96,21 +94,21 @@ def _sole_orientation(world: np.ndarray) -> tuple[float, float]:
     return float(-np.arctan(slope_x)), float(np.arctan(slope_y))
 
 
-def _ground_contacts(model, data, foot_bodies_mask):
-    """(world position, world force on the foot, penetration) of every foot-ground contact."""
-    out = []
+def _ground_contacts(model, data, foot_mask):
+    """World positions (N, 3), world forces on the foot (N, 3) and penetrations (N,) of the
+    foot-ground contacts."""
+    ncon = data.ncon
+    geoms = data.contact.geom[:ncon].reshape(-1, 2)
+    on_foot = foot_mask[model.geom_bodyid[geoms]]
+    chosen = np.flatnonzero(on_foot[:, 0] != on_foot[:, 1])
+    forces = np.zeros((len(chosen), 3))
     force = np.zeros(6)
-    for i in range(data.ncon):
-        c = data.contact[i]
-        b1, b2 = model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]
-        if foot_bodies_mask[b1] == foot_bodies_mask[b2]:
-            continue
+    for n, i in enumerate(chosen):
         mujoco.mj_contactForce(model, data, i, force)
-        f_world = c.frame.reshape(3, 3).T @ force[:3]  # on geom2, along the normal from geom1 to geom2
-        if foot_bodies_mask[b1]:
-            f_world = -f_world
-        out.append((c.pos.copy(), f_world, max(0.0, -c.dist)))
-    return out
+        f_world = data.contact.frame[i].reshape(3, 3).T @ force[:3]  # on geom2, along the normal 1 -> 2
+        forces[n] = -f_world if on_foot[i, 0] else f_world
+    return (data.contact.pos[chosen].reshape(-1, 3), forces,
+            np.maximum(0.0, -data.contact.dist[chosen]).reshape(-1))
 
 
 def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
@@ -120,8 +118,9 @@ def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
         data.qpos[slider_adr] = z
         mujoco.mj_kinematics(model, data)
         mujoco.mj_collision(model, data)
-        return any(foot_mask[model.geom_bodyid[data.contact[i].geom1]] != foot_mask[model.geom_bodyid[data.contact[i].geom2]]
-                   and data.contact[i].dist < 0 for i in range(data.ncon))
+        geoms = data.contact.geom[:data.ncon].reshape(-1, 2)
+        on_foot = foot_mask[model.geom_bodyid[geoms]]
+        return bool(((on_foot[:, 0] != on_foot[:, 1]) & (data.contact.dist[:data.ncon] < 0)).any())
     lo, hi = -0.5, 0.5
     while not touching(lo):
         lo -= 0.5
@@ -133,7 +132,11 @@ def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
 
 
 def run(case: RigCase) -> dict:
-    """Simulates one case; returns time series (sampled every SAMPLE_DT_S) and scalars."""
+    """Simulates one case; returns time series (sampled every SAMPLE_DT_S) and scalars.
+
+    `wall_s` is the wall-clock time spent in mj_step alone (the recording is not counted), so
+    that variants' speeds compare the physics, not this function's bookkeeping.
+    """
     scenario = case.scenario
     model = mujoco.MjModel.from_xml_string(case.xml, case.assets)
     apply_patch(model, case.patch)
@@ -141,71 +144,66 @@ def run(case: RigCase) -> dict:
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("reference").id)
     mujoco.mj_forward(model, data)
-    foot_mask = np.zeros(model.nbody, bool)
-    foot_mask[_foot_bodies(model)] = True
-    sole = _sole_points(model, data)
+    foot_mask = _foot_mask(model)
+    sole_bodies, sole_local = _sole_points(model, data)
     slider = model.joint("slider")
     _place(model, data, int(slider.qposadr[0]), foot_mask, scenario.drop_height_m)
-    closures = [(int(model.eq_obj1id[e]), int(model.eq_obj2id[e])) for e in range(model.neq)
-                if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT and model.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE]
+    connect = [e for e in range(model.neq) if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT
+               and model.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE]
+    site_a, site_b = model.eq_obj1id[connect], model.eq_obj2id[connect]
     mount = model.site("mount").id
+    weight = float(-model.opt.gravity[2] * mujoco.mj_getTotalmass(model))  # payload, carriage and foot
     steps = int(round(scenario.duration_s / model.opt.timestep))
     every = max(1, int(round(SAMPLE_DT_S / model.opt.timestep)))
     n = steps // every + 1
     series = {k: np.full(n, np.nan) for k in ("time_s", "force_z_n", "height_m", "pitch_rad", "roll_rad", "contacts",
                                               "cop_x_m", "cop_y_m", "spread_m", "penetration_m", "closure_gap_m", "energy_j",
                                               "sole_x_m", "sole_y_m")}
-    failed = None
-    t0 = time.perf_counter()
+    failed, wall, footprint = None, 0.0, np.zeros((0, 3))
     for k in range(steps + 1):
         if k % every == 0:
             i = k // every
-            contacts = _ground_contacts(model, data, foot_mask)
-            fz = sum(f[2] for _, f, _ in contacts)
+            pos, force, penetration = _ground_contacts(model, data, foot_mask)
             series["time_s"][i] = data.time
-            series["force_z_n"][i] = fz
+            series["force_z_n"][i] = force[:, 2].sum()
             series["height_m"][i] = data.site_xpos[mount][2]
-            sole_world = _sole_world(data, sole)
+            sole_world = _sole_world(data, sole_bodies, sole_local)
             series["pitch_rad"][i], series["roll_rad"][i] = _sole_orientation(sole_world)
             if len(sole_world):
                 series["sole_x_m"][i], series["sole_y_m"][i] = sole_world[:, :2].mean(axis=0)
-            series["contacts"][i] = len(contacts)
-            series["penetration_m"][i] = max((p for *_, p in contacts), default=0.0)
-            weights = np.array([max(f[2], 0.0) for _, f, _ in contacts])
+            series["contacts"][i] = len(pos)
+            series["penetration_m"][i] = penetration.max(initial=0.0)
+            weights = np.maximum(force[:, 2], 0.0)
+            planar = pos[:, :2] - data.site_xpos[mount][:2]
             if weights.sum() > 1e-9:
-                pos = np.array([p for p, _, _ in contacts])[:, :2] - data.site_xpos[mount][:2]
-                cop = weights @ pos / weights.sum()
+                cop = weights @ planar / weights.sum()
                 series["cop_x_m"][i], series["cop_y_m"][i] = cop
-                series["spread_m"][i] = float(np.sqrt(weights @ ((pos - cop) ** 2).sum(axis=1) / weights.sum()))
-            series["closure_gap_m"][i] = max((np.linalg.norm(data.site_xpos[a] - data.site_xpos[b]) for a, b in closures),
-                                             default=0.0)
+                series["spread_m"][i] = float(np.sqrt(weights @ ((planar - cop) ** 2).sum(axis=1) / weights.sum()))
+            gaps = np.linalg.norm(data.site_xpos[site_a] - data.site_xpos[site_b], axis=1)
+            series["closure_gap_m"][i] = gaps.max(initial=0.0)
             series["energy_j"][i] = data.energy.sum()
+            footprint = np.c_[planar, force[:, 2]]
         if k == steps:
             break
+        t0 = time.perf_counter()
         mujoco.mj_step(model, data)
-        if not np.isfinite(data.qacc).all() or any(w.number for w in data.warning):
+        wall += time.perf_counter() - t0
+        if data.warning.number.any() or not np.isfinite(data.qacc).all():
             warnings = [mujoco.mjtWarning(j).name for j, w in enumerate(data.warning) if w.number]
             failed = f"step {k}: " + (", ".join(warnings) if warnings else "non-finite acceleration")
+            footprint = np.zeros((0, 3))
             break
-    wall = time.perf_counter() - t0
-    final = _ground_contacts(model, data, foot_mask) if not failed else []
-    footprint = np.array([[*(p[:2] - data.site_xpos[mount][:2]), f[2]] for p, f, _ in final]).reshape(-1, 3)
     return {"footprint": footprint, "scenario": scenario.name, "variant": case.variant, "series": series,
-            "scalars": scalars(series, model, failed), "failed": failed, "wall_s": wall, "steps": k,
-            "timestep_s": model.opt.timestep, "supported_weight_n": float(-model.opt.gravity[2] * supported_mass(model))}
-
-
-def supported_mass(model: mujoco.MjModel) -> float:
-    """Everything the slider carries: the payload, the carriage and the foot (kg)."""
-    return float(mujoco.mj_getTotalmass(model))
+            "scalars": scalars(series, weight, failed), "failed": failed, "wall_s": wall, "steps": k,
+            "timestep_s": model.opt.timestep, "supported_weight_n": weight}
 
 
 def _tail_mean_deg(values: np.ndarray) -> float:
     return float(np.degrees(np.nanmean(values))) if np.isfinite(values).any() else float("nan")
 
 
-def scalars(s: dict, model: mujoco.MjModel, failed: str | None) -> dict:
-    """The per-run figures of the report, from the recorded series."""
+def scalars(s: dict, weight_n: float, failed: str | None) -> dict:
+    """The per-run figures of the report, from the recorded series and the supported weight."""
     t, f, h = s["time_s"], s["force_z_n"], s["height_m"]
     ok = np.isfinite(h)
     if failed or not ok.any():
@@ -230,7 +228,7 @@ def scalars(s: dict, model: mujoco.MjModel, failed: str | None) -> dict:
     # moment the ground first carries the supported weight to the end. The slider holds the
     # mount in x and y, so this is the foot's own sliding and rolling on the surface.
     sole = np.c_[s["sole_x_m"], s["sole_y_m"]]
-    supported = np.flatnonzero(f >= -model.opt.gravity[2] * supported_mass(model))
+    supported = np.flatnonzero(f >= weight_n)
     start = int(supported[0]) if supported.size else first
     slip = float(np.linalg.norm(np.nanmean(sole[tail], axis=0) - sole[start])) if np.isfinite(sole[start]).all() else 0.0
     # Released at rest, the rig has only gravity (in the energy), springs (in it too) and
