@@ -2,11 +2,11 @@
 pushes, and the mean and standard deviation over all policy steps of its indices.
 
 Indices, per policy step of every robot still standing: forward and lateral velocity tracking
-errors |v_cmd - v| (m/s), yaw-rate tracking error (rad/s), action rate |a_t - a_t-1| (the change
-of the desired joint positions' increment), joint velocity rate |qd_t - qd_t-1| (rad/s per step),
-joint torques |tau| (N m), base height (m). Foot slippage (Catalano et al. 2022): the summed
-horizontal displacement of every foot while it touches the ground, over the distance the base
-travelled.
+errors |v_cmd - v| (m/s), yaw-rate tracking error (rad/s), action rate ||a_t - a_t-1|| (Euclidean
+norm over the 12 joints of the change of the policy output), joint velocity rate
+||qd_t - qd_t-1|| (rad/s per step), joint torques ||tau|| (N m), base height (m). Foot slippage
+(Catalano et al. 2022): the summed horizontal displacement of every foot between two steps in
+which it touches the ground, over the horizontal distance the base travelled.
 """
 
 from __future__ import annotations
@@ -35,12 +35,12 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     import jax
     import jax.numpy as jp
 
-    from footforge.envs.locomotion import LocomotionEnv, foot_contacts
+    from footforge.envs.locomotion import LocomotionEnv
     from footforge.train import load_policy
 
     policy, env_config, _ = load_policy(policy_dir)
     feet = feet or env_config.feet
-    if env_config.policy in ("BH", "PH") and feet != env_config.feet:
+    if env_config.haptic and feet != env_config.feet:
         raise InputError(f"a {env_config.policy} policy trained on {env_config.feet} reads that foot's passive "
                          f"joints; it cannot run on {feet}", fix="evaluate blind (B, P) policies zero-shot")
     steps = int(round(seconds / env_config.policy_dt))
@@ -49,35 +49,33 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     robot = env.robot
 
     def one_step(carry, key):
-        state, prev_qd, alive, feet_xy = carry
-        k_act, _ = jax.random.split(key)
-        action, _ = policy(state.obs, k_act)
+        # The robots keep walking without resets; a fallen (or diverged) one is masked from then on.
+        state, prev_qd, alive, feet_xy, base_xy, touched = carry
+        action, _ = policy(state.obs, key)
         action = jp.clip(action, -10.0, 10.0)
         last_action = state.info["last_action"]
         state = env.step(state, action)
-        d = state.pipeline_state
-        lin, ang, _ = env.base_state(d)
-        cmd = state.info["command"]
+        d, m = state.pipeline_state, state.metrics
         qd = d.qvel[robot.actuated_dof]
-        contact = d._impl.contact if hasattr(d, "_impl") else d.contact
-        touching = foot_contacts(env._geom_category, robot.floor_geom, contact.geom, contact.dist)
-        xy = d.site_xpos[robot.foot_sites][:, :2]
-        slip = jp.sum(jp.linalg.norm(xy - feet_xy, axis=1) * touching)
+        touching = env.foot_contacts(d)
+        xy, new_base_xy = d.site_xpos[robot.foot_sites][:, :2], d.qpos[:2]
         alive = alive & (state.done == 0)
-        row = {"lin_vel_x_error": jp.abs(cmd[0] - lin[0]), "lin_vel_y_error": jp.abs(cmd[1] - lin[1]),
-               "yaw_rate_error": jp.abs(cmd[2] - ang[2]), "action_rate": jp.linalg.norm(action - last_action),
+        lin, _, _ = env.base_state(d)
+        row = {"lin_vel_x_error": m["error/lin_vel_x_per_step"], "lin_vel_y_error": m["error/lin_vel_y_per_step"],
+               "yaw_rate_error": m["error/yaw_rate_per_step"], "action_rate": jp.linalg.norm(action - last_action),
                "joint_vel_rate": jp.linalg.norm(qd - prev_qd), "torques": jp.linalg.norm(d.actuator_force),
-               "base_height": env.base_height(d), "alive": alive, "slip": slip,
-               "travel": jp.linalg.norm(d.qvel[:2]) * env.config.policy_dt, "contacts": touching,
-               "base_vx_error": cmd[0] - lin[0]}
-        state = state.replace(done=jp.zeros(()))  # keep walking (no reset) and mask fallen robots
-        return (state, qd, alive, xy), row
+               "base_height": m["base_height_m_per_step"], "alive": alive,
+               "slip": jp.sum(jp.linalg.norm(xy - feet_xy, axis=1) * (touching & touched)),
+               "travel": jp.linalg.norm(new_base_xy - base_xy), "contacts": touching,
+               "base_vx_error": state.info["command"][0] - lin[0]}
+        return (state, qd, alive, xy, new_base_xy, touching), row
 
     def rollout(key):
         k_reset, k_run = jax.random.split(key)
         state = env.reset(k_reset)
         d = state.pipeline_state
-        carry = (state, d.qvel[robot.actuated_dof], jp.array(True), d.site_xpos[robot.foot_sites][:, :2])
+        carry = (state, d.qvel[robot.actuated_dof], jp.array(True), d.site_xpos[robot.foot_sites][:, :2],
+                 d.qpos[:2], env.foot_contacts(d))
         _, rows = jax.lax.scan(one_step, carry, jax.random.split(k_run, steps))
         return rows
 
@@ -86,12 +84,14 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     alive = rows["alive"]
     indices = {name: {"mean": float(rows[name][alive].mean()), "std": float(rows[name][alive].std())}
                for name in INDICES}
-    travel = float((rows["travel"] * alive).sum())
-    slippage = float((rows["slip"] * alive).sum() / travel) if travel > 0 else float("nan")
+    travel = float(np.where(alive, rows["travel"], 0.0).sum())  # NaN x 0 would be NaN: select
+    slippage = float(np.where(alive, rows["slip"], 0.0).sum() / travel) if travel > 0 else float("nan")
+    vx_error = np.where(alive, rows["base_vx_error"], np.nan)
     return {"policy": str(policy_dir), "trained_on": env_config.feet, "feet": feet, "policy_type": env_config.policy,
             "num_envs": num_envs, "seconds": seconds, "seed": seed, "policy_dt_s": env_config.policy_dt,
+            "push_interval_s": env_config.pushes.interval_s,
             "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
-            "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": rows["base_vx_error"].mean(axis=0)}}
+            "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": np.nanmean(vx_error, axis=0)}}
 
 
 def comparison_markdown(results: list[dict]) -> str:
@@ -109,7 +109,7 @@ def comparison_markdown(results: list[dict]) -> str:
 def plot(results: list[dict], out_dir: Path) -> list[str]:
     """comparison.png (indices per policy and feet), contacts_<i>.png (robot 0's feet contact
     schedule over the first 4 s), push_response_<i>.png (mean forward velocity error over time;
-    pushes every 15 s)."""
+    pushes at the environment's interval)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -141,7 +141,7 @@ def plot(results: list[dict], out_dir: Path) -> list[str]:
         err = np.asarray(r["traces"]["base_vx_error_mean"])
         fig, ax = plt.subplots(figsize=(8, 2.5))
         ax.plot(np.arange(len(err)) * dt, err)
-        for t in np.arange(15.0, r["seconds"], 15.0):
+        for t in np.arange(r["push_interval_s"], r["seconds"], r["push_interval_s"]):
             ax.axvline(t, color="r", ls="--", lw=0.8)
         ax.set(xlabel="time (s)", ylabel="mean vx command - vx (m/s)", title="push response (pushes: red)")
         fig.tight_layout()

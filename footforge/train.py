@@ -15,11 +15,13 @@ import functools
 import json
 import math
 import os
+import shutil
 import time
 from dataclasses import asdict, dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Callable
 
+from footforge.atomic import atomic_directory
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 
@@ -70,9 +72,6 @@ class PPOConfig:
                              f"multiple of num_envs ({self.num_envs})",
                              fix="e.g. num_envs = batch_size x num_minibatches (the defaults: 2048 = 512 x 4)")
 
-    @property
-    def steps_per_iteration(self) -> int:
-        return self.batch_size * self.num_minibatches * self.unroll_length
 
 
 def to_dict(config) -> dict:
@@ -143,13 +142,12 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         restore = brax_checkpoint.load(str(path))
         resumes = json.loads(state_file.read_text()).get("resumes", 0) + 1 if state_file.exists() else 1
     run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / "config.json").write_text(json.dumps({"env": to_dict(env_config), "ppo": to_dict(ppo)}, indent=2))
+    _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)})
     remaining = ppo.num_timesteps - offset
     if remaining <= 0:
         return json.loads(state_file.read_text()).get("metrics", {})
 
-    env = LocomotionEnv(env_config)
-    eval_env = LocomotionEnv(env_config)
+    env = LocomotionEnv(env_config)  # Brax evaluates on the same environment
     writer = SummaryWriter(str(run_dir / "tensorboard"))
     epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
     last: dict = {}
@@ -162,8 +160,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         brax_checkpoint.save(str(run_dir / "checkpoints"), global_step, params,
                              brax_checkpoint.network_config(env.observation_size, env.action_size,
                                                             ppo.normalize_observations, network_factory(ppo)))
-        state_file.write_text(json.dumps({"global_step": global_step, "resumes": resumes, "metrics": last,
-                                          "wall_s": time.time() - t0}, indent=1, default=float))
+        _write_json(state_file, {"global_step": global_step, "resumes": resumes, "metrics": last,
+                                 "wall_s": time.time() - t0})
 
     def log(step: int, metrics: dict) -> None:
         global_step = offset + step
@@ -180,8 +178,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         if progress:
             progress(global_step, ppo.num_timesteps, last)
 
-    _, params, _ = ppo_train.train(
-        environment=env, eval_env=eval_env, num_timesteps=remaining, episode_length=env_config.episode_steps,
+    ppo_train.train(
+        environment=env, num_timesteps=remaining, episode_length=env_config.episode_steps,
         num_envs=ppo.num_envs, unroll_length=ppo.unroll_length, batch_size=ppo.batch_size,
         num_minibatches=ppo.num_minibatches, num_updates_per_batch=ppo.num_updates_per_batch,
         learning_rate=ppo.learning_rate, entropy_cost=ppo.entropy_cost, discounting=ppo.discounting,
@@ -194,18 +192,36 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         restore_params=tuple(restore) if restore is not None else None)
     writer.close()
     final = latest_checkpoint(run_dir)
-    if final is not None:  # the policy folder: the last checkpoint plus the configs beside it
-        policy_dir = run_dir / "policy"
-        brax_checkpoint.save(str(run_dir), 0, params, brax_checkpoint.network_config(
-            env.observation_size, env.action_size, ppo.normalize_observations, network_factory(ppo)))
-        tmp = run_dir / f"{0:012d}"
-        if policy_dir.exists():
-            import shutil
-            shutil.rmtree(policy_dir)
-        os.replace(tmp, policy_dir)
-        (policy_dir / "footforge.json").write_text(json.dumps(
-            {"env": to_dict(env_config), "ppo": to_dict(ppo), "global_step": final[0]}, indent=2))
+    if final is not None:  # the policy: the last checkpoint (the final parameters) and the configs
+        with atomic_directory(run_dir / "policy") as tmp:
+            shutil.copytree(final[1], tmp, dirs_exist_ok=True)
+            _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
+                                                 "global_step": final[0]})
     return last
+
+
+def _write_json(path: Path, data: dict) -> None:
+    """Whole or not at all: a run killed mid-write must still resume."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=float))
+    os.replace(tmp, path)
+
+
+def load_policy_config(policy_dir: Path) -> EnvConfig:
+    """The environment configuration a saved policy was trained with.
+
+    Raises:
+      InputError: the folder is not a footforge policy.
+    """
+    return from_dict(EnvConfig, _policy_meta(Path(policy_dir).resolve())["env"])
+
+
+def _policy_meta(policy_dir: Path) -> dict:
+    meta_file = policy_dir / "footforge.json"
+    if not meta_file.is_file():
+        raise InputError(f"{policy_dir} is not a footforge policy (no footforge.json)", file=str(policy_dir),
+                         fix="pass the policy/ folder of a train_flat.py run")
+    return json.loads(meta_file.read_text())
 
 
 def load_policy(policy_dir: Path, *, deterministic: bool = True):
@@ -216,11 +232,7 @@ def load_policy(policy_dir: Path, *, deterministic: bool = True):
     from brax.training.agents.ppo import networks as ppo_networks
 
     policy_dir = Path(policy_dir).resolve()
-    meta_file = policy_dir / "footforge.json"
-    if not meta_file.is_file():
-        raise InputError(f"{policy_dir} is not a footforge policy (no footforge.json)", file=str(policy_dir),
-                         fix="pass the policy/ folder of a train_flat.py run")
-    meta = json.loads(meta_file.read_text())
+    meta = _policy_meta(policy_dir)
     env_config, ppo = from_dict(EnvConfig, meta["env"]), from_dict(PPOConfig, meta["ppo"])
     params = brax_checkpoint.load(str(policy_dir))
     cfg = json.loads((policy_dir / "ppo_network_config.json").read_text())

@@ -16,20 +16,23 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
+    from footforge.envs import FEET
+
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--policy", type=Path, nargs="+", required=True, help="policy/ folders of training runs")
-    p.add_argument("--feet", nargs="+", choices=("ball", "aff", "aof"),
-                   help="feet to evaluate on (default: each policy's own)")
+    p.add_argument("--feet", nargs="+", choices=FEET, help="feet to evaluate on (default: each policy's own)")
     p.add_argument("--num-envs", type=int, default=1024)
     p.add_argument("--seconds", type=float, default=60.0)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--build-dir", type=Path, help="build folder of the feet (default build/<feet>)")
+    p.add_argument("--build-root", type=Path,
+                   help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
     p.add_argument("--out", type=Path, default=Path("evaluation"))
     args = p.parse_args(argv)
 
     from footforge.atomic import atomic_directory
     from footforge.errors import FootforgeError
     from footforge.evaluate import comparison_markdown, evaluate, plot
+    from footforge.train import load_policy_config
 
     if args.num_envs < 1 or args.seconds <= 0:
         print("evaluate: error: --num-envs and --seconds must be positive", file=sys.stderr)
@@ -38,8 +41,10 @@ def main(argv: list[str] | None = None) -> int:
         results = []
         for policy in args.policy:
             for feet in args.feet or [None]:
+                feet = feet or load_policy_config(policy).feet
+                build_dir = str(args.build_root / feet) if args.build_root else None
                 results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
-                                        seed=args.seed, build_dir=str(args.build_dir) if args.build_dir else None))
+                                        seed=args.seed, build_dir=build_dir))
         with atomic_directory(args.out) as tmp:
             files = plot(results, tmp)
             (tmp / "comparison.md").write_text(comparison_markdown(results))

@@ -19,9 +19,11 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
+    from footforge.envs import FEET, TASKS
+
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--feet", choices=("ball", "aff", "aof"), default="aof")
-    p.add_argument("--policy", choices=("B", "BH"), default="B")
+    p.add_argument("--feet", choices=FEET, default="aof")
+    p.add_argument("--policy", choices=TASKS["flat"], default="B")
     p.add_argument("--num-envs", type=int, help="parallel robots (default 2048)")
     p.add_argument("--timesteps", type=int, help="environment steps in total (default 1e8)")
     p.add_argument("--seed", type=int, default=0)

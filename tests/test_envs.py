@@ -37,24 +37,21 @@ def test_observation_layout_is_documented_and_sized():
 
 @pytest.fixture(scope="module")
 def rollouts(built):
-    """Every registered (feet, policy): reset and 3 steps of random actions, compiled once each."""
+    """Every registered (feet, policy): reset and 3 steps of random actions, with reset and step
+    compiled once each: {(feet, policy): (env, states, jitted step)}."""
     out = {}
     for task, feet, policy in envs.registry():
         env = envs.make(task, feet, policy, build_dir=str(built[feet][0]))
-
-        def run(key, env=env):
-            state = env.reset(key)
-            states = [state]
-            for k in jax.random.split(key, 3):
-                state = env.step(state, jax.random.normal(k, (env.action_size,)))
-                states.append(state)
-            return states
-        out[(feet, policy)] = (env, jax.jit(run)(jax.random.PRNGKey(0)))
+        step = jax.jit(env.step)
+        states = [jax.jit(env.reset)(jax.random.PRNGKey(0))]
+        for k in jax.random.split(jax.random.PRNGKey(1), 3):
+            states.append(step(states[-1], jax.random.normal(k, (env.action_size,))))
+        out[(feet, policy)] = (env, states, step)
     return out
 
 
 def test_reset_and_step_every_registered_env(rollouts):
-    for (feet, _policy), (env, states) in rollouts.items():
+    for (feet, _policy), (env, states, _) in rollouts.items():
         n_passive = {"ball": 0, "aff": 8, "aof": 16}[feet]
         assert len(env.robot.passive_qpos) == n_passive
         assert env.observation_size == observations.size(env.config, n_passive)
@@ -96,14 +93,14 @@ def test_ground_contacts_count_base_and_knees():
 
 
 def test_base_on_the_ground_terminates_and_time_out_is_a_truncation(rollouts):
-    env, states = rollouts[("ball", "B")]
+    env, states, step = rollouts[("ball", "B")]
     state = states[0]
     data = state.pipeline_state
     sunk = mjx.forward(env.mjx_model, data.replace(qpos=data.qpos.at[2].set(0.05)))
     base, _ = env.contact_flags(sunk)
     assert bool(base)
     last = state.replace(info=state.info | {"episode_step": jp.array(env.config.episode_steps - 1, jp.int32)})
-    after = jax.jit(env.step)(last, jp.zeros(12))
+    after = step(last, jp.zeros(12))
     assert float(after.info["time_out"]) == 1.0 and float(after.done) == 1.0
     assert int(after.info["episode_step"]) == 0
 

@@ -97,8 +97,8 @@ def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path
     out, _ = resumed
     report = tmp_path / "eval"
     code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(out / "policy"),
-                           "--feet", "aff", "--num-envs", "2", "--seconds", "0.4", "--build-dir",
-                           str(built["aff"][0]), "--out", str(report)], capture_output=True, text=True)
+                           "--feet", "aff", "--num-envs", "2", "--seconds", "0.4", "--build-root",
+                           str(built["aff"][0].parent), "--out", str(report)], capture_output=True, text=True)
     assert code.returncode == 0, code.stderr[-2000:]
     metrics = json.loads((report / "metrics.json").read_text())
     assert metrics[0]["feet"] == "aff" and metrics[0]["trained_on"] == "ball"  # the zero-shot case

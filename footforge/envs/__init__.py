@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from footforge.envs.config import EnvConfig, RewardScales
+from footforge.envs.config import EnvConfig, RewardScales, check_feet_and_policy
 from footforge.errors import InputError
 
 TASKS = {"flat": ("B", "BH")}
@@ -30,9 +30,7 @@ def default_config(task: str, feet: str, policy: str) -> EnvConfig:
     if policy not in TASKS[task]:
         raise InputError(f"policy type '{policy}' is not available for the {task} task",
                          fix=f"use one of {', '.join(TASKS[task])}")
-    if policy in ("BH", "PH") and feet == "ball":
-        raise InputError(f"policy type {policy} reads the feet's passive joints; the ball foot has none",
-                         fix="use B with ball feet, or aff/aof feet")
+    check_feet_and_policy(feet, policy)
     # The flat baseline's published scales where it has them (the rest: the rough baseline's).
     flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
     return EnvConfig(feet=feet, policy=policy, action="velocity", rewards=flat_rewards)
@@ -48,4 +46,4 @@ def make(task: str, feet: str, policy: str, **overrides):
 def registry() -> list[tuple[str, str, str]]:
     """Every valid (task, feet, policy) combination."""
     return [(t, f, p) for t, policies in TASKS.items() for f in FEET for p in policies
-            if not (p in ("BH", "PH") and f == "ball")]
+            if not (p in ("BH", "PH") and f == "ball")]  # check_feet_and_policy's rule

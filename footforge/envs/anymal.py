@@ -43,12 +43,12 @@ class Robot:
     """qpos addresses of the passive foot joints (leg by leg), empty for ball feet."""
     passive_dof: np.ndarray
     passive_names: tuple[str, ...]
+    """The passive joints, in the order of the haptic observations."""
     geom_category: np.ndarray
     """Per geom: GEOM_NONE, GEOM_BASE, GEOM_THIGH + leg index or GEOM_FOOT + leg index."""
     foot_sites: np.ndarray
     """Touchdown site of each leg's foot (LF, RF, LH, RH)."""
     floor_geom: int
-    base_body: int
 
 
 def build_dir(config: EnvConfig) -> Path:
@@ -102,7 +102,7 @@ def load_robot(config: EnvConfig) -> Robot:
         q_limits=np.array([j.range for j in joints]), haa=np.array([i for i, n in enumerate(C.ACTUATED_JOINTS) if n.endswith("HAA")]),
         passive_qpos=np.array([model.joint(n).qposadr[0] for n in passive], int),
         passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int), passive_names=tuple(passive),
-        geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id, base_body=model.body(C.BASE_BODY).id,
+        geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id,
         foot_sites=np.array([_foot_site(model, leg) for leg in C.LEGS]))
 
 

@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+from footforge.errors import InputError
+
 PolicyType = Literal["B", "BH", "P", "PH"]
 Feet = Literal["ball", "aff", "aof"]
 
@@ -124,9 +126,21 @@ class EnvConfig:
     """A step with at least this many thigh (knee) contacts ends the episode; any base contact does."""
 
     @property
+    def haptic(self) -> bool:
+        """The policy reads the passive foot joints (BH, PH)."""
+        return self.policy in ("BH", "PH")
+
+    @property
     def policy_dt(self) -> float:
         return self.sim_dt * self.decimation
 
     @property
     def episode_steps(self) -> int:
         return int(round(self.episode_length_s / self.policy_dt))
+
+
+def check_feet_and_policy(feet: str, policy: str) -> None:
+    """Raises InputError for a haptic policy on feet without passive joints."""
+    if policy in ("BH", "PH") and feet == "ball":
+        raise InputError(f"policy type {policy} reads the feet's passive joints; the ball foot has none",
+                         fix="use B with ball feet, or aff/aof feet")

@@ -9,19 +9,16 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jp
+from brax import math as brax_math
 from brax.envs.base import Env, State
 from mujoco import mjx
 
+from footforge import constants as C
 from footforge.envs import observations, rewards
 from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, load_robot
-from footforge.envs.config import EnvConfig
+from footforge.envs.config import EnvConfig, check_feet_and_policy
 
-
-def _rotate_inverse(quat, v):
-    """v (world) in the frame of the body with orientation quat (wxyz)."""
-    w, xyz = quat[0], quat[1:]
-    t = 2.0 * jp.cross(xyz, v)
-    return v - w * t + jp.cross(xyz, t)
+N_ACTUATED = len(C.ACTUATED_JOINTS)
 
 
 def _yaw(quat):
@@ -35,8 +32,7 @@ def _wrap(angle):
 
 class LocomotionEnv(Env):
     def __init__(self, config: EnvConfig, robot: Robot | None = None):
-        if config.policy in ("BH", "PH") and config.feet == "ball":
-            raise ValueError("haptic policies (BH, PH) need adaptive feet: the ball foot has no passive joints")
+        check_feet_and_policy(config.feet, config.policy)
         self.config = config
         self.robot = robot or load_robot(config)
         r = self.robot
@@ -58,7 +54,7 @@ class LocomotionEnv(Env):
 
     @property
     def action_size(self) -> int:
-        return 12
+        return N_ACTUATED
 
     @property
     def backend(self) -> str:
@@ -74,14 +70,14 @@ class LocomotionEnv(Env):
         data = data.replace(qpos=qpos, qvel=qvel, ctrl=ctrl)
         data = mjx.forward(self.mjx_model, data)
         command, heading = self._sample_command(key_cmd)
-        info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(12),
-                "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32),
+        info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(N_ACTUATED),
+                "last_joint_vel": jp.zeros(N_ACTUATED), "step": jp.zeros((), jp.int32),
                 "episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(())}
         command = self._heading_command(info, data)
         info["command"] = command
         metrics = {f"reward/{t}": jp.zeros(()) for t in rewards.TERMS}
-        metrics |= {"error/lin_vel_x_per_step": jp.zeros(()), "error/lin_vel_y_per_step": jp.zeros(()), "error/yaw_rate_per_step": jp.zeros(()),
-                    "base_height_m_per_step": jp.zeros(())}
+        metrics |= {k: jp.zeros(()) for k in ("error/lin_vel_x_per_step", "error/lin_vel_y_per_step",
+                                              "error/yaw_rate_per_step", "base_height_m_per_step", "diverged")}
         rng, key_obs = jax.random.split(rng)
         info["rng"] = rng
         obs = self._observe(data, info, key_obs)
@@ -91,6 +87,7 @@ class LocomotionEnv(Env):
         cfg, r = self.config, self.robot
         data, info = state.pipeline_state, dict(state.info)
         rng, key_push, key_cmd, key_obs = jax.random.split(info["rng"], 4)
+        step = info["step"] + 1
         q = data.qpos[r.actuated_qpos]
         if cfg.action == "velocity":
             target = q + cfg.action_scale * action * cfg.policy_dt
@@ -98,16 +95,14 @@ class LocomotionEnv(Env):
             target = self._default_q + cfg.action_scale * action
         target = jp.clip(target, self._q_lo, self._q_hi)
         data = data.replace(ctrl=data.ctrl.at[self._ctrl_order].set(target))
+        if cfg.pushes.enabled:  # a push sets the base's planar velocity, then the physics runs
+            push = jax.random.uniform(key_push, (2,), minval=-cfg.pushes.max_speed, maxval=cfg.pushes.max_speed)
+            data = data.replace(qvel=jp.where(step % self._push_every == 0, data.qvel.at[:2].set(push), data.qvel))
 
         def physics(d, _):
             return mjx.step(self.mjx_model, d), None
         data, _ = jax.lax.scan(physics, data, None, length=cfg.decimation)
 
-        step = info["step"] + 1
-        if cfg.pushes.enabled:
-            push = jax.random.uniform(key_push, (2,), minval=-cfg.pushes.max_speed, maxval=cfg.pushes.max_speed)
-            qvel = jp.where(step % self._push_every == 0, data.qvel.at[:2].set(push), data.qvel)
-            data = data.replace(qvel=qvel)
         new_command, new_heading = self._sample_command(key_cmd)
         resample = step % self._command_every == 0
         info["command"] = jp.where(resample, new_command, info["command"])
@@ -120,33 +115,33 @@ class LocomotionEnv(Env):
         reward = sum(weighted.values())
         if scales.clip_total_at_zero:
             reward = jp.maximum(reward, 0.0)
-        terminated = self._terminated(data)
         # A robot whose simulation diverged ends its episode with zero reward and zero metrics;
         # its NaNs must reach neither the returns nor the policy's inputs.
         finite = (jp.isfinite(data.qpos).all() & jp.isfinite(data.qvel).all() & jp.isfinite(reward)
                   & jp.isfinite(data.actuator_force).all())
-        terminated = jp.where(finite, terminated, 1.0)
         reward = jp.where(finite, reward, 0.0)
         weighted = {t: jp.where(finite, v, 0.0) for t, v in weighted.items()}
         errors = {k: jp.where(finite, v, 0.0) for k, v in errors.items()}
-        # Episode steps: Brax's EpisodeWrapper counts them in info['steps'] (zeroed after an
-        # auto-reset); alone, the environment counts its own. A time-out is reported as done with
-        # info['time_out'] = 1, which PPO (bootstrap_on_timeout) bootstraps instead of treating as
-        # a fall.
-        episode_step = info.get("steps", info["episode_step"]).astype(jp.int32) + 1
-        time_out = jp.where((episode_step >= cfg.episode_steps) & (terminated == 0), 1.0, 0.0)
-        done = jp.maximum(terminated, time_out)
-
-        info.update(rng=rng, last_action=action, last_joint_vel=data.qvel[r.actuated_dof], step=step,
-                    episode_step=jp.where(done > 0, 0, episode_step), time_out=time_out)
-        # Strong float32 / int32 everywhere: a weakly typed leaf would make jit trace step twice.
-        f32 = jp.float32
-        info.update(time_out=info["time_out"].astype(f32), episode_step=info["episode_step"].astype(jp.int32))
-        reward, done = reward.astype(f32), done.astype(f32)
+        terminated = self._terminated(data) | ~finite
+        # A time-out is reported as done with info['time_out'] = 1, which PPO
+        # (bootstrap_on_timeout) bootstraps instead of treating as a fall.
+        episode_step = info["episode_step"] + 1
+        time_out = (episode_step >= cfg.episode_steps) & ~terminated
+        ended = terminated | time_out
+        # Brax's auto-reset swaps only the physics state and the observation: what the next
+        # episode would inherit from info starts afresh here (no previous action, a new command).
+        qvel = data.qvel[r.actuated_dof]
+        info.update(rng=rng, step=step, episode_step=jp.where(ended, 0, episode_step),
+                    time_out=time_out.astype(jp.float32), last_action=jp.where(ended, 0.0, action),
+                    last_joint_vel=jp.where(ended, 0.0, qvel),
+                    command=jp.where(ended, new_command, info["command"]),
+                    heading_target=jp.where(ended, new_heading, info["heading_target"]))
         obs = jp.nan_to_num(self._observe(data, info, key_obs), nan=0.0, posinf=0.0, neginf=0.0)
         metrics = dict(state.metrics)  # Brax's wrappers add keys of their own: keep them
-        metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors)
-        return state.replace(pipeline_state=data, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
+        metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors | {
+            "diverged": (~finite).astype(jp.float32)})
+        return state.replace(pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32),
+                             metrics=metrics, info=info)
 
     # Pieces --------------------------------------------------------------------------------
     def _sample_command(self, key):
@@ -168,9 +163,9 @@ class LocomotionEnv(Env):
     def base_state(self, data):
         """(linear velocity, angular velocity, projected gravity) in the base frame."""
         quat = data.qpos[3:7]
-        lin = _rotate_inverse(quat, data.qvel[:3])
+        lin = brax_math.inv_rotate(data.qvel[:3], quat)
         ang = data.qvel[3:6]  # MuJoCo's free-joint angular velocity is already in the body frame
-        gravity = _rotate_inverse(quat, jp.array([0.0, 0.0, -1.0]))
+        gravity = brax_math.inv_rotate(jp.array([0.0, 0.0, -1.0]), quat)
         return lin, ang, gravity
 
     def _observe(self, data, info, key):
@@ -226,12 +221,18 @@ class LocomotionEnv(Env):
 
     def contact_flags(self, data):
         """(base touches the ground, number of legs whose thigh touches it)."""
-        contact = data._impl.contact if hasattr(data, "_impl") else data.contact
+        contact = data._impl.contact  # mujoco-mjx 3.17 keeps MJX's contacts in the JAX implementation
         return ground_contacts(self._geom_category, self.robot.floor_geom, contact.geom, contact.dist)
 
+    def foot_contacts(self, data):
+        """Per leg (LF, RF, LH, RH): does its foot touch the ground."""
+        contact = data._impl.contact
+        return foot_contacts(self._geom_category, self.robot.floor_geom, contact.geom, contact.dist)
+
     def _terminated(self, data):
+        """Base contact, or the configured number of thigh (knee) contacts (a boolean)."""
         base, knees = self.contact_flags(data)
-        return jp.where(base | (knees >= self.config.terminate_on_knees), 1.0, 0.0)
+        return base | (knees >= self.config.terminate_on_knees)
 
 
 

@@ -20,7 +20,7 @@ LAYOUT = (
 
 def layout(config: EnvConfig, n_passive: int) -> list[tuple[str, int]]:
     """(name, width) of each slice of the observation, in order, for this policy type."""
-    haptic = config.policy in ("BH", "PH")
+    haptic = config.haptic
     out = []
     for name, width, _ in LAYOUT:
         if width is None:
