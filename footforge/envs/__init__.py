@@ -38,9 +38,18 @@ def default_config(task: str, feet: str, policy: str) -> EnvConfig:
 
 def make(task: str, feet: str, policy: str, **overrides):
     """An environment of the registry; `overrides` replace EnvConfig fields (e.g. build_dir)."""
+    return from_config(replace(default_config(task, feet, policy), **overrides))
+
+
+def from_config(config):
+    """The environment for a configuration: LocomotionEnv (flat) or RoughEnv (rough)."""
+    if config.task == "rough":
+        from footforge.envs.rough import RoughEnv
+
+        return RoughEnv(config)
     from footforge.envs.locomotion import LocomotionEnv
 
-    return LocomotionEnv(replace(default_config(task, feet, policy), **overrides))
+    return LocomotionEnv(config)
 
 
 def registry() -> list[tuple[str, str, str]]:

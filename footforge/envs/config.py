@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+from footforge.envs.terrain import TerrainConfig
 from footforge.errors import InputError
 
 PolicyType = Literal["B", "BH", "P", "PH"]
@@ -83,6 +84,11 @@ class ObservationConfig:
     joint_vel_noise: float = 1.5
     foot_joint_pos_noise: float = 0.01
     foot_joint_vel_noise: float = 1.5
+    height_scale: float = 5.0
+    """Perceptive observations (P/PH): each scan value is clip(base z - offset - h, +-clip) x scale."""
+    height_offset_m: float = 0.5
+    height_clip_m: float = 1.0
+    height_noise_m: float = 0.06
     noise: bool = True
     """Add the uniform noise (off for evaluation of the noiseless state)."""
     clip: float = 5.0
@@ -98,11 +104,42 @@ class PushConfig:
 
 
 @dataclass(frozen=True)
+class HeightScanConfig:
+    """The robot-centric height map of the perceptive policies: a grid turning with the base's yaw."""
+
+    x_m: tuple[float, ...] = (-0.8, -0.7, -0.6, -0.5, -0.4, -0.3, -0.2, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
+    """Forward offsets of the points from the base, m (the paper's 14)."""
+    y_m: tuple[float, ...] = (-0.5, -0.4, -0.3, -0.2, -0.1, 0.1, 0.2, 0.3, 0.4, 0.5)
+    """Lateral offsets, m (the paper's 10)."""
+
+    @property
+    def num_points(self) -> int:
+        return len(self.x_m) * len(self.y_m)
+
+
+@dataclass(frozen=True)
+class CurriculumConfig:
+    """The game-inspired curriculum: each robot owns a terrain level and a column."""
+
+    initial_max_level: int = 5
+    """Robots start on a level drawn from 0..initial_max_level."""
+    promote_fraction_of_tile: float = 0.5
+    """Promoted when the episode took it farther than this fraction of a tile from its spawn."""
+    demote_fraction_of_command: float = 0.25
+    """Demoted when it covered less than this fraction of |v_cmd| x episode length."""
+    spawn_radius_m: float = 0.5
+    """Spawns are drawn uniformly within this distance of the tile centre (on the platform), m."""
+
+
+@dataclass(frozen=True)
 class EnvConfig:
+    task: Literal["flat", "rough"] = "flat"
+    """flat: a plane; rough: the terrain heightfield with the curriculum."""
     feet: Feet = "aof"
     """Foot variant; the model is `footforge build --variant <feet>`'s scene.xml."""
     policy: PolicyType = "B"
-    """B blind; BH blind + haptic (passive foot joint positions and velocities)."""
+    """B blind; P perceptive (height scan, rough task); BH, PH: + haptic (passive foot joint
+    positions and velocities)."""
     build_dir: str | None = None
     """Folder of the build outputs; default build/<feet> (built on first use if missing)."""
     sim_dt: float = 0.005
@@ -122,6 +159,10 @@ class EnvConfig:
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)
     pushes: PushConfig = field(default_factory=PushConfig)
+    terrain: TerrainConfig = field(default_factory=TerrainConfig)
+    """Rough task only."""
+    height_scan: HeightScanConfig = field(default_factory=HeightScanConfig)
+    curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
     terminate_on_knees: int = 2
     """A step with at least this many thigh (knee) contacts ends the episode; any base contact does."""
 
@@ -129,6 +170,11 @@ class EnvConfig:
     def haptic(self) -> bool:
         """The policy reads the passive foot joints (BH, PH)."""
         return self.policy in ("BH", "PH")
+
+    @property
+    def perceptive(self) -> bool:
+        """The policy reads the height scan (P, PH)."""
+        return self.policy in ("P", "PH")
 
     @property
     def policy_dt(self) -> float:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from footforge.envs.config import EnvConfig
 
-# name, width (None: one per passive foot joint), content
+# name, width (None: one per passive foot joint; "P": one per height-scan point), content
 LAYOUT = (
     ("base_lin_vel", 3, "base linear velocity in the base frame, m/s x lin_vel_scale"),
     ("base_ang_vel", 3, "base angular velocity in the base frame, rad/s x ang_vel_scale"),
@@ -13,6 +13,8 @@ LAYOUT = (
     ("joint_pos", 12, "actuated joint angles minus the defaults, rad"),
     ("joint_vel", 12, "actuated joint velocities, rad/s x joint_vel_scale"),
     ("last_action", 12, "the previous policy output"),
+    ("height_scan", "P", "P/PH only: clip(base z - 0.5 m - terrain height, +-1 m) x 5 at the scan points, "
+     "x-major (EnvConfig.height_scan)"),
     ("foot_joint_pos", None, "BH/PH only: passive foot joint angles, rad"),
     ("foot_joint_vel", None, "BH/PH only: passive foot joint velocities, rad/s x foot_joint_vel_scale"),
 )
@@ -20,12 +22,14 @@ LAYOUT = (
 
 def layout(config: EnvConfig, n_passive: int) -> list[tuple[str, int]]:
     """(name, width) of each slice of the observation, in order, for this policy type."""
-    haptic = config.haptic
     out = []
     for name, width, _ in LAYOUT:
         if width is None:
-            if haptic:
+            if config.haptic:
                 out.append((name, n_passive))
+        elif width == "P":
+            if config.perceptive:
+                out.append((name, config.height_scan.num_points))
         else:
             out.append((name, width))
     return out
