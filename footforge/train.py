@@ -200,6 +200,34 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     return last
 
 
+def initial_policy(env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observation_size: int,
+                   action_size: int = 12) -> Path:
+    """Writes a policy folder (as train() does) holding freshly initialised networks (seed ppo.seed).
+
+    For checking pipelines end to end without training: evaluation of such a policy exercises
+    every code path; its indices mean nothing.
+    """
+    import jax
+    import jax.numpy as jp
+    from brax.training.acme import running_statistics, specs
+    from brax.training.agents.ppo import checkpoint as brax_checkpoint
+
+    networks = network_factory(ppo)(observation_size=observation_size, action_size=action_size,
+                                    preprocess_observations_fn=running_statistics.normalize)
+    k_policy, k_value = jax.random.split(jax.random.PRNGKey(ppo.seed))
+    normalizer = running_statistics.init_state(specs.Array((observation_size,), jp.dtype("float32")))
+    params = (normalizer, networks.policy_network.init(k_policy), networks.value_network.init(k_value))
+    out_dir = Path(out_dir)
+    with atomic_directory(out_dir) as tmp:
+        brax_checkpoint.save(str(tmp), 0, params, brax_checkpoint.network_config(
+            observation_size, action_size, ppo.normalize_observations, network_factory(ppo)))
+        for item in (tmp / f"{0:012d}").iterdir():
+            item.rename(tmp / item.name)
+        (tmp / f"{0:012d}").rmdir()
+        _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo), "global_step": 0})
+    return out_dir
+
+
 def _write_json(path: Path, data: dict) -> None:
     """Whole or not at all: a run killed mid-write must still resume."""
     tmp = path.with_name(f".{path.name}.tmp")
