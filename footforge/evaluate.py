@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from footforge.errors import InputError
@@ -22,12 +23,29 @@ INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate"
            "base_height")
 
 
-def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024, seconds: float = 60.0,
+def _feet_to_run(env_config, feet: str | None) -> str:
+    """`feet`, default the training feet; a haptic policy runs on its training feet only."""
+    feet = feet or env_config.feet
+    if env_config.haptic and feet != env_config.feet:
+        raise InputError(f"a {env_config.policy} policy trained on {env_config.feet} reads that foot's passive "
+                         f"joints; it cannot run on {feet}", fix="evaluate blind (B, P) policies zero-shot")
+    return feet
+
+
+SECONDS = {"flat": 60.0, "rough": 17.5}
+"""The paper's evaluation length per task, s."""
+
+
+def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024, seconds: float | None = None,
              seed: int = 0, build_dir: str | None = None) -> dict:
-    """Runs `policy_dir`'s policy on `feet` (default: the feet it was trained on).
+    """Runs `policy_dir`'s policy on `feet` (default: the feet it was trained on) for `seconds`
+    (default: SECONDS of its task).
 
     Returns {"indices": {name: {"mean", "std"}}, "slippage", "falls", "traces": {...}} where the
-    traces (robot 0's foot contacts, the mean base velocity error) feed the plots.
+    traces (robot 0's foot contacts, the mean base velocity error) feed the plots. Rough-terrain
+    policies walk the terrain they trained on (its seed): robot i starts on level i mod levels of
+    column (i // levels) mod columns, so every tile gets robots; "by_terrain" then holds each
+    kind's and level's indices and falls.
 
     Raises:
       InputError: a haptic policy on feet whose passive joints differ from its training feet.
@@ -35,18 +53,20 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     import jax
     import jax.numpy as jp
 
-    from footforge.envs.locomotion import LocomotionEnv
+    from footforge.envs import from_config
     from footforge.train import load_policy
 
     policy, env_config, _ = load_policy(policy_dir)
-    feet = feet or env_config.feet
-    if env_config.haptic and feet != env_config.feet:
-        raise InputError(f"a {env_config.policy} policy trained on {env_config.feet} reads that foot's passive "
-                         f"joints; it cannot run on {feet}", fix="evaluate blind (B, P) policies zero-shot")
+    feet = _feet_to_run(env_config, feet)
+    seconds = seconds or SECONDS[env_config.task]
     steps = int(round(seconds / env_config.policy_dt))
     config = replace(env_config, feet=feet, build_dir=build_dir, episode_length_s=seconds + 1.0)
-    env = LocomotionEnv(config)
+    env = from_config(config)
     robot = env.robot
+    rough = config.task == "rough"
+    robot_ids = np.arange(num_envs)
+    levels = robot_ids % config.terrain.num_levels
+    columns = (robot_ids // config.terrain.num_levels) % config.terrain.num_columns
 
     def one_step(carry, key):
         # The robots keep walking without resets; a fallen (or diverged) one is masked from then on.
@@ -70,16 +90,16 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
                "base_vx_error": state.info["command"][0] - lin[0]}
         return (state, qd, alive, xy, new_base_xy, touching), row
 
-    def rollout(key):
+    def rollout(key, level, column):
         k_reset, k_run = jax.random.split(key)
-        state = env.reset(k_reset)
+        state = env.reset_on_tile(k_reset, level, column) if rough else env.reset(k_reset)
         d = state.pipeline_state
         carry = (state, d.qvel[robot.actuated_dof], jp.array(True), d.site_xpos[robot.foot_sites][:, :2],
                  d.qpos[:2], env.foot_contacts(d))
         _, rows = jax.lax.scan(one_step, carry, jax.random.split(k_run, steps))
         return rows
 
-    rows = jax.jit(jax.vmap(rollout))(jax.random.split(jax.random.PRNGKey(seed), num_envs))
+    rows = jax.jit(jax.vmap(rollout))(jax.random.split(jax.random.PRNGKey(seed), num_envs), levels, columns)
     rows = jax.tree.map(np.asarray, rows)
     alive = rows["alive"]
     indices = {name: {"mean": float(rows[name][alive].mean()), "std": float(rows[name][alive].std())}
@@ -90,8 +110,88 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     return {"policy": str(policy_dir), "trained_on": env_config.feet, "feet": feet, "policy_type": env_config.policy,
             "num_envs": num_envs, "seconds": seconds, "seed": seed, "policy_dt_s": env_config.policy_dt,
             "push_interval_s": env_config.pushes.interval_s,
-            "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
+            "task": config.task, "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
+            **({"by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns)} if rough else {}),
             "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": np.nanmean(vx_error, axis=0)}}
+
+
+def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarray) -> dict:
+    """{kind: {level: {"robots", "falls", index: mean over the standing steps}}}."""
+    out: dict = {}
+    kinds = np.array(column_kinds)[columns]
+    for kind in sorted(set(kinds)):
+        for level in sorted(set(levels[kinds == kind])):
+            robots = (kinds == kind) & (levels == level)
+            alive = rows["alive"][robots]
+            cell = {"robots": int(robots.sum()), "falls": int((~alive[:, -1]).sum())}
+            cell |= {name: float(rows[name][robots][alive].mean()) if alive.any() else float("nan") for name in INDICES}
+            out.setdefault(kind, {})[int(level)] = cell
+    return out
+
+
+def terrain_markdown(results: list[dict]) -> str:
+    """Rough-terrain results side by side (the paper's Figure 9 as a table): per terrain kind, the
+    forward tracking error (m/s) over every level and the share of robots that fell."""
+    rough = [r for r in results if r.get("by_terrain")]
+    if not rough:
+        return ""
+    kinds = sorted({k for r in rough for k in r["by_terrain"]})
+    head = ["policy", "type", "trained on", "feet", *[f"{k}: vx error / falls" for k in kinds]]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rough:
+        cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
+        for kind in kinds:
+            tiles = r["by_terrain"].get(kind, {}).values()
+            robots = sum(t["robots"] for t in tiles)
+            error = np.nanmean([t["lin_vel_x_error"] for t in tiles]) if tiles else float("nan")
+            cells.append(f"{error:.3f} / {sum(t['falls'] for t in tiles)}/{robots}")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, seed: int = 0,
+           build_dir: str | None = None, kind: str | None = None,
+           forward_mps: float = 0.6) -> tuple[mujoco.MjModel, np.ndarray]:
+    """One robot walking `seconds` under the policy (random commands and pushes; after a fall the
+    environment restarts it), for footforge.render: (the environment's CPU MjModel, qpos after
+    every policy step (T, nq)). A rough-terrain policy with a terrain `kind` instead starts on the
+    middle level's tile of that kind and is commanded straight ahead at `forward_mps`.
+
+    Raises:
+      InputError: as evaluate(), or a kind that the policy's terrain lacks.
+    """
+    import jax
+    import jax.numpy as jp
+
+    from footforge.envs import from_config
+    from footforge.train import load_policy
+
+    policy, env_config, _ = load_policy(policy_dir)
+    feet = _feet_to_run(env_config, feet)
+    steps = int(round(seconds / env_config.policy_dt))
+    env = from_config(replace(env_config, feet=feet, build_dir=build_dir, episode_length_s=seconds + 1.0))
+    if kind is not None and (env_config.task != "rough" or kind not in env.terrain.column_kinds):
+        raise InputError(f"the policy's terrain has no '{kind}' tiles",
+                         fix="record a kind of the rough terrain's proportions, or none on flat ground")
+
+    def reset(key):
+        if kind is None:
+            return env.reset(key)
+        return env.reset_on_tile(key, env_config.terrain.num_levels // 2, env.terrain.column_kinds.index(kind),
+                                 forward_mps=forward_mps)
+
+    def one_step(state, key):
+        action, _ = policy(state.obs, key)
+        state = env.step(state, jp.clip(action, -10.0, 10.0))
+        return state, state.pipeline_state.qpos
+
+    @jax.jit
+    def rollout(key):
+        k_reset, k_run = jax.random.split(key)
+        _, qpos = jax.lax.scan(one_step, reset(k_reset), jax.random.split(k_run, steps))
+        return qpos
+
+    return env.robot.model, np.asarray(rollout(jax.random.PRNGKey(seed)))
 
 
 def comparison_markdown(results: list[dict]) -> str:

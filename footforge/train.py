@@ -74,6 +74,13 @@ class PPOConfig:
 
 
 
+def default_ppo(task: str, **overrides) -> PPOConfig:
+    """The paper's PPO settings for a task: rough terrain uses the larger 512-256-128 networks."""
+    if task == "rough":
+        overrides = {"policy_hidden_layers": (512, 256, 128), "value_hidden_layers": (512, 256, 128)} | overrides
+    return PPOConfig(**overrides)
+
+
 def to_dict(config) -> dict:
     return asdict(config)
 
@@ -113,7 +120,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     """Trains a policy; writes checkpoints, TensorBoard logs and the final policy into run_dir.
 
     Returns the final metrics. `progress(global_step, total_steps, metrics)` is called after each
-    evaluation.
+    evaluation and each log of the training episodes' metrics, with the latest value of every
+    metric so far.
 
     Raises:
       InputError: bad hyperparameters, or --resume without a checkpoint / with other configs.
@@ -122,9 +130,16 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     from brax.training.agents.ppo import train as ppo_train
     from tensorboardX import SummaryWriter
 
-    from footforge.envs.locomotion import LocomotionEnv
+    from footforge.envs import from_config
+    from footforge.envs.wrappers import wrap_for_training
+
+    import jax
 
     ppo.check()
+    if ppo.num_envs % jax.device_count():
+        raise InputError(f"num_envs ({ppo.num_envs}) must be a multiple of the number of JAX devices "
+                         f"({jax.device_count()}): Brax splits the robots evenly over them",
+                         fix=f"e.g. --num-envs {ppo.num_envs - ppo.num_envs % jax.device_count() or jax.device_count()}")
     run_dir = Path(run_dir).resolve()
     state_file = run_dir / "progress.json"
     offset, restore, resumes = 0, None, 0
@@ -141,13 +156,16 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         offset, path = found
         restore = brax_checkpoint.load(str(path))
         resumes = json.loads(state_file.read_text()).get("resumes", 0) + 1 if state_file.exists() else 1
+    # On several machines only process 0 writes (Brax saves and evaluates there alone).
+    primary = jax.process_index() == 0
     run_dir.mkdir(parents=True, exist_ok=True)
-    _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)})
+    if primary:
+        _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)})
     remaining = ppo.num_timesteps - offset
     if remaining <= 0:
         return json.loads(state_file.read_text()).get("metrics", {})
 
-    env = LocomotionEnv(env_config)  # Brax evaluates on the same environment
+    env = from_config(env_config)  # Brax evaluates on the same environment
     writer = SummaryWriter(str(run_dir / "tensorboard"))
     epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
     last: dict = {}
@@ -164,6 +182,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                                  "wall_s": time.time() - t0})
 
     def log(step: int, metrics: dict) -> None:
+        if not primary:
+            return
         global_step = offset + step
         for key, value in metrics.items():
             try:
@@ -171,10 +191,10 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
             except (TypeError, ValueError):
                 continue
         writer.flush()
-        last.clear()
-        last.update({k: float(v) for k, v in metrics.items() if hasattr(v, "__float__")})
+        now = {k: float(v) for k, v in metrics.items() if hasattr(v, "__float__")}
+        last.update(now)
         with open(run_dir / "metrics.jsonl", "a") as f:  # the reward curve, one line per evaluation
-            f.write(json.dumps({"global_step": global_step, "wall_s": time.time() - t0} | last) + "\n")
+            f.write(json.dumps({"global_step": global_step, "wall_s": time.time() - t0} | now) + "\n")
         if progress:
             progress(global_step, ppo.num_timesteps, last)
 
@@ -189,10 +209,13 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         learning_rate_schedule="ADAPTIVE_KL" if ppo.adaptive_kl else None, desired_kl=ppo.adaptive_kl or 0.01,
         network_factory=network_factory(ppo), seed=ppo.seed + 1000 * resumes, num_evals=epochs + 1,
         num_eval_envs=ppo.num_eval_envs, progress_fn=log, policy_params_fn=save,
-        restore_params=tuple(restore) if restore is not None else None)
+        restore_params=tuple(restore) if restore is not None else None, wrap_env_fn=wrap_for_training,
+        # Training episodes' metrics (episode/...: the terrain levels the curriculum reached, reward
+        # terms, tracking errors), logged between evaluations.
+        log_training_metrics=True, training_metrics_steps=max(ppo.checkpoint_every_steps // 4, 1))
     writer.close()
     final = latest_checkpoint(run_dir)
-    if final is not None:  # the policy: the last checkpoint (the final parameters) and the configs
+    if final is not None and primary:  # the policy: the last checkpoint (the final parameters) and the configs
         with atomic_directory(run_dir / "policy") as tmp:
             shutil.copytree(final[1], tmp, dirs_exist_ok=True)
             _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),

@@ -2,9 +2,18 @@
 
     python pipelines/evaluate.py --policy runs/flat_aof_B/policy --feet aof
     python pipelines/evaluate.py --policy runs/flat_ball_B/policy runs/flat_aff_B/policy --feet aff  # zero-shot
+    python pipelines/evaluate.py --policy runs/rough_ball_P/policy --feet ball aff aof  # Figure 9's zero-shot
 
 Writes <out>/metrics.json, comparison.md (one row per policy and feet, like the paper's Figure 8),
-comparison.png, contacts_<i>.png (feet contact schedule) and push_response_<i>.png.
+comparison.png, contacts_<i>.png (feet contact schedule) and push_response_<i>.png; with
+--video SECONDS also video_<i>.gif (one robot, 25 fps) and strip_<i>.png (six of its frames),
+which need an OpenGL backend: MUJOCO_GL=egl or osmesa.
+
+Rough-terrain policies are evaluated for 17.5 s (flat: 60 s) on the terrain they trained on, robots
+spread over every tile; comparison.md then adds a table per terrain kind (like the paper's
+Figure 9) and metrics.json each kind's and level's indices. Their --video adds a robot walking
+straight across the middle level's stairs and stepping stones: strip_<i>_stairs_up.png,
+strip_<i>_stepping_stones.png (and their GIFs).
 """
 
 from __future__ import annotations
@@ -22,32 +31,50 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--policy", type=Path, nargs="+", required=True, help="policy/ folders of training runs")
     p.add_argument("--feet", nargs="+", choices=FEET, help="feet to evaluate on (default: each policy's own)")
     p.add_argument("--num-envs", type=int, default=1024)
-    p.add_argument("--seconds", type=float, default=60.0)
+    p.add_argument("--seconds", type=float, help="simulated time (default 60 s flat, 17.5 s rough)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--build-root", type=Path,
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
+    p.add_argument("--video", type=float, metavar="SECONDS",
+                   help="also record one robot this long: video_<i>.gif and strip_<i>.png (needs MUJOCO_GL)")
     p.add_argument("--out", type=Path, default=Path("evaluation"))
     args = p.parse_args(argv)
 
     from footforge.atomic import atomic_directory
     from footforge.errors import FootforgeError
-    from footforge.evaluate import comparison_markdown, evaluate, plot
+    from footforge.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
     from footforge.train import load_policy_config
 
-    if args.num_envs < 1 or args.seconds <= 0:
-        print("evaluate: error: --num-envs and --seconds must be positive", file=sys.stderr)
+    if args.num_envs < 1 or (args.seconds is not None and args.seconds <= 0) or (args.video is not None and args.video <= 0):
+        print("evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
         return 2
     try:
-        results = []
+        if args.video:
+            from footforge.render import check_renderer, render_frames, write_gif, write_strip
+
+            check_renderer()  # before minutes of evaluation
+        results, recordings = [], []
         for policy in args.policy:
             for feet in args.feet or [None]:
                 feet = feet or load_policy_config(policy).feet
                 build_dir = str(args.build_root / feet) if args.build_root else None
                 results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
                                         seed=args.seed, build_dir=build_dir))
+                if args.video:
+                    i = len(results) - 1
+                    kinds = [None] + (["stairs_up", "stepping_stones"] if results[i]["task"] == "rough" else [])
+                    for kind in kinds:
+                        suffix = f"{i}_{kind}" if kind else f"{i}"
+                        recordings.append((suffix, results[i]["policy_dt_s"], *record(
+                            policy, feet=feet, seconds=args.video, seed=args.seed, build_dir=build_dir, kind=kind)))
         with atomic_directory(args.out) as tmp:
             files = plot(results, tmp)
-            (tmp / "comparison.md").write_text(comparison_markdown(results))
+            for suffix, policy_dt_s, model, qpos in recordings:
+                frames = render_frames(model, qpos, every=2)  # real time at half the policy rate: 25 fps
+                write_gif(frames, tmp / f"video_{suffix}.gif", fps=0.5 / policy_dt_s)
+                write_strip(frames, tmp / f"strip_{suffix}.png")
+                files += [f"video_{suffix}.gif", f"strip_{suffix}.png"]
+            (tmp / "comparison.md").write_text(comparison_markdown(results) + "\n" + terrain_markdown(results))
             (tmp / "metrics.json").write_text(json.dumps(
                 [{k: v for k, v in r.items() if k != "traces"} for r in results], indent=2))
     except FootforgeError as e:

@@ -2,17 +2,18 @@
 
     env = footforge.envs.make("flat", feet="aof", policy="BH")
 
-Tasks x feet x policy types: flat x {ball, aff, aof} x {B, BH} (BH needs adaptive feet).
+Tasks x feet x policy types: flat x {ball, aff, aof} x {B, BH}; rough x {ball, aff, aof} x
+{B, P, BH, PH} (the haptic types, BH and PH, need adaptive feet).
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
 
-from footforge.envs.config import EnvConfig, RewardScales, check_feet_and_policy
+from footforge.envs.config import CommandConfig, EnvConfig, RewardScales, check_feet_and_policy
 from footforge.errors import InputError
 
-TASKS = {"flat": ("B", "BH")}
+TASKS = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
 FEET = ("ball", "aff", "aof")
 
 
@@ -31,14 +32,14 @@ def default_config(task: str, feet: str, policy: str) -> EnvConfig:
         raise InputError(f"policy type '{policy}' is not available for the {task} task",
                          fix=f"use one of {', '.join(TASKS[task])}")
     check_feet_and_policy(feet, policy)
-    # The flat baseline's published scales where it has them (the rest: the rough baseline's).
-    flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
-    return EnvConfig(feet=feet, policy=policy, action="velocity", rewards=flat_rewards)
-
-
-def make(task: str, feet: str, policy: str, **overrides):
-    """An environment of the registry; `overrides` replace EnvConfig fields (e.g. build_dir)."""
-    return from_config(replace(default_config(task, feet, policy), **overrides))
+    if task == "flat":
+        # The flat baseline's published scales where it has them (the rest: the rough baseline's).
+        flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
+        return EnvConfig(task="flat", feet=feet, policy=policy, action="velocity", rewards=flat_rewards)
+    # The rough baseline: position targets default + 0.5 a, planar commands in [-1, 1] m/s with
+    # slow ones zeroed.
+    commands = CommandConfig(lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-1.0, 1.0), zero_below=0.25)
+    return EnvConfig(task="rough", feet=feet, policy=policy, action="position", action_scale=0.5, commands=commands)
 
 
 def from_config(config):
@@ -50,6 +51,11 @@ def from_config(config):
     from footforge.envs.locomotion import LocomotionEnv
 
     return LocomotionEnv(config)
+
+
+def make(task: str, feet: str, policy: str, **overrides):
+    """An environment of the registry; `overrides` replace EnvConfig fields (e.g. build_dir)."""
+    return from_config(replace(default_config(task, feet, policy), **overrides))
 
 
 def registry() -> list[tuple[str, str, str]]:

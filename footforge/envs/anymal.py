@@ -67,10 +67,26 @@ def ensure_built(config: EnvConfig) -> Path:
     return folder
 
 
-def load_robot(config: EnvConfig) -> Robot:
-    """The build's scene, set up for MJX as described in the module docstring."""
+def load_robot(config: EnvConfig, terrain=None) -> Robot:
+    """The build's scene, set up for MJX as described in the module docstring.
+
+    With a `terrain` (footforge.envs.terrain.Terrain) its heightfield replaces the floor plane,
+    under the same geom name. MJX collides heightfields with spheres, capsules, boxes and meshes
+    only, and a heightfield costs one prism test per sample under a geom's bounding sphere: the
+    feet (small spheres or boxes) keep their collisions; the base's and thighs' (cylinders, a
+    0.6 m box) are switched off and their ground contact is measured geometrically instead
+    (footforge.envs.rough).
+    """
     folder = ensure_built(config)
-    model = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
+    if terrain is None:
+        model = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
+    else:
+        from footforge.envs.terrain import add_to_spec
+
+        spec = mujoco.MjSpec.from_file(str(folder / "scene.xml"))
+        spec.delete(spec.geom(FLOOR_GEOM))
+        add_to_spec(spec, terrain, name=FLOOR_GEOM)
+        model = spec.compile()
     model.opt.timestep = config.sim_dt
     model.opt.iterations = config.solver_iterations
     model.opt.ls_iterations = config.solver_ls_iterations
@@ -88,7 +104,9 @@ def load_robot(config: EnvConfig) -> Robot:
             category[g] = GEOM_FOOT + C.LEGS.index(body.split("_")[0])
         elif body.endswith("_THIGH"):
             category[g] = GEOM_THIGH + C.LEGS.index(body.split("_")[0])
-        else:  # hips and shank tubes: no task needs them to touch the ground
+        # Hips and shank tubes: no task needs them to touch the ground. On a heightfield the base
+        # and thighs are checked geometrically (module docstring).
+        if category[g] == GEOM_NONE or (terrain is not None and category[g] < GEOM_FOOT):
             model.geom_contype[g] = model.geom_conaffinity[g] = 0
     joints = [model.joint(n) for n in C.ACTUATED_JOINTS]
     actuators = np.array([model.actuator(n).id for n in C.ACTUATED_JOINTS])

@@ -61,32 +61,50 @@ class LocomotionEnv(Env):
         return "mjx"
 
     def reset(self, rng: jax.Array) -> State:
-        r = self.robot
-        rng, key_cmd = jax.random.split(rng)
+        rng, key_cmd, key_spawn = jax.random.split(rng, 3)
         data = mjx.make_data(self.mjx_model)
-        qpos = self._home
-        qvel = jp.zeros(self.mjx_model.nv)
-        ctrl = jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(qpos[r.actuated_qpos])
-        data = data.replace(qpos=qpos, qvel=qvel, ctrl=ctrl)
+        info = {"rng": rng, "last_action": jp.zeros(N_ACTUATED), "last_joint_vel": jp.zeros(N_ACTUATED),
+                "step": jp.zeros((), jp.int32), "episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(())}
+        info |= self._first_spawn_info(key_spawn)
+        data = self._place(data, self._spawn_qpos(info))
         data = mjx.forward(self.mjx_model, data)
         command, heading = self._sample_command(key_cmd)
-        info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(N_ACTUATED),
-                "last_joint_vel": jp.zeros(N_ACTUATED), "step": jp.zeros((), jp.int32),
-                "episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(())}
-        command = self._heading_command(info, data)
-        info["command"] = command
+        info |= {"command": command, "heading_target": heading}
+        info["command"] = self._heading_command(info, data)
         metrics = {f"reward/{t}": jp.zeros(()) for t in rewards.TERMS}
         metrics |= {k: jp.zeros(()) for k in ("error/lin_vel_x_per_step", "error/lin_vel_y_per_step",
                                               "error/yaw_rate_per_step", "base_height_m_per_step", "diverged")}
+        metrics |= self._task_metrics(info)
         rng, key_obs = jax.random.split(rng)
         info["rng"] = rng
         obs = self._observe(data, info, key_obs)
         return State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info)
 
+    def _place(self, data, qpos):
+        """The robot standing still at qpos, its PD targets at qpos's joint angles."""
+        ctrl = jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(qpos[self.robot.actuated_qpos])
+        return data.replace(qpos=qpos, qvel=jp.zeros(self.mjx_model.nv), ctrl=ctrl,
+                            qacc_warmstart=jp.zeros(self.mjx_model.nv))
+
+    # Where episodes start: flat ground always at the home pose; RoughEnv overrides these three.
+    def _first_spawn_info(self, key) -> dict:
+        """Per-robot state that lives across episodes (the rough task's curriculum), at reset."""
+        return {}
+
+    def _next_spawn_info(self, info, data, ended, key) -> dict:
+        """That state after a step in which the episode ended (where `ended`)."""
+        return {}
+
+    def _spawn_qpos(self, info):
+        return self._home
+
+    def _task_metrics(self, info) -> dict:
+        return {}
+
     def step(self, state: State, action: jax.Array) -> State:
         cfg, r = self.config, self.robot
         data, info = state.pipeline_state, dict(state.info)
-        rng, key_push, key_cmd, key_obs = jax.random.split(info["rng"], 4)
+        rng, key_push, key_cmd, key_obs, key_spawn = jax.random.split(info["rng"], 5)
         step = info["step"] + 1
         q = data.qpos[r.actuated_qpos]
         if cfg.action == "velocity":
@@ -128,18 +146,21 @@ class LocomotionEnv(Env):
         episode_step = info["episode_step"] + 1
         time_out = (episode_step >= cfg.episode_steps) & ~terminated
         ended = terminated | time_out
-        # Brax's auto-reset swaps only the physics state and the observation: what the next
-        # episode would inherit from info starts afresh here (no previous action, a new command).
+        metrics = dict(state.metrics)  # Brax's wrappers add keys of their own: keep them
+        metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors | self._task_metrics(info) | {
+            "diverged": (~finite).astype(jp.float32)})
+        # The environment restarts ended episodes itself (footforge.envs.wrappers): a new spawn,
+        # no previous action, a new command. Brax's auto-reset would restore one fixed first
+        # state and lose the curriculum's per-robot state.
         qvel = data.qvel[r.actuated_dof]
+        info.update(self._next_spawn_info(info, data, ended, key_spawn))
+        data = jax.tree.map(lambda a, b: jp.where(ended, a, b), self._place(data, self._spawn_qpos(info)), data)
         info.update(rng=rng, step=step, episode_step=jp.where(ended, 0, episode_step),
                     time_out=time_out.astype(jp.float32), last_action=jp.where(ended, 0.0, action),
                     last_joint_vel=jp.where(ended, 0.0, qvel),
                     command=jp.where(ended, new_command, info["command"]),
                     heading_target=jp.where(ended, new_heading, info["heading_target"]))
         obs = jp.nan_to_num(self._observe(data, info, key_obs), nan=0.0, posinf=0.0, neginf=0.0)
-        metrics = dict(state.metrics)  # Brax's wrappers add keys of their own: keep them
-        metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors | {
-            "diverged": (~finite).astype(jp.float32)})
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32),
                              metrics=metrics, info=info)
 
@@ -185,6 +206,8 @@ class LocomotionEnv(Env):
             "foot_joint_vel": (data.qvel[r.passive_dof] * cfg.foot_joint_vel_scale,
                                cfg.foot_joint_vel_noise * cfg.foot_joint_vel_scale),
         }
+        if self.config.perceptive:
+            parts["height_scan"] = (self.height_scan(data), cfg.height_noise_m * cfg.height_scale)
         chunks = []
         keys = jax.random.split(key, len(parts))
         for (name, width), k in zip(observations.layout(self.config, self._n_passive), keys):
@@ -197,6 +220,21 @@ class LocomotionEnv(Env):
     def base_height(self, data):
         """Height of the base over the ground under it (flat ground: z)."""
         return data.qpos[2]
+
+    def terrain_height(self, xy):
+        """Ground height at world points xy (..., 2), m (flat ground: 0)."""
+        return jp.zeros(xy.shape[:-1])
+
+    def height_scan(self, data):
+        """The perceptive observation: clip(base z - offset - h, +-clip) x scale at the scan points
+        (EnvConfig.height_scan), which turn with the base's yaw; x-major order."""
+        cfg, scan = self.config.observations, self.config.height_scan
+        points = jp.array([(x, y) for x in scan.x_m for y in scan.y_m])
+        yaw = _yaw(data.qpos[3:7])
+        c, s = jp.cos(yaw), jp.sin(yaw)
+        world = data.qpos[:2] + points @ jp.array([[c, s], [-s, c]])
+        relative = data.qpos[2] - cfg.height_offset_m - self.terrain_height(world)
+        return jp.clip(relative, -cfg.height_clip_m, cfg.height_clip_m) * cfg.height_scale
 
     def _reward_terms(self, data, info, action):
         cfg, r = self.config.rewards, self.robot

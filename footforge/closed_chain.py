@@ -1,0 +1,428 @@
+"""Zero-shot evaluation on the closed chain: a policy trained on simplified feet (ball, AFF, AOF)
+run with CPU MuJoCo on the 34-joint SoftFoot-Q, beside the same policy on the feet it was trained on.
+
+One runner makes both columns: N independent robots (one MjData each) with the same seeds, so the
+same commands, pushes and observation noise draws. The jitted policy is called once per policy
+step for all robots together; in between, each robot's model is stepped at its own physics step:
+the closed chain at its build's 0.25 ms with its build's solver (80 steps per 20 ms policy step),
+the training feet at the environment's sim_dt and solver settings (5 ms, 4 steps). What the
+policy sees and how its action becomes PD targets are the MJX environment's: observations (the
+height scan of P policies included), commands, base velocity and height come from its own
+functions (LocomotionEnv's, RoughEnv's on terrain tiles) evaluated on the CPU state.
+
+Reported per feet (indices as in footforge.evaluate, over the policy steps of every standing
+robot): forward, lateral and yaw-rate tracking errors, action rate, joint velocity rate, torques
+and base height (mean, std); falls (base contact, `terminate_on_knees` thigh contacts, or a
+diverged simulation) and when they happened; the simulated and wall-clock time. For the closed
+chain also its closure drift: MuJoCo's residual of every equality constraint at every physics
+step (the loop closures: distance between the two anchors, m; the roll coupling back = -front:
+rad), as the mean over time of the worst constraint and its maximum.
+
+Only blind (B) and perceptive (P) policies run on other feet: haptic ones (BH, PH) read the
+passive joints of the feet they were trained on.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from footforge.envs.anymal import FLOOR_GEOM, Robot, load_robot
+from footforge.envs.terrain import Terrain, TerrainConfig
+from footforge.errors import InputError
+
+FULL = "full"
+INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
+           "base_height")
+"""footforge.evaluate's indices, same definitions."""
+TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, platform_m=1.0, border_m=20.0,
+                              proportions=(1.0, 1.0, 0.0, 1.0, 1.0, 0.0))
+""""A few terrain tiles": smooth slope, rough slope, stairs down, obstacles at difficulty 0 and 0.5;
+robot i spawns on the centre of a tile of the hardest level (one kind after the other). The 20 m
+border keeps a robot walking 10 s at the fastest command on the heightfield."""
+ACTION_CLIP = 10.0
+"""Policy outputs are clipped as footforge.evaluate clips them."""
+
+
+class _State(NamedTuple):
+    """The part of MuJoCo's data the environment's observation and command functions read."""
+
+    qpos: object
+    qvel: object
+
+
+def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots: int = 4, seed: int = 0,
+                          build_root: Path | None = None, terrain_tiles: TerrainConfig | None = None,
+                          progress: Callable[[str, int, int], None] | None = None) -> dict:
+    """Runs `policy_dir`'s policy on the feet it was trained on and on the closed chain.
+
+    build_root: folder with one build per feet, <root>/<feet>/ (default build/); a missing one is
+    built there. terrain_tiles: a terrain (e.g. TERRAIN_TILES) instead of flat ground.
+    progress(feet, policy steps done, total) is called after every policy step.
+
+    Returns {"policy", "policy_type", "trained_on", ..., "feet": {trained feet: column, "full":
+    column}} with per column "indices" {name: {"mean", "std"}}, "falls", "fall_times_s", "finite",
+    "closure" (None without equality constraints), "wall_s" (the column's wall-clock time, JAX
+    compilation included), "real_time_factor" (simulated robot-seconds per second spent stepping
+    MuJoCo) and "traces" (robot-by-step arrays for plots, NaN once a robot fell).
+
+    Raises:
+      InputError: a haptic policy, non-positive seconds or robots, or a policy step that is not a
+        whole number of the closed chain's physics steps.
+    """
+    from footforge.envs.locomotion import LocomotionEnv
+    from footforge.envs.rough import RoughEnv
+    from footforge.train import load_policy
+
+    policy, config, _ = load_policy(policy_dir)
+    if config.haptic:
+        raise InputError(f"a {config.policy} policy reads the passive joints of the {config.feet} feet it was "
+                         "trained on; the closed chain has others", file=str(policy_dir),
+                         fix="evaluate blind (B) or perceptive (P) policies on the closed chain")
+    if seconds <= 0 or num_robots < 1:
+        raise InputError(f"seconds ({seconds}) and robots ({num_robots}) must be positive", fix="e.g. 10 s, 4 robots")
+    # The environment whose maths the CPU runner evaluates: flat ground, or the rough task on the
+    # tiles (its terrain height under the base and under the height scan).
+    folder = _build_folder(config.feet, build_root)
+    if terrain_tiles:
+        env = RoughEnv(replace(config, task="rough", terrain=terrain_tiles, build_dir=str(folder)))
+        terrain = env.terrain
+        trained = _load(config, folder, terrain)
+    else:
+        terrain, trained = None, _load(config, folder, None)
+        env = LocomotionEnv(replace(config, task="flat", build_dir=str(folder)), robot=trained)
+    full = _load(config, _build_folder(FULL, build_root), terrain, own_physics=True)
+    steps = int(round(seconds / config.policy_dt))
+    result = {"policy": str(policy_dir), "policy_type": config.policy, "trained_on": config.feet, "seconds": seconds,
+              "num_robots": num_robots, "seed": seed, "policy_dt_s": config.policy_dt,
+              "push_interval_s": config.pushes.interval_s if config.pushes.enabled else None,
+              "terrain": None if terrain is None else {
+                  "config": asdict(terrain.config), "difficulty": terrain.config.difficulty(terrain.config.num_levels - 1),
+                  "robot_tiles": [terrain.column_kinds[i % terrain.config.num_columns] for i in range(num_robots)]},
+              "feet": {}}
+    for feet, robot in ((config.feet, trained), (FULL, full)):
+        result["feet"][feet] = run(env, robot, policy, steps=steps, num_robots=num_robots, seed=seed, terrain=terrain,
+                                   progress=(lambda done, f=feet: progress(f, done, steps)) if progress else None)
+    return result
+
+
+def _build_folder(feet: str, build_root: Path | None) -> Path:
+    """<build_root>/<feet> (default build/<feet>), built there on first use as anymal.ensure_built does."""
+    folder = Path(build_root or "build") / feet
+    if not (folder / "scene.xml").is_file():
+        from footforge.build import BuildOptions, build
+        build(BuildOptions(variant=feet, out_dir=folder, formats=("mjcf",)))
+    return folder
+
+
+def _load(config, folder: Path, terrain: Terrain | None, *, own_physics: bool = False) -> Robot:
+    """The build's robot for the CPU: the environment's collision filtering and index tables;
+    physics at the environment's step and solver, or (own_physics) at the build's."""
+    spec = mujoco.MjSpec.from_file(str(folder / "scene.xml"))
+    settings = {"feet": folder.name, "build_dir": str(folder)}
+    if own_physics:
+        o = spec.option
+        decimation = config.policy_dt / o.timestep
+        if abs(decimation - round(decimation)) > 1e-9:
+            raise InputError(f"the policy step {config.policy_dt} s is not a multiple of the {folder.name} model's "
+                             f"{o.timestep} s step", file=str(folder / "robot.xml"), fix="rebuild the model")
+        settings |= {"sim_dt": o.timestep, "decimation": int(round(decimation)), "solver_iterations": o.iterations,
+                     "solver_ls_iterations": o.ls_iterations}
+    robot = load_robot(replace(config, **settings))
+    return robot if terrain is None else _on_terrain(robot, spec, terrain)
+
+
+def _on_terrain(robot: Robot, spec: mujoco.MjSpec, terrain: Terrain) -> Robot:
+    """The robot with the terrain's heightfield for floor. The floor is the world body's only
+    geom, so every geom keeps its index and the robot's tables stay valid. The CPU collides base
+    and thighs with a heightfield (MJX cannot, so RoughEnv probes them geometrically): the
+    flat-ground collision filtering is kept and falls are real contacts."""
+    from footforge.envs.terrain import add_to_spec
+
+    spec.delete(spec.geom(FLOOR_GEOM))
+    add_to_spec(spec, terrain, name=FLOOR_GEOM)
+    model = spec.compile()
+    if model.ngeom != robot.model.ngeom or model.geom(FLOOR_GEOM).id != robot.floor_geom:
+        raise InputError("the scene's world body holds geoms besides the floor", fix="rebuild with footforge build")
+    model.geom_contype[:], model.geom_conaffinity[:] = robot.model.geom_contype, robot.model.geom_conaffinity
+    for name in ("timestep", "iterations", "ls_iterations"):
+        setattr(model.opt, name, getattr(robot.model.opt, name))
+    return replace(robot, model=model)
+
+
+def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, terrain: Terrain | None = None,
+        progress: Callable[[int], None] | None = None) -> dict:
+    """One column: `num_robots` robots on `robot`'s model for `steps` policy steps (see the module
+    docstring). `env` is the policy's environment (LocomotionEnv on flat ground, RoughEnv on
+    `terrain`), whose observation, command and base-height functions the robots go through."""
+    config, model = env.config, robot.model
+    decimation = int(round(config.policy_dt / model.opt.timestep))
+    control = Controller(env, robot, policy)
+    datas = [mujoco.MjData(model) for _ in range(num_robots)]
+    for i, d in enumerate(datas):
+        d.qpos[:] = robot.home_qpos
+        if terrain is not None:
+            d.qpos[:2] = _spawn(terrain, i)
+            d.qpos[2] += terrain.height_at(*d.qpos[:2])
+        d.ctrl[robot.actuator_ids] = robot.home_qpos[robot.actuated_qpos]
+        mujoco.mj_forward(model, d)
+    info, obs = control.start(_stack(datas, "qpos"), _stack(datas, "qvel"), seed)
+    equality = _EqualityResiduals(model) if model.neq else None
+    alive, ok = np.ones(num_robots, bool), np.ones(num_robots, bool)
+    fall_step = np.full(num_robots, -1)
+    # (robots, steps) records; a robot's row stays NaN (not alive) from its fall on.
+    rows = {k: np.full((num_robots, steps), np.nan) for k in (*INDICES, "vx", "vx_command")}
+    live = np.zeros((num_robots, steps), bool)
+    worst = {k: np.full((num_robots, steps), np.nan) for k in ("closure_gap_m", "coupling_rad")}
+    totals = {k: np.zeros(2) for k in worst}  # (sum over physics steps of the worst constraint, steps)
+    physics_wall = 0.0
+    t_start = time.perf_counter()
+    for t in range(steps):
+        if not alive.any():  # all fell: nothing left to simulate
+            break
+        action, targets, push_now, push, info, keys = control.act(obs, _stack(datas, "qpos"), info)
+        for i in np.flatnonzero(alive):
+            d = datas[i]
+            d.ctrl[robot.actuator_ids] = targets[i]
+            if push_now[i]:  # as the environment: the push sets the base's planar velocity, then the physics runs
+                d.qvel[:2] = push[i]
+            for _ in range(decimation):
+                t0 = time.perf_counter()
+                mujoco.mj_step(model, d)
+                physics_wall += time.perf_counter() - t0
+                if equality is not None:
+                    for k, value in zip(worst, equality(d)):
+                        worst[k][i, t] = np.fmax(worst[k][i, t], value)
+                        totals[k] += (value, 1)
+            # MuJoCo resets a simulation whose accelerations blow up (a BADQACC warning): diverged too.
+            ok[i] = (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()
+                     and d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0)
+        fallen = control.touching(*_contacts(datas)) | ~ok
+        info, obs, row = control.settle(_stack(datas, "qpos"), _stack(datas, "qvel"), info, keys, action,
+                                        _stack(datas, "actuator_force"))
+        fall_step[alive & fallen] = t
+        alive &= ~fallen
+        live[:, t] = alive  # like footforge.evaluate: the step a robot falls on is not counted
+        for k, record in rows.items():
+            record[alive, t] = row[k][alive]
+        if progress:
+            progress(t + 1)
+    wall = time.perf_counter() - t_start
+    if progress:
+        progress(steps)
+    indices = {name: {"mean": float(rows[name][live].mean()) if live.any() else float("nan"),
+                      "std": float(rows[name][live].std()) if live.any() else float("nan")} for name in INDICES}
+    simulated = float(np.where(fall_step >= 0, fall_step + 1, steps).sum() * config.policy_dt)
+    traces = {"vx_m_s": rows["vx"], "vx_command_m_s": rows["vx_command"]}
+    closure = None
+    if equality is not None:
+        traces |= worst
+        closure = {"num_closures": int(equality.connect.sum()), "num_couplings": int(equality.coupling.sum())}
+        for k, mean, peak in (("closure_gap_m", "closure_gap_mean_m", "closure_gap_max_m"),
+                              ("coupling_rad", "coupling_mean_rad", "coupling_max_rad")):
+            total, count = totals[k]
+            closure |= {mean: float(total / count), peak: float(np.nanmax(worst[k]))}
+    return {"timestep_s": model.opt.timestep,
+            "physics_steps_per_policy_step": decimation, "indices": indices,
+            "falls": int((fall_step >= 0).sum()),
+            "fall_times_s": [float((s + 1) * config.policy_dt) if s >= 0 else None for s in fall_step],
+            "diverged": int((~ok).sum()), "finite": bool(ok.all()),
+            "simulated_s": simulated, "wall_s": wall, "physics_wall_s": physics_wall,
+            "real_time_factor": simulated / physics_wall if physics_wall > 0 else float("nan"),
+            "closure": closure, "traces": traces}
+
+
+def _spawn(terrain: Terrain, i: int) -> np.ndarray:
+    """Robot i on the centre of a tile of the hardest level, one column (kind) after the other."""
+    c = terrain.config
+    return np.array(terrain.tile_center(c.num_levels - 1, i % c.num_columns), float)
+
+
+def _stack(datas, field: str) -> np.ndarray:
+    return np.stack([getattr(d, field) for d in datas])
+
+
+def _contacts(datas) -> tuple[np.ndarray, np.ndarray]:
+    """Every robot's contacts (geom pairs, signed distances) padded to one power-of-two length,
+    so that the jitted contact check compiles for a few sizes only. Padding pairs have a
+    positive distance: no contact."""
+    size = 1 << (max(max(d.ncon for d in datas), 1) - 1).bit_length()
+    geoms, dists = np.zeros((len(datas), size, 2), np.int32), np.ones((len(datas), size))
+    for i, d in enumerate(datas):
+        geoms[i, :d.ncon], dists[i, :d.ncon] = d.contact.geom, d.contact.dist
+    return geoms, dists
+
+
+class _EqualityResiduals:
+    """MuJoCo's violation of each equality constraint, from the constraint rows of the last step:
+    a connect has three rows (the anchors' offset, m), a joint coupling one (rad). The rows are
+    those of the state before the step's integration, one step behind, which every step samples."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.neq = model.neq
+        self.connect = model.eq_type == mujoco.mjtEq.mjEQ_CONNECT
+        self.coupling = model.eq_type == mujoco.mjtEq.mjEQ_JOINT
+
+    def __call__(self, data: mujoco.MjData) -> tuple[float, float]:
+        """(largest closure gap, m; largest coupling error, rad)."""
+        n = data.ne  # the equality rows come first
+        residual = np.sqrt(np.bincount(data.efc_id[:n], data.efc_pos[:n] ** 2, minlength=self.neq))
+        return residual[self.connect].max(initial=0.0), residual[self.coupling].max(initial=0.0)
+
+
+class Controller:
+    """The MJX environment's policy-side step for a batch of CPU robots, jitted and vectorised.
+
+    start: env.reset's command and observation for given states; act: the policy's action and
+    env.step's PD targets and push; touching: the environment's termination contacts, from
+    MuJoCo's; settle: env.step after its physics (commands, tracking errors, next observation).
+    The random keys are split as
+    env.reset and env.step split them. `env` gives the observation, command, base-velocity and
+    base-height functions; they read the robot only through its index tables, so they are bound
+    here to `robot`, whose MJX model is never needed.
+    """
+
+    def __init__(self, env, robot: Robot, policy):
+        import jax
+        import jax.numpy as jp
+
+        from footforge.envs.locomotion import ground_contacts
+
+        env = copy.copy(env)
+        env.robot = robot
+        config, r = env.config, robot
+        default_q, lo, hi = jp.asarray(r.default_q), jp.asarray(r.q_limits[:, 0]), jp.asarray(r.q_limits[:, 1])
+        category, floor = jp.asarray(r.geom_category), r.floor_geom
+
+        def start(qpos, qvel, rng):
+            state = _State(qpos, qvel)
+            rng, key_cmd, _ = jax.random.split(rng, 3)  # the third: the environment's spawn
+            command, heading = env._sample_command(key_cmd)
+            info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(12),
+                    "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32)}
+            info["command"] = env._heading_command(info, state)
+            rng, key_obs = jax.random.split(rng)
+            info["rng"] = rng
+            return info, env._observe(state, info, key_obs)
+
+        def targets(qpos, action, info):
+            rng, key_push, key_cmd, key_obs, _ = jax.random.split(info["rng"], 5)
+            step = info["step"] + 1
+            if config.action == "velocity":
+                target = qpos[r.actuated_qpos] + config.action_scale * action * config.policy_dt
+            else:
+                target = default_q + config.action_scale * action
+            p = config.pushes
+            push = jax.random.uniform(key_push, (2,), minval=-p.max_speed, maxval=p.max_speed)
+            push_now = p.enabled & (step % env._push_every == 0)
+            return jp.clip(target, lo, hi), push_now, push, info | {"rng": rng, "step": step}, (key_cmd, key_obs)
+
+        def act(obs, qpos, info):
+            action = jp.clip(policy(obs, jax.random.PRNGKey(0))[0], -ACTION_CLIP, ACTION_CLIP)
+            return action, *jax.vmap(targets)(qpos, action, info)
+
+        def touching(geoms, dists):
+            base, knees = ground_contacts(category, floor, geoms, dists)
+            return base | (knees >= config.terminate_on_knees)
+
+        def settle(qpos, qvel, info, keys, action, actuator_force):
+            state, (key_cmd, key_obs) = _State(qpos, qvel), keys
+            new_command, new_heading = env._sample_command(key_cmd)
+            resample = info["step"] % env._command_every == 0
+            info = info | {"command": jp.where(resample, new_command, info["command"]),
+                           "heading_target": jp.where(resample, new_heading, info["heading_target"])}
+            info["command"] = env._heading_command(info, state)
+            lin, ang, _ = env.base_state(state)
+            qd, command = qvel[r.actuated_dof], info["command"]
+            row = {"lin_vel_x_error": jp.abs(command[0] - lin[0]), "lin_vel_y_error": jp.abs(command[1] - lin[1]),
+                   "yaw_rate_error": jp.abs(command[2] - ang[2]),
+                   "action_rate": jp.linalg.norm(action - info["last_action"]),
+                   "joint_vel_rate": jp.linalg.norm(qd - info["last_joint_vel"]),
+                   "torques": jp.linalg.norm(actuator_force), "base_height": env.base_height(state),
+                   "vx": lin[0], "vx_command": command[0]}
+            info = info | {"last_action": action, "last_joint_vel": qd}
+            obs = jp.nan_to_num(env._observe(state, info, key_obs), nan=0.0, posinf=0.0, neginf=0.0)
+            return info, obs, row
+
+        self._start = jax.jit(jax.vmap(start))
+        self._act = jax.jit(act)
+        self._touching = jax.jit(jax.vmap(touching))
+        self._settle = jax.jit(jax.vmap(settle))
+        self._split = lambda seed, n: jax.random.split(jax.random.PRNGKey(seed), n)
+
+    def start(self, qpos: np.ndarray, qvel: np.ndarray, seed: int):
+        """(info, observations) of robots in states (qpos, qvel), robot i seeded from `seed`."""
+        return self._start(qpos, qvel, self._split(seed, len(qpos)))
+
+    def act(self, obs, qpos: np.ndarray, info):
+        """(actions, PD targets (robots, 12) in actuator order, push now, push velocity, info, keys)."""
+        action, target, push_now, push, info, keys = self._act(obs, qpos, info)
+        return action, np.asarray(target), np.asarray(push_now), np.asarray(push), info, keys
+
+    def touching(self, geoms: np.ndarray, dists: np.ndarray) -> np.ndarray:
+        """Per robot: base contact or `terminate_on_knees` thigh contacts with the floor, from its
+        contacts (robots, n, 2) geom pairs and (robots, n) signed distances."""
+        return np.asarray(self._touching(geoms, dists))
+
+    def settle(self, qpos, qvel, info, keys, action, actuator_force):
+        """(info, observations, index rows as numpy) after the physics of a policy step."""
+        info, obs, row = self._settle(qpos, qvel, info, keys, action, actuator_force)
+        return info, obs, {k: np.asarray(v) for k, v in row.items()}
+
+
+def comparison_markdown(results: list[dict]) -> str:
+    """One row per (policy, feet): the policy on its training feet, then on the closed chain."""
+    head = ["policy", "type", "trained on", "feet", "vx error (m/s)", "vy error (m/s)", "yaw-rate error (rad/s)",
+            "base height (m)", "falls", "closure gap mean / max (mm)", "roll coupling max (mrad)", "finite",
+            "real-time factor"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in results:
+        for feet, c in r["feet"].items():
+            cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"],
+                     f"{feet} ({'trained' if feet == r['trained_on'] else 'zero-shot'})"]
+            cells += [f"{c['indices'][k]['mean']:.3f} ± {c['indices'][k]['std']:.3f}"
+                      for k in ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "base_height")]
+            falls = [f"{t:.2f}" for t in c["fall_times_s"] if t is not None]
+            cells.append(f"{c['falls']}/{r['num_robots']}" + (f" (at {', '.join(falls)} s)" if falls else ""))
+            eq = c["closure"]
+            cells += [f"{eq['closure_gap_mean_m'] * 1e3:.4f} / {eq['closure_gap_max_m'] * 1e3:.4f}" if eq else "-",
+                      f"{eq['coupling_max_rad'] * 1e3:.3f}" if eq else "-",
+                      "yes" if c["finite"] else f"no ({c['diverged']} diverged)", f"{c['real_time_factor']:.2f}"]
+            lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(result: dict, path: Path) -> None:
+    """Robot 0's forward velocity on both feet and its command over time (top), and the closed
+    chain's worst closure gap per robot (bottom)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    dt = result["policy_dt_s"]
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    # The same seeds give both feet the same forward-velocity commands.
+    command = result["feet"][result["trained_on"]]["traces"]["vx_command_m_s"][0]
+    time_s = np.arange(1, len(command) + 1) * dt
+    top.plot(time_s, command, "k--", lw=0.8, label="command")
+    for feet, c in result["feet"].items():
+        top.plot(time_s, c["traces"]["vx_m_s"][0], lw=1, label=f"on {feet}")
+        if c["closure"]:
+            gaps = c["traces"]["closure_gap_m"] * 1e3
+            for i, g in enumerate(gaps):
+                bottom.plot(time_s, g, lw=0.8, label=f"robot {i}")
+    top.set(ylabel="forward velocity (m/s)", title=f"{Path(result['policy']).parent.name or result['policy']}: "
+            f"{result['policy_type']} policy trained on {result['trained_on']}, robot 0")
+    top.legend(fontsize=7, ncol=2)
+    bottom.set(xlabel="time (s)", ylabel="worst closure gap (mm)", title="closed chain: closure drift per policy step")
+    bottom.legend(fontsize=7, ncol=4)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)

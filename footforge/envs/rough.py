@@ -1,0 +1,140 @@
+"""ANYmal C on the rough-terrain heightfield under the game-inspired curriculum: an MJX environment.
+
+The flat environment's task (commands from a heading, pushes, the ten reward terms, termination,
+time-outs as truncations) on footforge.envs.terrain's heightfield, with these differences:
+
+- Each robot owns a terrain level and column (info 'level', 'column'); an episode starts on that
+  tile's flat centre (within CurriculumConfig.spawn_radius_m, random yaw) and its end moves the
+  robot up or down a level (footforge.envs.curriculum). The environment restarts its own episodes
+  so that this state survives (train with footforge.envs.wrappers.wrap_for_training).
+- Perceptive policies (P, PH) observe the height scan, read from the heightfield's samples on
+  MuJoCo's own triangulation of it.
+- The base height of the reward is measured from the terrain under the base.
+- The base's and thighs' collisions are off (MJX cannot collide their cylinders with a
+  heightfield, and a 0.6 m box would test ~50 prisms): a point of their surfaces below the
+  terrain counts as a contact. Sample points: box corners, 8 points around each rim of a
+  cylinder, the corners of the bounding box of anything else.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jp
+import mujoco
+import numpy as np
+from brax import math as brax_math
+from mujoco import mjx
+
+from footforge.envs import curriculum
+from footforge.envs.anymal import GEOM_BASE, GEOM_THIGH, load_robot
+from footforge.envs.config import EnvConfig
+from footforge.envs.locomotion import LocomotionEnv
+from footforge.envs.terrain import generate, surface_height
+from footforge.errors import InputError
+
+
+class RoughEnv(LocomotionEnv):
+    def __init__(self, config: EnvConfig):
+        if config.task != "rough":
+            raise InputError(f"RoughEnv needs task 'rough', got '{config.task}'", fix="use envs.make('rough', ...)")
+        config.terrain.check()
+        self.terrain = generate(config.terrain)
+        super().__init__(config, load_robot(config, self.terrain))
+        self._heights = jp.asarray(self.terrain.heights_m, jp.float32)
+        geoms, local, category = _surface_points(self.robot.model, self.robot.geom_category)
+        self._probe_geom, self._probe_local, self._probe_category = (jp.asarray(geoms), jp.asarray(local),
+                                                                     jp.asarray(category))
+        self._home_z = float(self.robot.home_qpos[2])
+
+    # Ground -------------------------------------------------------------------------------
+    def terrain_height(self, xy):
+        t = self.terrain
+        return surface_height(self._heights, t.origin_xy, t.resolution_m, xy, jp)
+
+    def base_height(self, data):
+        return data.qpos[2] - self.terrain_height(data.qpos[:2])
+
+    def contact_flags(self, data):
+        """(a base point is under the terrain, number of legs with a thigh point under it)."""
+        world = data.geom_xpos[self._probe_geom] + jp.einsum(
+            "pij,pj->pi", data.geom_xmat[self._probe_geom], self._probe_local)
+        below = world[:, 2] < self.terrain_height(world[:, :2])
+        base = jp.any(below & (self._probe_category == GEOM_BASE))
+        knees = sum(jp.any(below & (self._probe_category == GEOM_THIGH + i)).astype(jp.int32) for i in range(4))
+        return base, knees
+
+    def reset_on_tile(self, rng, level, column, forward_mps: float | None = None):
+        """A reset on tile (level, column) instead of the curriculum's draw (for evaluation). With
+        `forward_mps`, the command is to walk straight ahead at that speed (heading kept)."""
+        state = self.reset(rng)
+        key = jax.random.fold_in(rng, 1)
+        level, column = jp.asarray(level, jp.int32), jp.asarray(column, jp.int32)
+        xy, yaw = self._spawn(level, column, key)
+        info = state.info | {"level": level, "column": column, "spawn_xy": xy, "spawn_yaw": yaw}
+        if forward_mps is not None:
+            info |= {"command": jp.array([forward_mps, 0.0, 0.0]), "heading_target": yaw}
+        data = mjx.forward(self.mjx_model, self._place(state.pipeline_state, self._spawn_qpos(info)))
+        info["command"] = self._heading_command(info, data)
+        return state.replace(pipeline_state=data, obs=self._observe(data, info, key), info=info)
+
+    # Curriculum and spawns -------------------------------------------------------------------
+    def _spawn(self, level, column, key):
+        """A spawn point on tile (level, column)'s platform and a yaw."""
+        k_r, k_a, k_yaw = jax.random.split(key, 3)
+        radius = self.config.curriculum.spawn_radius_m * jp.sqrt(jax.random.uniform(k_r))  # uniform on the disc
+        angle = jax.random.uniform(k_a, minval=-jp.pi, maxval=jp.pi)
+        cx, cy = self.terrain.tile_center(level, column)
+        xy = jp.stack([cx + radius * jp.cos(angle), cy + radius * jp.sin(angle)])
+        return xy, jax.random.uniform(k_yaw, minval=-jp.pi, maxval=jp.pi)
+
+    def _first_spawn_info(self, key):
+        k_level, k_spawn = jax.random.split(key)
+        level, column = curriculum.first_levels(k_level, self.config.curriculum, self.config.terrain)
+        xy, yaw = self._spawn(level, column, k_spawn)
+        return {"level": level, "column": column, "spawn_xy": xy, "spawn_yaw": yaw}
+
+    def _next_spawn_info(self, info, data, ended, key):
+        cfg = self.config
+        k_level, k_spawn = jax.random.split(key)
+        distance = jp.linalg.norm(data.qpos[:2] - info["spawn_xy"])
+        level = curriculum.next_level(info["level"], distance, jp.linalg.norm(info["command"][:2]), k_level,
+                                      cfg.curriculum, cfg.terrain, cfg.episode_length_s)
+        level = jp.where(ended, level, info["level"])
+        xy, yaw = self._spawn(level, info["column"], k_spawn)
+        return {"level": level, "spawn_xy": jp.where(ended, xy, info["spawn_xy"]),
+                "spawn_yaw": jp.where(ended, yaw, info["spawn_yaw"])}
+
+    def _spawn_qpos(self, info):
+        xy, yaw = info["spawn_xy"], info["spawn_yaw"]
+        turn = jp.array([jp.cos(yaw / 2), 0.0, 0.0, jp.sin(yaw / 2)])
+        z = self._home_z + self.terrain_height(xy)
+        return (self._home.at[:2].set(xy).at[2].set(z)
+                .at[3:7].set(brax_math.quat_mul(turn, self._home[3:7])))
+
+    def _task_metrics(self, info):
+        """The episode's level, and one indicator per level (their means over ended episodes are
+        the distribution of robots over the levels)."""
+        level = info["level"]
+        return {"terrain/level_per_step": level.astype(jp.float32)} | {
+            f"terrain/at_level_{l}_per_step": (level == l).astype(jp.float32)
+            for l in range(self.config.terrain.num_levels)}
+
+
+def _surface_points(model: mujoco.MjModel, geom_category: np.ndarray):
+    """Sample points on the base and thigh geoms: (geom ids, points in the geom frame, category)."""
+    geoms, points, category = [], [], []
+    for g in np.flatnonzero((geom_category == GEOM_BASE) | ((geom_category >= GEOM_THIGH) & (geom_category < GEOM_THIGH + 4))):
+        size = model.geom_size[g]
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            local = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * size
+        elif model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER:
+            angles = np.arange(8) * np.pi / 4
+            rim = np.stack([size[0] * np.cos(angles), size[0] * np.sin(angles)], axis=1)
+            local = np.concatenate([np.hstack([rim, np.full((8, 1), z)]) for z in (-size[1], size[1])])
+        else:  # the corners of its bounding box in the geom frame
+            centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+            local = centre + np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+        geoms += [g] * len(local)
+        points.append(local)
+        category += [geom_category[g]] * len(local)
+    return np.array(geoms), np.concatenate(points), np.array(category)

@@ -1,0 +1,30 @@
+"""Brax training wrappers for environments that restart their own episodes.
+
+Brax's default wrapping (brax.envs.training.wrap) ends with an AutoResetWrapper, which replaces
+the physics state of every ended episode with one state recorded at reset. footforge's
+environments restart ended episodes inside their own step (a new spawn, and on rough terrain a
+curriculum level that must survive the restart), so they are wrapped without it: batched, with
+Brax's episode bookkeeping (step count, truncation, episode metrics), and a thin wrapper that
+only clears the done flag and the step count of ended episodes before the next step.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jp
+from brax.envs.base import Env, State, Wrapper
+from brax.envs.wrappers.training import DomainRandomizationVmapWrapper, EpisodeWrapper, VmapWrapper
+
+
+class SelfResetWrapper(Wrapper):
+    """AutoResetWrapper's bookkeeping without its state replacement."""
+
+    def step(self, state: State, action: jp.ndarray) -> State:
+        if "steps" in state.info:
+            state.info.update(steps=jp.where(state.done, jp.zeros_like(state.info["steps"]), state.info["steps"]))
+        return self.env.step(state.replace(done=jp.zeros_like(state.done)), action)
+
+
+def wrap_for_training(env: Env, episode_length: int, action_repeat: int = 1, randomization_fn=None) -> Wrapper:
+    """Brax's training wrapping for self-restarting environments (pass as ppo.train's wrap_env_fn)."""
+    env = VmapWrapper(env) if randomization_fn is None else DomainRandomizationVmapWrapper(env, randomization_fn)
+    return SelfResetWrapper(EpisodeWrapper(env, episode_length, action_repeat))

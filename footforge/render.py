@@ -1,0 +1,120 @@
+"""Offscreen rendering of a recorded trajectory: frames, an animated GIF and a frame strip.
+
+MuJoCo chooses its OpenGL backend from the environment variable MUJOCO_GL when `mujoco` is first
+imported (egl: headless, GPU or Mesa; osmesa: software; glfw: needs a display; disable: none),
+so it must be set before Python starts; importing footforge sets it to disable where it is unset.
+Frames are RGB uint8 arrays of shape (height, width, 3); the camera is a free camera that follows
+the base (qpos[:3], a free joint).
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from footforge.errors import InputError
+
+RENDER_FIX = ("install an OpenGL backend (e.g. apt install libosmesa6) and set MUJOCO_GL=osmesa "
+              "(or egl) before starting Python")
+
+
+def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    """A renderer of `model` (offscreen buffer raised on a copy when smaller than the image).
+
+    Raises:
+      InputError: no OpenGL context could be made, for whatever reason.
+    """
+    if model.vis.global_.offwidth < width or model.vis.global_.offheight < height:
+        model = copy.copy(model)  # the caller's model keeps its visual settings
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+        model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    try:
+        # Imported here, not taken from `mujoco`: `import mujoco` swallows an ImportError of its
+        # rendering module (e.g. MUJOCO_GL=osmesa without libOSMesa); importing again raises it.
+        from mujoco.rendering.classic import gl_context
+        from mujoco.rendering.classic.renderer import Renderer
+
+        if not hasattr(gl_context, "GLContext"):
+            raise RuntimeError("rendering is disabled")
+        return Renderer(model, height=height, width=width)
+    except Exception as e:  # every backend fails its own way: ImportError, FatalError, EGLError...
+        backend = os.environ.get("MUJOCO_GL", "")
+        raise InputError(f"MuJoCo cannot render offscreen with MUJOCO_GL={backend}: {e}", fix=RENDER_FIX) from None
+
+
+def check_renderer() -> None:
+    """Creates and closes a small renderer, so that a missing backend shows before any heavy work.
+
+    Raises:
+      InputError: no OpenGL context could be made.
+    """
+    _renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 16, 16).close()
+
+
+def render_frames(model: mujoco.MjModel, qpos: np.ndarray, *, width: int = 640, height: int = 360, every: int = 1,
+                  distance_m: float = 2.0, elevation_deg: float = -20.0, azimuth_deg: float = 120.0
+                  ) -> list[np.ndarray]:
+    """Renders every `every`-th row of `qpos` (T, model.nq), the camera looking at the base.
+
+    Azimuth and elevation are MuJoCo's: the camera looks along (cos az cos el, sin az cos el,
+    sin el) from `distance_m` before the base, so azimuth 90 views the robot's right side
+    (it walks along +x) and a negative elevation looks down.
+
+    Raises:
+      InputError: no OpenGL context could be made.
+      ValueError: `qpos` is not (T, model.nq).
+    """
+    qpos = np.asarray(qpos)
+    if qpos.ndim != 2 or qpos.shape[1] != model.nq:
+        raise ValueError(f"qpos must be (T, {model.nq}), got {qpos.shape}")
+    camera = mujoco.MjvCamera()
+    camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+    camera.distance, camera.elevation, camera.azimuth = distance_m, elevation_deg, azimuth_deg
+    data = mujoco.MjData(model)
+    frames = []
+    with _renderer(model, width, height) as renderer:
+        for q in qpos[::every]:
+            data.qpos[:] = q
+            mujoco.mj_forward(model, data)
+            camera.lookat[:] = q[:3]
+            renderer.update_scene(data, camera=camera)
+            frames.append(renderer.render())
+    return frames
+
+
+def write_gif(frames: Sequence[np.ndarray], path: Path, fps: float) -> None:
+    """An animated GIF that loops, written whole or not at all. GIF delays are whole 10 ms, and
+    Pillow merges identical consecutive frames (their delays add up)."""
+    from PIL import Image
+
+    images = [Image.fromarray(f) for f in frames]
+    _save_atomic(Path(path), lambda tmp: images[0].save(
+        tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0))
+
+
+def write_strip(frames: Sequence[np.ndarray], path: Path, count: int = 6) -> None:
+    """`count` evenly spaced frames (first and last included; fewer if there are fewer frames)
+    side by side in one PNG, written whole or not at all."""
+    from PIL import Image
+
+    if not frames:
+        raise ValueError("no frames to write")
+    picks = np.linspace(0, len(frames) - 1, min(count, len(frames))).round().astype(int)
+    strip = Image.fromarray(np.concatenate([frames[i] for i in picks], axis=1))
+    _save_atomic(Path(path), lambda tmp: strip.save(tmp, format="PNG"))
+
+
+def _save_atomic(path: Path, save: Callable[[Path], None]) -> None:
+    """Calls save(temporary file beside `path`), then renames it onto `path`."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        save(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise

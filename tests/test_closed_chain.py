@@ -1,0 +1,106 @@
+"""The closed-chain evaluation: CPU observations, targets and commands equal the MJX environment's;
+a short run of an untrained policy on the full feet and on its training feet; refusals."""
+
+import math
+from dataclasses import replace
+
+import jax
+import jax.numpy as jp
+import numpy as np
+import pytest
+from mujoco import mjx
+
+from footforge import envs, train
+from footforge.closed_chain import Controller, comparison_markdown, evaluate_closed_chain
+from footforge.envs import terrain as terrain_lib
+from footforge.envs.config import ObservationConfig
+from footforge.errors import InputError
+
+NOISELESS = ObservationConfig(noise=False)
+TILE = terrain_lib.TerrainConfig(num_levels=1, num_columns=1, tile_size_m=2.0, border_m=1.0, platform_m=0.5,
+                                 proportions=(0, 1, 0, 0, 0, 0))
+"""One rough-slope tile: the smallest heightfield with heights under the scan."""
+
+
+@pytest.mark.parametrize("task, policy", [("flat", "B"), ("rough", "P")])
+def test_cpu_controller_matches_the_mjx_env(built, monkeypatch, task, policy):
+    """Same state in, same observation (the height scan on a heightfield included), PD targets,
+    command, tracking errors and base height out, on AOF feet (its passive joints sit between the
+    legs' joints, so the index tables matter). The physics is switched off on the MJX side: the
+    two simulators differ by design, the maths around them must not, and MJX's collision code
+    would take most of a minute to compile on the CPU."""
+    monkeypatch.setattr(mjx, "step", lambda model, data: data)
+    monkeypatch.setattr(mjx, "forward", lambda model, data: data)
+    config = replace(envs.default_config(task, "aof", policy), build_dir=str(built["aof"][0]), observations=NOISELESS,
+                     terrain=TILE)
+    env = envs.from_config(config)
+    seed, action = 3, jp.linspace(-1.0, 1.0, 12)
+    control = Controller(env, env.robot, lambda obs, key: (jp.broadcast_to(action, (obs.shape[0], 12)), {}))
+    state = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(seed), 1)[0])  # the controller's key of robot 0
+    qpos = np.array(state.pipeline_state.qpos)  # the environment's spawn (on the tile for rough)
+    info, obs = control.start(qpos[None], np.zeros((1, env.robot.model.nv)), seed)
+    np.testing.assert_allclose(obs[0], state.obs, atol=1e-5)
+
+    # A state that exercises every slice: base turned and tilted, moving; joints off their defaults.
+    rng = np.random.default_rng(0)
+    qvel = rng.normal(0.0, 0.5, env.robot.model.nv)
+    quat = rng.normal(size=4)
+    qpos[3:7] = quat / np.linalg.norm(quat)
+    qpos[env.robot.actuated_qpos] += rng.normal(0.0, 0.2, 12)
+    state = state.replace(pipeline_state=state.pipeline_state.replace(qpos=jp.asarray(qpos), qvel=jp.asarray(qvel)))
+    after = jax.jit(env.step)(state, action)
+    assert not after.done  # an ended episode would restart: nothing to compare
+    _, targets, _, _, info, keys = control.act(obs, qpos[None], info)
+    np.testing.assert_allclose(targets[0], after.pipeline_state.ctrl[env.robot.actuator_ids], atol=1e-6)
+    info, obs, row = control.settle(qpos[None], qvel[None], info, keys, action[None],
+                                    after.pipeline_state.actuator_force[None])
+    np.testing.assert_allclose(obs[0], after.obs, atol=1e-5)
+    np.testing.assert_allclose(info["command"][0], after.info["command"], atol=1e-6)
+    for ours, theirs in (("lin_vel_x_error", "error/lin_vel_x_per_step"), ("lin_vel_y_error", "error/lin_vel_y_per_step"),
+                         ("yaw_rate_error", "error/yaw_rate_per_step"), ("base_height", "base_height_m_per_step")):
+        assert row[ours][0] == pytest.approx(float(after.metrics[theirs]), abs=1e-5)
+
+
+@pytest.fixture(scope="module")
+def untrained(built, tmp_path_factory):
+    """Freshly initialised B (ball) and BH (aof) policy folders."""
+    root = tmp_path_factory.mktemp("policies")
+    b = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]))
+    bh = replace(envs.default_config("flat", "aof", "BH"), build_dir=str(built["aof"][0]))
+    return {"B": train.initial_policy(b, train.PPOConfig(), root / "B", observation_size=48),
+            "BH": train.initial_policy(bh, train.PPOConfig(), root / "BH", observation_size=48 + 32)}
+
+
+def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
+    result = evaluate_closed_chain(untrained["B"], seconds=0.2, num_robots=1, build_root=built["full"][0].parent)
+    assert list(result["feet"]) == ["ball", "full"]
+    for feet, column in result["feet"].items():
+        assert column["physics_steps_per_policy_step"] == {"ball": 4, "full": 80}[feet]
+        assert column["finite"] and column["falls"] == 0 and column["fall_times_s"] == [None]
+        figures = [v for index in column["indices"].values() for v in index.values()]
+        figures += [column["simulated_s"], column["wall_s"], column["real_time_factor"]]
+        assert len(figures) == 17 and np.isfinite(figures).all()
+        assert column["traces"]["vx_m_s"].shape == (1, 10)
+    closure = result["feet"]["full"]["closure"]
+    assert result["feet"]["ball"]["closure"] is None
+    assert closure["num_closures"] == 12 and closure["num_couplings"] == 4
+    assert np.isfinite(list(closure.values())).all()
+    # The loop closures are soft constraints (solref 1 ms time constant, damping ratio 1; solimp
+    # impedance d = 0.99 at zero violation): MuJoCo holds a residual r = (1 - d) / d x a0 x (1 ms)^2,
+    # with a0 the acceleration the load would give the chain's links unconstrained. A standing
+    # robot puts about 40 N through each chain of 8 g links, a0 ~ 5e3 m/s^2: r ~ 0.05 mm. 0.5 mm
+    # leaves ten times that for touchdown peaks and is still 40 times below the 17-20 mm that
+    # MuJoCo's default settings let the loops open by.
+    assert closure["closure_gap_max_m"] < 0.5e-3
+    assert closure["closure_gap_mean_m"] <= closure["closure_gap_max_m"]
+    assert closure["coupling_max_rad"] < math.radians(1.0)  # the roll coupling, same constraint softness
+    table = comparison_markdown([result])
+    assert "ball (trained)" in table and "full (zero-shot)" in table
+
+
+def test_haptic_policies_and_bad_inputs_are_refused(untrained):
+    with pytest.raises(InputError, match="passive joints") as error:
+        evaluate_closed_chain(untrained["BH"], seconds=0.1, num_robots=1)
+    assert "blind (B) or perceptive (P)" in error.value.fix
+    with pytest.raises(InputError, match="must be positive"):
+        evaluate_closed_chain(untrained["B"], seconds=0.0)

@@ -1,0 +1,84 @@
+"""Offscreen rendering: frames, GIF and strip where an OpenGL backend exists, a clear InputError
+where none does. MuJoCo reads MUJOCO_GL once, at import, so each case runs in its own process."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+from conftest import REPO
+from PIL import Image
+
+# A red box on a checkered floor; an offscreen buffer smaller than the frames asked for below.
+RENDER = """
+import json, sys
+import mujoco, numpy as np
+from footforge.errors import InputError
+from footforge.render import render_frames, write_gif, write_strip
+
+model = mujoco.MjModel.from_xml_string('''<mujoco>
+  <visual><global offwidth="64" offheight="48"/></visual>
+  <asset><texture name="grid" type="2d" builtin="checker" rgb1=".2 .3 .4" rgb2=".1 .2 .3" width="64" height="64"/>
+    <material name="grid" texture="grid" texrepeat="8 8"/></asset>
+  <worldbody><light pos="0 0 3" dir="0 0 -1" directional="true"/>
+    <geom type="plane" size="5 5 .1" material="grid"/>
+    <body pos="0 0 .1"><freejoint/><geom type="box" size=".1 .1 .1" rgba="1 0 0 1"/></body>
+  </worldbody></mujoco>''')
+qpos = np.tile(model.qpos0, (10, 1))
+qpos[:, 0] = np.linspace(0.0, 1.0, 10)  # the box slides along x; the camera follows it
+out = sys.argv[1]
+try:
+    frames = render_frames(model, qpos, width=96, height=64, every=2, distance_m=1.0)
+except InputError as e:
+    print(json.dumps({"error": str(e)}))
+    sys.exit(0)
+write_gif(frames, out + "/video.gif", fps=10)
+write_strip(frames, out + "/strip.png", count=3)
+print(json.dumps({"frames": len(frames), "offwidth": int(model.vis.global_.offwidth)}))
+"""
+
+
+def _run(code: str, mujoco_gl: str, *args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MUJOCO_GL": mujoco_gl}
+    return subprocess.run([sys.executable, "-c", code, *args], env=env, capture_output=True, text=True,
+                          timeout=120, cwd=REPO)
+
+
+def test_render_writes_gif_and_strip_or_names_the_fix(tmp_path):
+    proc = _run(RENDER, "osmesa", str(tmp_path))
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    if "error" in result:  # a machine without OSMesa: the message says what to install
+        assert "MUJOCO_GL=osmesa" in result["error"] and "libosmesa6" in result["error"]
+        assert not list(tmp_path.iterdir())
+        return
+    assert result == {"frames": 5, "offwidth": 64}  # every 2nd of 10; the caller's model unchanged
+    with Image.open(tmp_path / "video.gif") as gif:
+        assert (gif.n_frames, gif.size, gif.info["duration"], gif.info["loop"]) == (5, (96, 64), 100, 0)
+    strip = np.asarray(Image.open(tmp_path / "strip.png").convert("RGB")).astype(int)
+    assert strip.shape == (64, 3 * 96, 3)
+    for frame in np.split(strip, 3, axis=1):
+        assert frame.std() > 10  # not one colour
+        r, g, b = frame[32, 48]
+        assert r > g + 50 and r > b + 50  # the tracked red box is in the middle
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["strip.png", "video.gif"]  # no temporary files
+
+
+def test_disabled_rendering_is_an_input_error():
+    code = ("from footforge.errors import InputError\nfrom footforge.render import check_renderer\n"
+            "try:\n    check_renderer()\nexcept InputError as e:\n    print(e)\n")
+    proc = _run(code, "disable")
+    assert proc.returncode == 0 and not proc.stderr, proc.stderr
+    assert "cannot render offscreen with MUJOCO_GL=disable" in proc.stdout
+    assert "fix: install an OpenGL backend" in proc.stdout
+
+
+def test_evaluate_video_without_renderer_exits_2_before_any_work(tmp_path):
+    out = tmp_path / "evaluation"
+    proc = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(tmp_path / "none"),
+                           "--video", "1", "--out", str(out)], env={**os.environ, "MUJOCO_GL": "disable"},
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert "MUJOCO_GL=disable" in proc.stderr and "Traceback" not in proc.stderr
+    assert not out.exists()

@@ -1,0 +1,217 @@
+"""The rough-terrain environment: spawns, height scan, contacts on the heightfield, the curriculum,
+self-restarting episodes, and a tiny multi-device training run."""
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import replace
+from types import SimpleNamespace
+
+import jax
+import jax.numpy as jp
+import mujoco
+import numpy as np
+import pytest
+from brax.envs.base import Env, State
+from conftest import REPO
+
+from footforge import envs
+from footforge.envs import curriculum, observations
+from footforge.envs.config import CurriculumConfig
+from footforge.envs.terrain import TerrainConfig
+from footforge.envs.wrappers import wrap_for_training
+
+# 3 levels x 6 columns of 4 m tiles: every kind, a terrain of 161 x 281 samples.
+SMALL = TerrainConfig(num_levels=3, num_columns=6, tile_size_m=4.0, border_m=2.0, platform_m=1.5)
+RICHEST = {"ball": "P", "aff": "PH", "aof": "PH"}
+
+
+@pytest.fixture(scope="module")
+def rough(built):
+    """Per feet, the richest policy type's env with reset and step compiled once, and a reset
+    followed by 3 steps of random actions: {feet: (env, states, step)}."""
+    out = {}
+    for feet, policy in RICHEST.items():
+        env = envs.make("rough", feet, policy, build_dir=str(built[feet][0]), terrain=SMALL)
+        step = jax.jit(env.step)
+        states = [jax.jit(env.reset)(jax.random.PRNGKey(0))]
+        for k in jax.random.split(jax.random.PRNGKey(1), 3):
+            states.append(step(states[-1], 0.3 * jax.random.normal(k, (env.action_size,))))
+        out[feet] = (env, states, step)
+    return out
+
+
+def test_reset_and_step_every_feet_and_policy_type(rough, built):
+    for feet, (env, states, _) in rough.items():
+        terrain = env.terrain
+        for state in states:
+            assert bool(jp.isfinite(state.obs).all()) and bool(jp.isfinite(state.reward)), feet
+            assert not bool(state.done), feet  # standing on its spawn platform
+        # The robot starts on its tile's platform, its feet on the terrain (base at the home height above it).
+        info, data = states[0].info, states[0].pipeline_state
+        centre = np.array(terrain.tile_center(int(info["level"]), int(info["column"])))
+        assert np.linalg.norm(np.asarray(data.qpos[:2]) - centre) <= env.config.curriculum.spawn_radius_m + 1e-6
+        assert float(env.base_height(data)) == pytest.approx(float(env.robot.home_qpos[2]), abs=1e-5)
+        assert 0 <= int(info["level"]) <= env.config.curriculum.initial_max_level
+        # Every policy type of these feet: the observations differ only in their optional slices,
+        # which the richest type computes; each type's observation of the stepped states is sized
+        # by its layout and finite.
+        for task, f, policy in envs.registry():
+            if task != "rough" or f != feet:
+                continue
+            other = envs.make("rough", feet, policy, build_dir=str(built[feet][0]), terrain=SMALL,
+                              observations=replace(env.config.observations, noise=False))
+            obs = other._observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
+            assert obs.shape == (observations.size(other.config, len(other.robot.passive_qpos)),)
+            assert bool(jp.isfinite(obs).all()), (feet, policy)
+        assert {"terrain/level_per_step", "terrain/at_level_0_per_step"} <= set(states[-1].metrics)
+    assert rough["aof"][0].observation_size == 48 + 140 + 32 and rough["ball"][0].observation_size == 188
+
+
+def test_height_scan_agrees_with_mujoco_ray_casts(rough):
+    env, states, _ = rough["aof"]
+    data = states[0].pipeline_state
+    model, cpu = env.robot.model, mujoco.MjData(env.robot.model)
+    scan_cfg, obs_cfg = env.config.height_scan, env.config.observations
+    local = np.array([(x, y) for x in scan_cfg.x_m for y in scan_cfg.y_m])
+    rng = np.random.default_rng(0)
+    floor_only = np.array([1, 0, 0, 0, 0, 0], np.uint8)  # the terrain is geom group 0, the robot 2 and 3
+    geom_id = np.zeros(1, np.int32)
+    checked = 0
+    for _ in range(20):
+        level, column = rng.integers(SMALL.num_levels), rng.integers(SMALL.num_columns)
+        cx, cy = env.terrain.tile_center(level, column)
+        xy = np.array([cx, cy]) + rng.uniform(-1.5, 1.5, 2)  # off the platform, onto the tile's relief
+        yaw = rng.uniform(-np.pi, np.pi)
+        z = env.terrain.height_at(*xy) + 0.6
+        qpos = data.qpos.at[:3].set(jp.array([*xy, z])).at[3:7].set(jp.array([np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)]))
+        scan = np.asarray(env.height_scan(data.replace(qpos=qpos)))
+        world = xy + local @ np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
+        mujoco.mj_forward(model, cpu)
+        for value, (x, y) in zip(scan, world):
+            if abs(value) >= obs_cfg.height_clip_m * obs_cfg.height_scale:
+                continue  # clipped: carries no height
+            distance = mujoco.mj_ray(model, cpu, np.array([x, y, 20.0]), np.array([0.0, 0.0, -1.0]), floor_only, 1, -1,
+                                     geom_id)
+            ray_height = 20.0 - distance
+            scan_height = z - obs_cfg.height_offset_m - value / obs_cfg.height_scale
+            assert abs(scan_height - ray_height) < 0.005, (x, y)
+            checked += 1
+    assert checked > 1000
+
+
+def test_base_and_knee_contacts_are_measured_on_the_terrain(rough):
+    """The base's and thighs' collisions are off on the heightfield: their contact is geometric."""
+    env, states, _ = rough["aof"]
+    model, cpu = env.robot.model, mujoco.MjData(env.robot.model)
+    cpu.qpos[:] = np.asarray(states[0].pipeline_state.qpos)
+
+    def flags():  # MuJoCo's poses, laid out as MJX's
+        mujoco.mj_forward(model, cpu)
+        return env.contact_flags(SimpleNamespace(geom_xpos=cpu.geom_xpos, geom_xmat=cpu.geom_xmat.reshape(-1, 3, 3)))
+    base, knees = flags()
+    assert not bool(base) and int(knees) == 0
+    ground = env.terrain.height_at(*cpu.qpos[:2])
+    cpu.qpos[2] = ground + 0.05  # base 5 cm over the ground: its box reaches under it
+    base, knees = flags()
+    assert bool(base) and int(knees) == 4
+    cpu.qpos[2] = ground + 0.6
+    cpu.qpos[3:7] = [np.cos(np.pi / 4), np.sin(np.pi / 4), 0, 0]  # rolled 90 deg onto its side
+    base, knees = flags()
+    assert not bool(base)  # 0.6 m up on its side: nothing touches
+
+
+def test_curriculum_promotes_demotes_and_recycles_the_top():
+    c, t = CurriculumConfig(), TerrainConfig()  # 8 m tiles, 10 levels, 20 s episodes
+    key = jax.random.PRNGKey(0)
+    levels = jp.array([3, 3, 3, 3, 0, 9, 9])
+    distance_m = jp.array([4.5, 3.0, 0.5, 0.5, 0.5, 4.5, 4.5])
+    speed_mps = jp.array([1.0, 0.5, 1.0, 0.0, 1.0, 1.0, 1.0])
+    new = np.asarray(curriculum.next_level(levels, distance_m, speed_mps, key, c, t, 20.0))
+    # 4.5 > 4: up; 3.0 >= 0.25 x 0.5 x 20 = 2.5: stays; 0.5 < 5: down; no command: stays;
+    # level 0 does not go below 0; past the top: a random level.
+    assert list(new[:5]) == [4, 3, 2, 3, 0]
+    assert all(0 <= lv < t.num_levels for lv in new[5:])
+    many = curriculum.next_level(jp.full(1000, 9), jp.full(1000, 5.0), jp.ones(1000), key, c, t, 20.0)
+    assert len(np.unique(np.asarray(many))) == t.num_levels  # spread over every level
+    level, column = curriculum.first_levels(key, c, t, (1000,))
+    assert int(level.max()) == c.initial_max_level and int(level.min()) == 0
+    assert len(np.unique(np.asarray(column))) == t.num_columns
+
+
+def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):
+    env, states, step = rough["aof"]
+    state = states[0]
+    info = state.info
+    last = env.config.episode_steps - 1
+    # Far from its spawn at the time-out: promoted, respawned on the next level's tile.
+    far = info | {"episode_step": jp.array(last, jp.int32), "level": jp.array(0, jp.int32),
+                  "spawn_xy": info["spawn_xy"] + jp.array([3.0, 0.0])}
+    after = step(state.replace(info=far), jp.zeros(12))
+    assert float(after.done) == 1.0 and float(after.info["time_out"]) == 1.0
+    assert int(after.info["level"]) == 1 and int(after.info["column"]) == int(info["column"])
+    assert float(after.metrics["terrain/level_per_step"]) == 0.0  # the metric is the ended episode's
+    centre = np.array(env.terrain.tile_center(1, int(info["column"])))
+    assert np.linalg.norm(np.asarray(after.pipeline_state.qpos[:2]) - centre) <= env.config.curriculum.spawn_radius_m + 1e-5
+    np.testing.assert_allclose(after.pipeline_state.qpos[:2], after.info["spawn_xy"], atol=1e-6)
+    assert float(jp.abs(after.pipeline_state.qvel).max()) == 0.0 and int(after.info["episode_step"]) == 0
+    # Idle under a 1 m/s command: demoted.
+    idle = info | {"episode_step": jp.array(last, jp.int32), "level": jp.array(2, jp.int32),
+                   "command": jp.array([1.0, 0.0, 0.0])}
+    after = step(state.replace(info=idle), jp.zeros(12))
+    assert int(after.info["level"]) == 1
+    # Mid-episode nothing moves.
+    assert int(states[-1].info["level"]) == int(info["level"])
+
+
+class _Counter(Env):
+    """A stand-in environment: its state counts steps and it ends every third step."""
+
+    def reset(self, rng):
+        return State(pipeline_state=None, obs=jp.zeros(1), reward=jp.zeros(()), done=jp.zeros(()), metrics={},
+                     info={"count": jp.zeros(())})
+
+    def step(self, state, action):
+        count = state.info["count"] + 1
+        return state.replace(obs=count[None], done=(count % 3 == 0).astype(jp.float32), info={**state.info, "count": count})
+
+    observation_size, action_size, backend = 1, 1, "mjx"
+
+
+def test_training_wrapper_keeps_the_state_of_ended_episodes():
+    env = wrap_for_training(_Counter(), episode_length=100)
+    state = env.reset(jax.random.split(jax.random.PRNGKey(0), 2))
+    for _ in range(4):
+        state = env.step(state, jp.zeros((2, 1)))
+    # Brax's AutoResetWrapper would have put the third step's state back to the reset one.
+    np.testing.assert_array_equal(state.info["count"], [4.0, 4.0])
+    assert list(np.asarray(state.info["steps"])) == [1, 1]  # restarted at the third step
+    assert list(np.asarray(state.done)) == [0, 0]
+
+
+def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
+    """train_rough.py end to end with the robots split over two forced host devices (the
+    multi-accelerator path), a perceptive policy on ball feet."""
+    out = tmp_path / "run"
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    cmd = [sys.executable, str(REPO / "pipelines/train_rough.py"), "--feet", "ball", "--policy", "P",
+           "--terrain", "num_levels=2", "--terrain", "tile_size_m=4", "--terrain", "border_m=1",
+           "--terrain", "platform_m=1.5",
+           "--build-dir", str(built["ball"][0]), "--out", str(out), "--num-envs", "4", "--unroll-length", "4",
+           "--batch-size", "4", "--minibatches", "1", "--eval-envs", "2", "--checkpoint-every", "16",
+           "--timesteps", "32"]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert (out / "terrain.png").stat().st_size > 10_000
+    assert (out / "policy" / "footforge.json").is_file()
+    lines = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    assert any("eval/episode_reward" in line for line in lines)
+    config = json.loads((out / "config.json").read_text())
+    assert config["env"]["task"] == "rough" and config["ppo"]["policy_hidden_layers"] == [512, 256, 128]
+    # Three robots do not split over two devices: a clear error.
+    bad = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--num-envs", "3", "--batch-size", "3"], env=env,
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and "multiple of the number of JAX devices" in bad.stdout + bad.stderr
+    typo = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--terrain", "levels=3"], capture_output=True, text=True)
+    assert typo.returncode == 2 and "FIELD one of num_levels" in typo.stdout + typo.stderr
