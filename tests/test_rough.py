@@ -19,7 +19,7 @@ from conftest import REPO
 from footforge import envs
 from footforge.envs import curriculum, observations
 from footforge.envs.config import CurriculumConfig
-from footforge.envs.terrain import TerrainConfig
+from footforge.envs.terrain import TerrainConfig, column_kinds
 from footforge.envs.wrappers import wrap_for_training
 
 # 3 levels x 6 columns of 4 m tiles: every kind, a terrain of 161 x 281 samples.
@@ -165,6 +165,17 @@ def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):
     assert int(states[-1].info["level"]) == int(info["level"])
 
 
+def test_zero_position_actions_hold_the_robot_up(rough):
+    """Position actions at zero keep the default pose under PD: the robot stands 1 s on its
+    spawn platform (kp 80 lets the 54 kg robot sag from 0.6 m)."""
+    env, states, step = rough["aof"]
+    state = states[0]
+    for _ in range(50):
+        state = step(state, jp.zeros(12))
+    assert float(state.done) == 0.0 and int(state.info["episode_step"]) == 50
+    assert 0.3 < float(env.base_height(state.pipeline_state)) < 0.65
+
+
 class _Counter(Env):
     """A stand-in environment: its state counts steps and it ends every third step."""
 
@@ -190,6 +201,7 @@ def test_training_wrapper_keeps_the_state_of_ended_episodes():
     assert list(np.asarray(state.done)) == [0, 0]
 
 
+@pytest.mark.slow
 def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     """train_rough.py end to end with the robots split over two forced host devices (the
     multi-accelerator path), a perceptive policy on ball feet."""
@@ -215,3 +227,29 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     assert bad.returncode == 2 and "multiple of the number of JAX devices" in bad.stdout + bad.stderr
     typo = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--terrain", "levels=3"], capture_output=True, text=True)
     assert typo.returncode == 2 and "FIELD one of num_levels" in typo.stdout + typo.stderr
+
+
+def test_rough_evaluation_output_is_complete(built, tmp_path):
+    """A perceptive ball-foot policy (freshly initialised) evaluated over every tile of a small
+    terrain: indices per kind and level, and the Figure 9 table (zero-shot on other feet is the
+    flat evaluation's test: the same code)."""
+    from footforge.train import default_ppo, initial_policy
+
+    config = replace(envs.default_config("rough", "ball", "P"), terrain=SMALL)
+    initial_policy(config, default_ppo("rough"), tmp_path / "policy", observation_size=188)
+    report = tmp_path / "eval"
+    robots = SMALL.num_levels * SMALL.num_columns
+    code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(tmp_path / "policy"),
+                           "--num-envs", str(robots), "--seconds", "0.2", "--build-root",
+                           str(built["ball"][0].parent), "--out", str(report)], capture_output=True, text=True)
+    assert code.returncode == 0, code.stderr[-3000:]
+    result = json.loads((report / "metrics.json").read_text())[0]
+    assert result["task"] == "rough" and result["feet"] == "ball" and result["seconds"] == 0.2
+    by_terrain = result["by_terrain"]
+    assert sorted(by_terrain) == sorted(set(column_kinds(SMALL)))
+    for kind, levels in by_terrain.items():
+        robots_of_kind = SMALL.num_levels * column_kinds(SMALL).count(kind)
+        assert sum(cell["robots"] for cell in levels.values()) == robots_of_kind
+        assert sorted(levels) == [str(level) for level in range(SMALL.num_levels)]
+    table = (report / "comparison.md").read_text()
+    assert "stepping_stones: vx error / falls" in table and "| P | ball | ball |" in table

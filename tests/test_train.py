@@ -63,9 +63,10 @@ def test_tiny_ppo_run_increases_the_return(built, tmp_path):
     ppo = PPOConfig(num_envs=32, unroll_length=16, batch_size=32, num_minibatches=4, num_timesteps=98_304,
                     checkpoint_every_steps=32_768, num_eval_envs=32, policy_hidden_layers=(32, 32),
                     value_hidden_layers=(32, 32), learning_rate=1e-3, seed=0)
-    curve = []
-    train.train(cfg, ppo, tmp_path / "run", progress=lambda step, total, m: curve.append(
-        (step, m["eval/episode_reward"], m["eval/avg_episode_length"])))
+    train.train(cfg, ppo, tmp_path / "run")
+    evaluations = [line for line in map(json.loads, (tmp_path / "run" / "metrics.jsonl").read_text().splitlines())
+                   if "eval/episode_reward" in line]  # the other lines: training episodes' metrics
+    curve = [(e["global_step"], e["eval/episode_reward"], e["eval/avg_episode_length"]) for e in evaluations]
     (_, first_return, first_length), (_, last_return, last_length) = curve[0], curve[-1]
     assert [c[0] for c in curve] == [0, 32_768, 65_536, 98_304]
     # The initial policy collapses in ~16 policy steps (0.3 s); after training it stands longer.
