@@ -37,6 +37,7 @@ import numpy as np
 from footforge.envs.anymal import FLOOR_GEOM, Robot, load_robot
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
+from footforge.evaluate import ACTION_CLIP
 
 FULL = "full"
 INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
@@ -47,8 +48,6 @@ TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, plat
 """"A few terrain tiles": smooth slope, rough slope, stairs down, obstacles at difficulty 0 and 0.5;
 robot i spawns on the centre of a tile of the hardest level (one kind after the other). The 20 m
 border keeps a robot walking 10 s at the fastest command on the heightfield."""
-ACTION_CLIP = 10.0
-"""Policy outputs are clipped as footforge.evaluate clips them."""
 
 
 class _State(NamedTuple):

@@ -2,7 +2,9 @@
 
 One robot per environment (Brax's wrappers batch it). Actions are joint velocities integrated
 onto the current joint positions (flat task) or offsets from the default pose, turned into
-torques by the model's PD actuators (kp 80, kd 2, +-80 N m) at every physics step.
+torques by the model's PD actuators (kp 80, kd 2, +-80 N m) at every physics step. An ended
+episode restarts inside step (footforge.envs.wrappers explains why); footforge.envs.rough
+builds the rough task on the hooks marked below.
 """
 
 from __future__ import annotations
