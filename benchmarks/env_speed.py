@@ -32,7 +32,8 @@ def main() -> None:
         for feet in args.feet:
             policies = []
             for policy in args.policies:
-                policy = "P" if (policy == "PH" and feet == "ball") else "B" if (policy == "BH" and feet == "ball") else policy
+                if feet == "ball":  # no passive joints to read: the blind or perceptive type
+                    policy = policy.replace("H", "")
                 if policy in envs.TASKS[task] and policy not in policies:
                     policies.append(policy)
             for policy in policies:

@@ -34,15 +34,12 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from footforge.envs.anymal import FLOOR_GEOM, Robot, load_robot
+from footforge.envs.anymal import Robot, ensure_built, load_robot
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
-from footforge.evaluate import ACTION_CLIP
+from footforge.evaluate import ACTION_CLIP, INDICES
 
 FULL = "full"
-INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
-           "base_height")
-"""footforge.evaluate's indices, same definitions."""
 TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, platform_m=1.0, border_m=20.0,
                               proportions=(1.0, 1.0, 0.0, 1.0, 1.0, 0.0))
 """"A few terrain tiles": smooth slope, rough slope, stairs down, obstacles at difficulty 0 and 0.5;
@@ -62,8 +59,9 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
                           progress: Callable[[str, int, int], None] | None = None) -> dict:
     """Runs `policy_dir`'s policy on the feet it was trained on and on the closed chain.
 
-    build_root: folder with one build per feet, <root>/<feet>/ (default build/); a missing one is
-    built there. terrain_tiles: a terrain (e.g. TERRAIN_TILES) instead of flat ground.
+    build_root: folder with one build per feet, <root>/<feet>/ (default build/<feet>, built on
+    first use; a missing <root>/<feet> is an input error, as for the other pipelines).
+    terrain_tiles: a terrain (e.g. TERRAIN_TILES) instead of flat ground.
     progress(feet, policy steps done, total) is called after every policy step.
 
     Returns {"policy", "policy_type", "trained_on", ..., "feet": {trained feet: column, "full":
@@ -89,15 +87,14 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
         raise InputError(f"seconds ({seconds}) and robots ({num_robots}) must be positive", fix="e.g. 10 s, 4 robots")
     # The environment whose maths the CPU runner evaluates: flat ground, or the rough task on the
     # tiles (its terrain height under the base and under the height scan).
-    folder = _build_folder(config.feet, build_root)
     if terrain_tiles:
-        env = RoughEnv(replace(config, task="rough", terrain=terrain_tiles, build_dir=str(folder)))
+        env = RoughEnv(replace(config, task="rough", terrain=terrain_tiles, build_dir=_build_dir(config.feet, build_root)))
         terrain = env.terrain
-        trained = _load(config, folder, terrain)
     else:
-        terrain, trained = None, _load(config, folder, None)
-        env = LocomotionEnv(replace(config, task="flat", build_dir=str(folder)), robot=trained)
-    full = _load(config, _build_folder(FULL, build_root), terrain, own_physics=True)
+        terrain, env = None, None
+    trained = _load(config, config.feet, build_root, terrain)
+    env = env or LocomotionEnv(replace(config, task="flat", build_dir=_build_dir(config.feet, build_root)), robot=trained)
+    full = _load(config, FULL, build_root, terrain, own_physics=True)
     steps = int(round(seconds / config.policy_dt))
     result = {"policy": str(policy_dir), "policy_type": config.policy, "trained_on": config.feet, "seconds": seconds,
               "num_robots": num_robots, "seed": seed, "policy_dt_s": config.policy_dt,
@@ -112,48 +109,25 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
     return result
 
 
-def _build_folder(feet: str, build_root: Path | None) -> Path:
-    """<build_root>/<feet> (default build/<feet>), built there on first use as anymal.ensure_built does."""
-    folder = Path(build_root or "build") / feet
-    if not (folder / "scene.xml").is_file():
-        from footforge.build import BuildOptions, build
-        build(BuildOptions(variant=feet, out_dir=folder, formats=("mjcf",)))
-    return folder
+def _build_dir(feet: str, build_root: Path | None) -> str | None:
+    """<build_root>/<feet>, or None: the environments' default, build/<feet>, built on first use."""
+    return str(Path(build_root) / feet) if build_root else None
 
 
-def _load(config, folder: Path, terrain: Terrain | None, *, own_physics: bool = False) -> Robot:
-    """The build's robot for the CPU: the environment's collision filtering and index tables;
-    physics at the environment's step and solver, or (own_physics) at the build's."""
-    spec = mujoco.MjSpec.from_file(str(folder / "scene.xml"))
-    settings = {"feet": folder.name, "build_dir": str(folder)}
+def _load(config, feet: str, build_root: Path | None, terrain: Terrain | None, *, own_physics: bool = False) -> Robot:
+    """`feet`'s robot for the CPU: the environment's index tables, on `terrain` if given (its
+    base and thighs colliding with the heightfield for real: MuJoCo on the CPU can, so falls are
+    real contacts); physics at the environment's step and solver, or (own_physics) at the build's."""
+    config = replace(config, feet=feet, build_dir=_build_dir(feet, build_root))
     if own_physics:
-        o = spec.option
+        o = mujoco.MjSpec.from_file(str(ensure_built(config) / "scene.xml")).option
         decimation = config.policy_dt / o.timestep
         if abs(decimation - round(decimation)) > 1e-9:
-            raise InputError(f"the policy step {config.policy_dt} s is not a multiple of the {folder.name} model's "
-                             f"{o.timestep} s step", file=str(folder / "robot.xml"), fix="rebuild the model")
-        settings |= {"sim_dt": o.timestep, "decimation": int(round(decimation)), "solver_iterations": o.iterations,
-                     "solver_ls_iterations": o.ls_iterations}
-    robot = load_robot(replace(config, **settings))
-    return robot if terrain is None else _on_terrain(robot, spec, terrain)
-
-
-def _on_terrain(robot: Robot, spec: mujoco.MjSpec, terrain: Terrain) -> Robot:
-    """The robot with the terrain's heightfield for floor. The floor is the world body's only
-    geom, so every geom keeps its index and the robot's tables stay valid. The CPU collides base
-    and thighs with a heightfield (MJX cannot, so RoughEnv probes them geometrically): the
-    flat-ground collision filtering is kept and falls are real contacts."""
-    from footforge.envs.terrain import add_to_spec
-
-    spec.delete(spec.geom(FLOOR_GEOM))
-    add_to_spec(spec, terrain, name=FLOOR_GEOM)
-    model = spec.compile()
-    if model.ngeom != robot.model.ngeom or model.geom(FLOOR_GEOM).id != robot.floor_geom:
-        raise InputError("the scene's world body holds geoms besides the floor", fix="rebuild with footforge build")
-    model.geom_contype[:], model.geom_conaffinity[:] = robot.model.geom_contype, robot.model.geom_conaffinity
-    for name in ("timestep", "iterations", "ls_iterations"):
-        setattr(model.opt, name, getattr(robot.model.opt, name))
-    return replace(robot, model=model)
+            raise InputError(f"the policy step {config.policy_dt} s is not a multiple of the {feet} model's "
+                             f"{o.timestep} s step", file=str(ensure_built(config) / "robot.xml"), fix="rebuild the model")
+        config = replace(config, sim_dt=o.timestep, decimation=int(round(decimation)), solver_iterations=o.iterations,
+                         solver_ls_iterations=o.ls_iterations)
+    return load_robot(config, terrain, for_mjx=False)
 
 
 def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, terrain: Terrain | None = None,
@@ -295,9 +269,8 @@ class Controller:
         from footforge.envs.locomotion import ground_contacts
 
         env = copy.copy(env)
-        env.robot = robot
+        env.robot = robot  # ANYmal's joints (defaults, ranges) are the same on every feet
         config, r = env.config, robot
-        default_q, lo, hi = jp.asarray(r.default_q), jp.asarray(r.q_limits[:, 0]), jp.asarray(r.q_limits[:, 1])
         category, floor = jp.asarray(r.geom_category), r.floor_geom
 
         def start(qpos, qvel, rng):
@@ -314,14 +287,9 @@ class Controller:
         def targets(qpos, action, info):
             rng, key_push, key_cmd, key_obs, _ = jax.random.split(info["rng"], 5)
             step = info["step"] + 1
-            if config.action == "velocity":
-                target = qpos[r.actuated_qpos] + config.action_scale * action * config.policy_dt
-            else:
-                target = default_q + config.action_scale * action
-            p = config.pushes
-            push = jax.random.uniform(key_push, (2,), minval=-p.max_speed, maxval=p.max_speed)
-            push_now = p.enabled & (step % env._push_every == 0)
-            return jp.clip(target, lo, hi), push_now, push, info | {"rng": rng, "step": step}, (key_cmd, key_obs)
+            push_now, push = env.push(step, key_push)
+            target = env.joint_targets(qpos[r.actuated_qpos], action)
+            return target, push_now, push, info | {"rng": rng, "step": step}, (key_cmd, key_obs)
 
         def act(obs, qpos, info):
             action = jp.clip(policy(obs, jax.random.PRNGKey(0))[0], -ACTION_CLIP, ACTION_CLIP)
@@ -333,11 +301,7 @@ class Controller:
 
         def settle(qpos, qvel, info, keys, action, actuator_force):
             state, (key_cmd, key_obs) = _State(qpos, qvel), keys
-            new_command, new_heading = env._sample_command(key_cmd)
-            resample = info["step"] % env._command_every == 0
-            info = info | {"command": jp.where(resample, new_command, info["command"]),
-                           "heading_target": jp.where(resample, new_heading, info["heading_target"])}
-            info["command"] = env._heading_command(info, state)
+            info = info | env.next_command(info, state, info["step"], *env._sample_command(key_cmd))
             lin, ang, _ = env.base_state(state)
             qd, command = qvel[r.actuated_dof], info["command"]
             row = {"lin_vel_x_error": jp.abs(command[0] - lin[0]), "lin_vel_y_error": jp.abs(command[1] - lin[1]),

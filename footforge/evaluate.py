@@ -21,21 +21,31 @@ from footforge.errors import InputError
 
 INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
            "base_height")
-
-
-def _feet_to_run(env_config, feet: str | None) -> str:
-    """`feet`, default the training feet; a haptic policy runs on its training feet only."""
-    feet = feet or env_config.feet
-    if env_config.haptic and feet != env_config.feet:
-        raise InputError(f"a {env_config.policy} policy trained on {env_config.feet} reads that foot's passive "
-                         f"joints; it cannot run on {feet}", fix="evaluate blind (B, P) policies zero-shot")
-    return feet
-
-
 ACTION_CLIP = 10.0
 """Policy outputs are clipped to +-this before the environment (a Gaussian mean is unbounded)."""
 SECONDS = {"flat": 60.0, "rough": 17.5}
 """The paper's evaluation length per task, s."""
+
+
+def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, build_dir: str | None):
+    """(policy, its training EnvConfig, feet, seconds, an environment of `feet` whose episodes
+    outlast `seconds`). `feet` defaults to the training feet (a haptic policy runs on those only),
+    `seconds` to SECONDS of the policy's task.
+
+    Raises:
+      InputError: a haptic policy on other feet (or no policy in the folder).
+    """
+    from footforge.envs import from_config
+    from footforge.train import load_policy
+
+    policy, env_config, _ = load_policy(policy_dir)
+    feet = feet or env_config.feet
+    if env_config.haptic and feet != env_config.feet:
+        raise InputError(f"a {env_config.policy} policy trained on {env_config.feet} reads that foot's passive "
+                         f"joints; it cannot run on {feet}", fix="evaluate blind (B, P) policies zero-shot")
+    seconds = seconds or SECONDS[env_config.task]
+    env = from_config(replace(env_config, feet=feet, build_dir=build_dir, episode_length_s=seconds + 1.0))
+    return policy, env_config, feet, seconds, env
 
 
 def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024, seconds: float | None = None,
@@ -55,16 +65,9 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     import jax
     import jax.numpy as jp
 
-    from footforge.envs import from_config
-    from footforge.train import load_policy
-
-    policy, env_config, _ = load_policy(policy_dir)
-    feet = _feet_to_run(env_config, feet)
-    seconds = seconds or SECONDS[env_config.task]
+    policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir)
+    config, robot = env.config, env.robot
     steps = int(round(seconds / env_config.policy_dt))
-    config = replace(env_config, feet=feet, build_dir=build_dir, episode_length_s=seconds + 1.0)
-    env = from_config(config)
-    robot = env.robot
     rough = config.task == "rough"
     robot_ids = np.arange(num_envs)
     levels = robot_ids % config.terrain.num_levels
@@ -165,13 +168,8 @@ def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, s
     import jax
     import jax.numpy as jp
 
-    from footforge.envs import from_config
-    from footforge.train import load_policy
-
-    policy, env_config, _ = load_policy(policy_dir)
-    feet = _feet_to_run(env_config, feet)
+    policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir)
     steps = int(round(seconds / env_config.policy_dt))
-    env = from_config(replace(env_config, feet=feet, build_dir=build_dir, episode_length_s=seconds + 1.0))
     if kind is not None and (env_config.task != "rough" or kind not in env.terrain.column_kinds):
         raise InputError(f"the policy's terrain has no '{kind}' tiles",
                          fix="record a kind of the rough terrain's proportions, or none on flat ground")

@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import copy
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
+from footforge.atomic import atomic_file
 from footforge.errors import InputError
 
 RENDER_FIX = ("install an OpenGL backend (e.g. apt install libosmesa6) and set MUJOCO_GL=osmesa "
@@ -93,8 +94,8 @@ def write_gif(frames: Sequence[np.ndarray], path: Path, fps: float) -> None:
     from PIL import Image
 
     images = [Image.fromarray(f) for f in frames]
-    _save_atomic(Path(path), lambda tmp: images[0].save(
-        tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0))
+    with atomic_file(path) as tmp:
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0)
 
 
 def write_strip(frames: Sequence[np.ndarray], path: Path, count: int = 6) -> None:
@@ -106,15 +107,5 @@ def write_strip(frames: Sequence[np.ndarray], path: Path, count: int = 6) -> Non
         raise ValueError("no frames to write")
     picks = np.linspace(0, len(frames) - 1, min(count, len(frames))).round().astype(int)
     strip = Image.fromarray(np.concatenate([frames[i] for i in picks], axis=1))
-    _save_atomic(Path(path), lambda tmp: strip.save(tmp, format="PNG"))
-
-
-def _save_atomic(path: Path, save: Callable[[Path], None]) -> None:
-    """Calls save(temporary file beside `path`), then renames it onto `path`."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        save(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_file(path) as tmp:
+        strip.save(tmp, format="PNG")

@@ -166,7 +166,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         return json.loads(state_file.read_text()).get("metrics", {})
 
     env = from_config(env_config)  # Brax evaluates on the same environment
-    writer = SummaryWriter(str(run_dir / "tensorboard"))
+    writer = SummaryWriter(str(run_dir / "tensorboard")) if primary else None
     epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
     last: dict = {}
     t0 = time.time()
@@ -193,7 +193,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         writer.flush()
         now = {k: float(v) for k, v in metrics.items() if hasattr(v, "__float__")}
         last.update(now)
-        with open(run_dir / "metrics.jsonl", "a") as f:  # the reward curve, one line per evaluation
+        with open(run_dir / "metrics.jsonl", "a") as f:  # one line per evaluation or training-episodes log
             f.write(json.dumps({"global_step": global_step, "wall_s": time.time() - t0} | now) + "\n")
         if progress:
             progress(global_step, ppo.num_timesteps, last)
@@ -213,7 +213,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         # Training episodes' metrics (episode/...: the terrain levels the curriculum reached, reward
         # terms, tracking errors), logged between evaluations.
         log_training_metrics=True, training_metrics_steps=max(ppo.checkpoint_every_steps // 4, 1))
-    writer.close()
+    if writer:
+        writer.close()
     final = latest_checkpoint(run_dir)
     if final is not None and primary:  # the policy: the last checkpoint (the final parameters) and the configs
         with atomic_directory(run_dir / "policy") as tmp:
@@ -271,7 +272,7 @@ def _policy_meta(policy_dir: Path) -> dict:
     meta_file = policy_dir / "footforge.json"
     if not meta_file.is_file():
         raise InputError(f"{policy_dir} is not a footforge policy (no footforge.json)", file=str(policy_dir),
-                         fix="pass the policy/ folder of a train_flat.py run")
+                         fix="pass the policy/ folder of a train_flat.py or train_rough.py run")
     return json.loads(meta_file.read_text())
 
 

@@ -100,7 +100,8 @@ def _override(config, assignments: list[str]):
             else:
                 changes[name] = type(default)(value)
         except ValueError:
-            raise InputError(f"--terrain {text}: '{value}' is not a {type(default).__name__}",
+            expected = "comma-separated list of numbers" if isinstance(default, tuple) else type(default).__name__
+            raise InputError(f"--terrain {text}: '{value}' is not a {expected}",
                              fix=f"e.g. --terrain {name}={','.join(map(str, default)) if isinstance(default, tuple) else default}") from None
     config = replace(config, **changes)
     config.check()

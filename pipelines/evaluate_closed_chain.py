@@ -6,7 +6,7 @@
 
 Blind (B) and perceptive (P) policies only. The closed chain steps at its own 0.25 ms (80 physics
 steps per policy step, about real time or slower per robot on one core: keep --robots small).
-Builds the full model into <build-root>/full (default build/full) if it is missing.
+Without --build-root the builds are build/<feet> (build/full for the closed chain), made on first use.
 Writes <out>/metrics.json, closed_chain.md (tracking errors, falls, closure drift and real-time
 factor per policy and feet) and closed_chain_<i>.png (forward velocity against the command on
 both feet, closure drift over time), all at once.

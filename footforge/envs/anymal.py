@@ -67,7 +67,7 @@ def ensure_built(config: EnvConfig) -> Path:
     return folder
 
 
-def load_robot(config: EnvConfig, terrain=None) -> Robot:
+def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robot:
     """The build's scene, set up for MJX as described in the module docstring.
 
     With a `terrain` (footforge.envs.terrain.Terrain) its heightfield replaces the floor plane,
@@ -75,7 +75,7 @@ def load_robot(config: EnvConfig, terrain=None) -> Robot:
     only, and a heightfield costs one prism test per sample under a geom's bounding sphere: the
     feet (small spheres or boxes) keep their collisions; the base's and thighs' (cylinders, a
     0.6 m box) are switched off and their ground contact is measured geometrically instead
-    (footforge.envs.rough).
+    (footforge.envs.rough). for_mjx=False keeps them, for MuJoCo on the CPU.
     """
     folder = ensure_built(config)
     if terrain is None:
@@ -106,7 +106,7 @@ def load_robot(config: EnvConfig, terrain=None) -> Robot:
             category[g] = GEOM_THIGH + C.LEGS.index(body.split("_")[0])
         # Hips and shank tubes: no task needs them to touch the ground. On a heightfield the base
         # and thighs are checked geometrically (module docstring).
-        if category[g] == GEOM_NONE or (terrain is not None and category[g] < GEOM_FOOT):
+        if category[g] == GEOM_NONE or (terrain is not None and for_mjx and category[g] < GEOM_FOOT):
             model.geom_contype[g] = model.geom_conaffinity[g] = 0
     joints = [model.joint(n) for n in C.ACTUATED_JOINTS]
     actuators = np.array([model.actuator(n).id for n in C.ACTUATED_JOINTS])

@@ -82,13 +82,40 @@ class LocomotionEnv(Env):
         obs = self._observe(data, info, key_obs)
         return State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info)
 
-    def _place(self, data, qpos):
-        """The robot standing still at qpos, its PD targets at qpos's joint angles."""
-        ctrl = jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(qpos[self.robot.actuated_qpos])
-        return data.replace(qpos=qpos, qvel=jp.zeros(self.mjx_model.nv), ctrl=ctrl,
-                            qacc_warmstart=jp.zeros(self.mjx_model.nv))
+    def _place(self, data, qpos, where=True):
+        """The robot standing still at qpos, its PD targets at qpos's joint angles (only where
+        `where`: the fields a restart sets, not the whole state, are selected)."""
+        nv = self.mjx_model.nv
+        fields = {"qpos": qpos, "qvel": jp.zeros(nv), "qacc_warmstart": jp.zeros(nv),
+                  "ctrl": jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(qpos[self.robot.actuated_qpos])}
+        return data.replace(**{k: jp.where(where, v, getattr(data, k)) for k, v in fields.items()})
 
-    # Where episodes start: flat ground always at the home pose; RoughEnv overrides these three.
+    # The policy's side of a step, shared with the CPU runner of footforge.closed_chain ---------
+    def joint_targets(self, q, action):
+        """PD targets of the 12 actuated joints (rad) for an action at joint angles q, within the
+        joint ranges: q + scale a dt (velocity actions) or default + scale a (position)."""
+        cfg = self.config
+        if cfg.action == "velocity":
+            target = q + cfg.action_scale * action * cfg.policy_dt
+        else:
+            target = self._default_q + cfg.action_scale * action
+        return jp.clip(target, self._q_lo, self._q_hi)
+
+    def push(self, step, key):
+        """(whether policy step `step` pushes, the planar base velocity it sets, m/s)."""
+        p = self.config.pushes
+        velocity = jax.random.uniform(key, (2,), minval=-p.max_speed, maxval=p.max_speed)
+        return p.enabled & (step % self._push_every == 0), velocity
+
+    def next_command(self, info, data, step, new_command, new_heading):
+        """info's command and heading target after policy step `step`: redrawn every
+        resample_s, the yaw-rate command steering to the heading."""
+        resample = step % self._command_every == 0
+        info = info | {"command": jp.where(resample, new_command, info["command"]),
+                       "heading_target": jp.where(resample, new_heading, info["heading_target"])}
+        return {"command": self._heading_command(info, data), "heading_target": info["heading_target"]}
+
+    # Where episodes start: flat ground always at the home pose; RoughEnv overrides these hooks.
     def _first_spawn_info(self, key) -> dict:
         """Per-robot state that lives across episodes (the rough task's curriculum), at reset."""
         return {}
@@ -108,26 +135,17 @@ class LocomotionEnv(Env):
         data, info = state.pipeline_state, dict(state.info)
         rng, key_push, key_cmd, key_obs, key_spawn = jax.random.split(info["rng"], 5)
         step = info["step"] + 1
-        q = data.qpos[r.actuated_qpos]
-        if cfg.action == "velocity":
-            target = q + cfg.action_scale * action * cfg.policy_dt
-        else:
-            target = self._default_q + cfg.action_scale * action
-        target = jp.clip(target, self._q_lo, self._q_hi)
+        target = self.joint_targets(data.qpos[r.actuated_qpos], action)
         data = data.replace(ctrl=data.ctrl.at[self._ctrl_order].set(target))
-        if cfg.pushes.enabled:  # a push sets the base's planar velocity, then the physics runs
-            push = jax.random.uniform(key_push, (2,), minval=-cfg.pushes.max_speed, maxval=cfg.pushes.max_speed)
-            data = data.replace(qvel=jp.where(step % self._push_every == 0, data.qvel.at[:2].set(push), data.qvel))
+        push_now, push = self.push(step, key_push)  # sets the base's planar velocity, then the physics runs
+        data = data.replace(qvel=jp.where(push_now, data.qvel.at[:2].set(push), data.qvel))
 
         def physics(d, _):
             return mjx.step(self.mjx_model, d), None
         data, _ = jax.lax.scan(physics, data, None, length=cfg.decimation)
 
         new_command, new_heading = self._sample_command(key_cmd)
-        resample = step % self._command_every == 0
-        info["command"] = jp.where(resample, new_command, info["command"])
-        info["heading_target"] = jp.where(resample, new_heading, info["heading_target"])
-        info["command"] = self._heading_command(info, data)
+        info.update(self.next_command(info, data, step, new_command, new_heading))
 
         terms, errors = self._reward_terms(data, info, action)
         scales = cfg.rewards
@@ -156,7 +174,7 @@ class LocomotionEnv(Env):
         # state and lose the curriculum's per-robot state.
         qvel = data.qvel[r.actuated_dof]
         info.update(self._next_spawn_info(info, data, ended, key_spawn))
-        data = jax.tree.map(lambda a, b: jp.where(ended, a, b), self._place(data, self._spawn_qpos(info)), data)
+        data = self._place(data, self._spawn_qpos(info), where=ended)
         info.update(rng=rng, step=step, episode_step=jp.where(ended, 0, episode_step),
                     time_out=time_out.astype(jp.float32), last_action=jp.where(ended, 0.0, action),
                     last_joint_vel=jp.where(ended, 0.0, qvel),
