@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Callable
 
-from footforge.atomic import atomic_directory
+from footforge.atomic import atomic_directory, atomic_file
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 
@@ -166,6 +166,11 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         return json.loads(state_file.read_text()).get("metrics", {})
 
     env = from_config(env_config)  # Brax evaluates on the same environment
+    if primary and env_config.task == "rough":  # the terrain this run walks
+        from footforge.envs.terrain import preview
+
+        with atomic_file(run_dir / "terrain.png") as tmp:
+            preview(env.terrain, tmp)
     writer = SummaryWriter(str(run_dir / "tensorboard")) if primary else None
     epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
     last: dict = {}

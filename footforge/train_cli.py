@@ -54,7 +54,6 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
             env_config = replace(env_config, build_dir=str(args.build_dir))
         if task == "rough":
             env_config = replace(env_config, terrain=_override(env_config.terrain, args.terrain))
-            _write_terrain_preview(env_config, args.out)
         overrides = {k: v for k, v in {
             "num_envs": args.num_envs, "num_timesteps": args.timesteps, "unroll_length": args.unroll_length,
             "batch_size": args.batch_size, "num_minibatches": args.minibatches,
@@ -106,14 +105,3 @@ def _override(config, assignments: list[str]):
     config = replace(config, **changes)
     config.check()
     return config
-
-
-def _write_terrain_preview(env_config, run_dir: Path) -> None:
-    """<run>/terrain.png: the terrain the run trains on (regenerated from its seed, 0.1 s)."""
-    from footforge.atomic import atomic_file
-    from footforge.envs.terrain import generate, preview
-
-    env_config.terrain.check()
-    run_dir.mkdir(parents=True, exist_ok=True)
-    with atomic_file(run_dir / "terrain.png") as tmp:
-        preview(generate(env_config.terrain), tmp)
