@@ -37,7 +37,7 @@ import numpy as np
 from footforge.envs.anymal import Robot, ensure_built, load_robot
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
-from footforge.evaluate import ACTION_CLIP, INDICES
+from footforge.evaluate import INDICES
 
 FULL = "full"
 TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, platform_m=1.0, border_m=20.0,
@@ -278,7 +278,8 @@ class Controller:
             rng, key_cmd, _ = jax.random.split(rng, 3)  # the third: the environment's spawn
             command, heading = env._sample_command(key_cmd)
             info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(12),
-                    "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32)}
+                    "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32),
+                    "target": qpos[r.actuated_qpos]}  # the PD targets start at the joint angles
             info["command"] = env._heading_command(info, state)
             rng, key_obs = jax.random.split(rng)
             info["rng"] = rng
@@ -288,11 +289,11 @@ class Controller:
             rng, key_push, key_cmd, key_obs, _ = jax.random.split(info["rng"], 5)
             step = info["step"] + 1
             push_now, push = env.push(step, key_push)
-            target = env.joint_targets(qpos[r.actuated_qpos], action)
-            return target, push_now, push, info | {"rng": rng, "step": step}, (key_cmd, key_obs)
+            target = env.joint_targets(info["target"], action)
+            return target, push_now, push, info | {"rng": rng, "step": step, "target": target}, (key_cmd, key_obs)
 
         def act(obs, qpos, info):
-            action = jp.clip(policy(obs, jax.random.PRNGKey(0))[0], -ACTION_CLIP, ACTION_CLIP)
+            action = env.clip_action(policy(obs, jax.random.PRNGKey(0))[0])
             return action, *jax.vmap(targets)(qpos, action, info)
 
         def touching(geoms, dists):

@@ -21,8 +21,6 @@ from footforge.errors import InputError
 
 INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
            "base_height")
-ACTION_CLIP = 10.0
-"""Policy outputs are clipped to +-this before the environment (a Gaussian mean is unbounded)."""
 SECONDS = {"flat": 60.0, "rough": 17.5}
 """The paper's evaluation length per task, s."""
 
@@ -77,7 +75,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
         # The robots keep walking without resets; a fallen (or diverged) one is masked from then on.
         state, prev_qd, alive, feet_xy, base_xy, touched = carry
         action, _ = policy(state.obs, key)
-        action = jp.clip(action, -ACTION_CLIP, ACTION_CLIP)
+        action = env.clip_action(action)
         last_action = state.info["last_action"]
         state = env.step(state, action)
         d, m = state.pipeline_state, state.metrics
@@ -182,7 +180,7 @@ def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, s
 
     def one_step(state, key):
         action, _ = policy(state.obs, key)
-        state = env.step(state, jp.clip(action, -ACTION_CLIP, ACTION_CLIP))
+        state = env.step(state, action)
         return state, state.pipeline_state.qpos
 
     @jax.jit

@@ -75,9 +75,12 @@ class PPOConfig:
 
 
 def default_ppo(task: str, **overrides) -> PPOConfig:
-    """The paper's PPO settings for a task: rough terrain uses the larger 512-256-128 networks."""
+    """The paper's PPO settings for a task: rough terrain uses the larger 512-256-128 networks and
+    the rough baseline's budget (OmniIsaacGymEnvs' AnymalTerrainPPO: 2000 iterations of 2048
+    robots x 48 steps, about 200 M steps; the paper stopped when 1000 iterations brought no gain)."""
     if task == "rough":
-        overrides = {"policy_hidden_layers": (512, 256, 128), "value_hidden_layers": (512, 256, 128)} | overrides
+        overrides = {"policy_hidden_layers": (512, 256, 128), "value_hidden_layers": (512, 256, 128),
+                     "num_timesteps": 200_000_000} | overrides
     return PPOConfig(**overrides)
 
 
@@ -131,6 +134,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     from tensorboardX import SummaryWriter
 
     from footforge.envs import from_config
+    from footforge.envs.randomization import randomizer
     from footforge.envs.wrappers import wrap_for_training
 
     import jax
@@ -215,6 +219,9 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         network_factory=network_factory(ppo), seed=ppo.seed + 1000 * resumes, num_evals=epochs + 1,
         num_eval_envs=ppo.num_eval_envs, progress_fn=log, policy_params_fn=save,
         restore_params=tuple(restore) if restore is not None else None, wrap_env_fn=wrap_for_training,
+        randomization_fn=randomizer(env),  # EnvConfig.randomization: one draw per robot for the run
+        # Evaluations (the learning curve) run the policy's mean, as a deployed policy runs.
+        deterministic_eval=True,
         # Training episodes' metrics (episode/...: the terrain levels the curriculum reached, reward
         # terms, tracking errors), logged between evaluations.
         log_training_metrics=True, training_metrics_steps=max(ppo.checkpoint_every_steps // 4, 1))

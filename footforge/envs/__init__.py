@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from footforge.envs.config import CommandConfig, EnvConfig, RewardScales, check_feet_and_policy
+from footforge.envs.config import CommandConfig, EnvConfig, ResetConfig, RewardScales, check_feet_and_policy
 from footforge.errors import InputError
 
 TASKS = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
@@ -34,8 +34,10 @@ def default_config(task: str, feet: str, policy: str) -> EnvConfig:
     check_feet_and_policy(feet, policy)
     if task == "flat":
         # The flat baseline's published scales where it has them (the rest: the rough baseline's).
+        # Its reset puts the joints at the defaults (only their velocities are drawn).
         flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
-        return EnvConfig(task="flat", feet=feet, policy=policy, action="velocity", rewards=flat_rewards)
+        return EnvConfig(task="flat", feet=feet, policy=policy, action="velocity", rewards=flat_rewards,
+                         reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)))
     # The rough baseline: position targets default + 0.5 a, planar commands in [-1, 1] m/s with
     # slow ones zeroed.
     commands = CommandConfig(lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-1.0, 1.0), zero_below=0.25)

@@ -63,6 +63,11 @@ class RewardScales:
     base_height_target_m: float = 0.52
     clip_total_at_zero: bool = True
     """The baseline clips the summed reward at zero from below."""
+    fall: float = -1.0
+    """Added once, after the clip and not multiplied by dt, on the step where an episode ends by a
+    fall (base or knee contact, or a diverged simulation), not by a time-out. The paper penalises
+    falls without a value; OmniIsaacGymEnvs' flat Anymal adds -1 after its clip (its rough task's
+    -1 x dt comes before the clip, which erases it), so footforge follows the flat task in both."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +97,42 @@ class ObservationConfig:
     noise: bool = True
     """Add the uniform noise (off for evaluation of the noiseless state)."""
     clip: float = 5.0
+
+
+@dataclass(frozen=True)
+class ResetConfig:
+    """The joint state an episode starts from (OmniIsaacGymEnvs' reset_idx): the default angles
+    times a factor drawn per joint, and small random joint velocities. Base pose and velocity are
+    not randomised (the baselines spawn the base at rest)."""
+
+    joint_pos_factor_range: tuple[float, float] = (0.5, 1.5)
+    """Each actuated joint starts at default x U(lo, hi) (the rough baseline's (0.5, 1.5); its flat
+    task starts at the defaults, (1, 1)), clipped to the joint range."""
+    joint_vel_max: float = 0.1
+    """Each actuated joint starts with a velocity drawn in [-max, max], rad/s (both baselines)."""
+
+
+@dataclass(frozen=True)
+class RandomizationConfig:
+    """Domain randomisation, drawn once per robot (per environment slot) when training starts, as
+    legged_gym draws it when it creates its environments. Each is off where its range is None.
+    Defaults: on where legged_gym's base configuration has it on (friction), off where it is off
+    (payload) or absent (motor strength); the paper's Isaac Sim baseline randomises none."""
+
+    friction_range: tuple[float, float] | None = (0.5, 1.25)
+    """Sliding friction coefficient of every contact of the robot with the ground (legged_gym
+    friction_range, on by default there)."""
+    payload_mass_kg_range: tuple[float, float] | None = None
+    """Mass added to the base at its centre of mass, kg; legged_gym's added_mass_range is (-1, 1),
+    off by default there. The base's inertia scales with its mass."""
+    motor_strength_range: tuple[float, float] | None = None
+    """Factor on every actuator's PD gains and torque limit; (0.9, 1.1) is the usual range of
+    legged_gym's successors (legged_gym itself has none)."""
+
+    @property
+    def enabled(self) -> bool:
+        return any(r is not None for r in (self.friction_range, self.payload_mass_kg_range,
+                                           self.motor_strength_range))
 
 
 @dataclass(frozen=True)
@@ -149,16 +190,37 @@ class EnvConfig:
     episode_length_s: float = 20.0
     """Time-outs end an episode as a truncation (PPO bootstraps them)."""
     action: Literal["velocity", "position"] = "velocity"
-    """velocity: targets = q + action_scale * a * dt (flat task); position: targets = default + action_scale * a."""
+    """How the 12 policy outputs a (clipped to +-action_clip) become the PD targets (rad), kept
+    within the joint ranges:
+
+    - velocity (flat task): joint velocities integrated onto the previous *target*,
+      target_t = target_t-1 + action_scale x a x policy_dt, with target_0 the joint angles the
+      episode starts at. This is OmniIsaacGymEnvs' flat Anymal (`current_targets += 13.5 a dt`
+      with rl_games' actions clipped to [-1, 1]). The paper says the velocities are "integrated
+      with the current joint positions"; read literally (target = q + 13.5 a dt) a zero action
+      lets the PD target follow the sagging joints and the robot collapses in 0.4 s, so the
+      baseline's form, under which a zero action holds the pose, is the one followed.
+    - position (rough task): target = default + action_scale x a (OmniIsaacGymEnvs'
+      AnymalTerrain and legged_gym)."""
     action_scale: float = 13.5
     """rad/s per unit action (velocity) or rad per unit action (position)."""
+    action_clip: float = 1.0
+    """Policy outputs are clipped to +-this before they are used (rewards and the last-action
+    observation see the clipped value): rl_games clips to the baselines' action space [-1, 1]."""
     solver_iterations: int = 4
-    """MJX Newton iterations per step (Playground uses 1-4)."""
+    """MJX Newton iterations per step (Playground uses 1-4). The contact model itself (friction
+    cone, impratio, solref, solimp) is the build's, from the parameter file's `contact` block."""
     solver_ls_iterations: int = 8
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)
     pushes: PushConfig = field(default_factory=PushConfig)
+    reset: ResetConfig = field(default_factory=ResetConfig)
+    randomization: RandomizationConfig = field(default_factory=RandomizationConfig)
+    privileged_critic: bool = False
+    """Asymmetric actor-critic: the value network also reads privileged observations (true base
+    velocity, foot contact forces, terrain heights around the base, ground friction) that the
+    policy never sees. Off by default, as the paper (a shared observation)."""
     terrain: TerrainConfig = field(default_factory=TerrainConfig)
     """Rough task only."""
     height_scan: HeightScanConfig = field(default_factory=HeightScanConfig)

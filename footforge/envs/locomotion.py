@@ -1,16 +1,20 @@
 """ANYmal C walking on flat ground under velocity commands: an MJX environment for Brax's PPO.
 
-One robot per environment (Brax's wrappers batch it). Actions are joint velocities integrated
-onto the current joint positions (flat task) or offsets from the default pose, turned into
-torques by the model's PD actuators (kp 80, kd 2, +-80 N m) at every physics step. An ended
-episode restarts inside step (footforge.envs.wrappers explains why); footforge.envs.rough
-builds the rough task on the hooks marked below.
+One robot per environment (Brax's wrappers batch it). Actions, clipped to +-1, are joint
+velocities integrated onto the previous PD target (flat task) or offsets from the default pose
+(EnvConfig.action explains both), turned into torques by the model's PD actuators (kp 80, kd 2,
++-80 N m) at every physics step. An ended episode restarts inside step (footforge.envs.wrappers
+explains why); footforge.envs.rough builds the rough task on the hooks marked below.
+
+`sys` is the MJX model; Brax's DomainRandomizationVmapWrapper swaps it per robot
+(footforge.envs.randomization).
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jp
+import mujoco
 from brax import math as brax_math
 from brax.envs.base import Env, State
 from mujoco import mjx
@@ -38,7 +42,7 @@ class LocomotionEnv(Env):
         self.config = config
         self.robot = robot or load_robot(config)
         r = self.robot
-        self.mjx_model = mjx.put_model(r.model)
+        self.sys = mjx.put_model(r.model)
         self._n_passive = len(r.passive_qpos)
         self._obs_size = observations.size(config, self._n_passive)
         self._geom_category = jp.asarray(r.geom_category)
@@ -46,12 +50,24 @@ class LocomotionEnv(Env):
         self._ctrl_order = jp.asarray(r.actuator_ids)
         self._default_q = jp.asarray(r.default_q)
         self._q_lo, self._q_hi = jp.asarray(r.q_limits[:, 0]), jp.asarray(r.q_limits[:, 1])
+        home = mujoco.MjData(r.model)
+        home.qpos[:] = r.home_qpos
+        mujoco.mj_kinematics(r.model, home)
+        self._home_site_clearance = float(home.site_xpos[r.foot_sites, 2].min())  # flat ground at z = 0
         self._push_every = max(1, int(round(config.pushes.interval_s / config.policy_dt)))
         self._command_every = max(1, int(round(config.commands.resample_s / config.policy_dt)))
 
+    @property
+    def mjx_model(self):
+        """The MJX model this robot steps (per robot under domain randomisation)."""
+        return self.sys
+
     # Brax Env interface -------------------------------------------------------------------
     @property
-    def observation_size(self) -> int:
+    def observation_size(self):
+        """The policy's observation width; with a privileged critic, Brax's dict of shapes."""
+        if self.config.privileged_critic:
+            return {"state": (self._obs_size,), "privileged_state": (self._obs_size + self._privileged_size,)}
         return self._obs_size
 
     @property
@@ -63,17 +79,18 @@ class LocomotionEnv(Env):
         return "mjx"
 
     def reset(self, rng: jax.Array) -> State:
-        rng, key_cmd, key_spawn = jax.random.split(rng, 3)
+        rng, key_cmd, key_spawn, key_joints = jax.random.split(rng, 4)
         data = mjx.make_data(self.mjx_model)
         info = {"rng": rng, "last_action": jp.zeros(N_ACTUATED), "last_joint_vel": jp.zeros(N_ACTUATED),
                 "step": jp.zeros((), jp.int32), "episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(())}
         info |= self._first_spawn_info(key_spawn)
-        data = self._place(data, self._spawn_qpos(info))
+        data = self._place(data, *self._start_state(info, key_joints))
+        info["target"] = data.ctrl[self._ctrl_order]
         data = mjx.forward(self.mjx_model, data)
         command, heading = self._sample_command(key_cmd)
         info |= {"command": command, "heading_target": heading}
         info["command"] = self._heading_command(info, data)
-        metrics = {f"reward/{t}": jp.zeros(()) for t in rewards.TERMS}
+        metrics = {f"reward/{t}": jp.zeros(()) for t in (*rewards.TERMS, "fall")}
         metrics |= {k: jp.zeros(()) for k in ("error/lin_vel_x_per_step", "error/lin_vel_y_per_step",
                                               "error/yaw_rate_per_step", "base_height_m_per_step", "diverged")}
         metrics |= self._task_metrics(info)
@@ -82,21 +99,42 @@ class LocomotionEnv(Env):
         obs = self._observe(data, info, key_obs)
         return State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info)
 
-    def _place(self, data, qpos, where=True):
-        """The robot standing still at qpos, its PD targets at qpos's joint angles (only where
-        `where`: the fields a restart sets, not the whole state, are selected)."""
-        nv = self.mjx_model.nv
-        fields = {"qpos": qpos, "qvel": jp.zeros(nv), "qacc_warmstart": jp.zeros(nv),
+    def _place(self, data, qpos, qvel, where=True):
+        """The robot at (qpos, qvel), its PD targets at qpos's joint angles (only where `where`:
+        the fields a restart sets, not the whole state, are selected)."""
+        fields = {"qpos": qpos, "qvel": qvel, "qacc_warmstart": jp.zeros(self.mjx_model.nv),
                   "ctrl": jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(qpos[self.robot.actuated_qpos])}
         return data.replace(**{k: jp.where(where, v, getattr(data, k)) for k, v in fields.items()})
 
+    def _start_state(self, info, key):
+        """(qpos, qvel) an episode starts from: the spawn pose with the actuated joints at
+        default x U(EnvConfig.reset.joint_pos_factor_range) within their ranges and velocities
+        in +-joint_vel_max (OmniIsaacGymEnvs' reset_idx), the base lowered or raised so that
+        the lowest foot touchdown point is on the ground (straighter legs would start buried)."""
+        r, cfg = self.robot, self.config.reset
+        k_pos, k_vel = jax.random.split(key)
+        lo, hi = cfg.joint_pos_factor_range
+        q = self._default_q * jax.random.uniform(k_pos, (N_ACTUATED,), minval=lo, maxval=hi)
+        qpos = self._spawn_qpos(info).at[r.actuated_qpos].set(jp.clip(q, self._q_lo, self._q_hi))
+        qvel = jp.zeros(self.mjx_model.nv).at[r.actuated_dof].set(
+            jax.random.uniform(k_vel, (N_ACTUATED,), minval=-cfg.joint_vel_max, maxval=cfg.joint_vel_max))
+        if lo != 1.0 or hi != 1.0:
+            sites = mjx.kinematics(self.mjx_model, mjx.make_data(self.mjx_model).replace(qpos=qpos)).site_xpos[r.foot_sites]
+            clearance = jp.min(sites[:, 2] - self.terrain_height(sites[:, :2]))
+            qpos = qpos.at[2].add(self._home_site_clearance - clearance)
+        return qpos, qvel
+
     # The policy's side of a step, shared with the CPU runner of footforge.closed_chain ---------
-    def joint_targets(self, q, action):
-        """PD targets of the 12 actuated joints (rad) for an action at joint angles q, within the
-        joint ranges: q + scale a dt (velocity actions) or default + scale a (position)."""
+    def clip_action(self, action):
+        """The policy output as the environment uses it, within +-EnvConfig.action_clip."""
+        return jp.clip(action, -self.config.action_clip, self.config.action_clip)
+
+    def joint_targets(self, previous_target, action):
+        """PD targets of the 12 actuated joints (rad) for a clipped action, within the joint
+        ranges: previous_target + scale a dt (velocity actions) or default + scale a (position)."""
         cfg = self.config
         if cfg.action == "velocity":
-            target = q + cfg.action_scale * action * cfg.policy_dt
+            target = previous_target + cfg.action_scale * action * cfg.policy_dt
         else:
             target = self._default_q + cfg.action_scale * action
         return jp.clip(target, self._q_lo, self._q_hi)
@@ -133,9 +171,10 @@ class LocomotionEnv(Env):
     def step(self, state: State, action: jax.Array) -> State:
         cfg, r = self.config, self.robot
         data, info = state.pipeline_state, dict(state.info)
-        rng, key_push, key_cmd, key_obs, key_spawn = jax.random.split(info["rng"], 5)
+        rng, key_push, key_cmd, key_obs, key_spawn, key_joints = jax.random.split(info["rng"], 6)
         step = info["step"] + 1
-        target = self.joint_targets(data.qpos[r.actuated_qpos], action)
+        action = self.clip_action(action)
+        target = self.joint_targets(info["target"], action)
         data = data.replace(ctrl=data.ctrl.at[self._ctrl_order].set(target))
         push_now, push = self.push(step, key_push)  # sets the base's planar velocity, then the physics runs
         data = data.replace(qvel=jp.where(push_now, data.qvel.at[:2].set(push), data.qvel))
@@ -151,16 +190,19 @@ class LocomotionEnv(Env):
         scales = cfg.rewards
         weighted = {t: terms[t] * getattr(scales, t) * cfg.policy_dt for t in rewards.TERMS}
         reward = sum(weighted.values())
-        if scales.clip_total_at_zero:
-            reward = jp.maximum(reward, 0.0)
-        # A robot whose simulation diverged ends its episode with zero reward and zero metrics;
-        # its NaNs must reach neither the returns nor the policy's inputs.
+        # A robot whose simulation diverged ends its episode as a fall with zero metrics; its
+        # NaNs must reach neither the returns nor the policy's inputs. Finiteness is checked
+        # before the clip, which would turn -inf or NaN into 0.
         finite = (jp.isfinite(data.qpos).all() & jp.isfinite(data.qvel).all() & jp.isfinite(reward)
                   & jp.isfinite(data.actuator_force).all())
+        if scales.clip_total_at_zero:
+            reward = jp.maximum(reward, 0.0)
         reward = jp.where(finite, reward, 0.0)
         weighted = {t: jp.where(finite, v, 0.0) for t, v in weighted.items()}
         errors = {k: jp.where(finite, v, 0.0) for k, v in errors.items()}
         terminated = self._terminated(data) | ~finite
+        fall_penalty = scales.fall * terminated  # after the clip (RewardScales.fall)
+        reward = reward + fall_penalty
         # A time-out is reported as done with info['time_out'] = 1, which PPO
         # (bootstrap_on_timeout) bootstraps instead of treating as a fall.
         episode_step = info["episode_step"] + 1
@@ -168,14 +210,15 @@ class LocomotionEnv(Env):
         ended = terminated | time_out
         metrics = dict(state.metrics)  # Brax's wrappers add keys of their own: keep them
         metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors | self._task_metrics(info) | {
-            "diverged": (~finite).astype(jp.float32)})
+            "reward/fall": fall_penalty, "diverged": (~finite).astype(jp.float32)})
         # The environment restarts ended episodes itself (footforge.envs.wrappers): a new spawn,
         # no previous action, a new command. Brax's auto-reset would restore one fixed first
         # state and lose the curriculum's per-robot state.
         qvel = data.qvel[r.actuated_dof]
         info.update(self._next_spawn_info(info, data, ended, key_spawn))
-        data = self._place(data, self._spawn_qpos(info), where=ended)
+        data = self._place(data, *self._start_state(info, key_joints), where=ended)
         info.update(rng=rng, step=step, episode_step=jp.where(ended, 0, episode_step),
+                    target=jp.where(ended, data.ctrl[self._ctrl_order], target),
                     time_out=time_out.astype(jp.float32), last_action=jp.where(ended, 0.0, action),
                     last_joint_vel=jp.where(ended, 0.0, qvel),
                     command=jp.where(ended, new_command, info["command"]),

@@ -73,8 +73,9 @@ class RoughEnv(LocomotionEnv):
         info = state.info | {"level": level, "column": column, "spawn_xy": xy, "spawn_yaw": yaw}
         if forward_mps is not None:
             info |= {"command": jp.array([forward_mps, 0.0, 0.0]), "heading_target": yaw}
-        data = mjx.forward(self.mjx_model, self._place(state.pipeline_state, self._spawn_qpos(info)))
-        info["command"] = self._heading_command(info, data)
+        data = mjx.forward(self.mjx_model, self._place(state.pipeline_state,
+                                                       *self._start_state(info, jax.random.fold_in(rng, 2))))
+        info |= {"target": data.ctrl[self._ctrl_order], "command": self._heading_command(info, data)}
         return state.replace(pipeline_state=data, obs=self._observe(data, info, key), info=info)
 
     # Curriculum and spawns -------------------------------------------------------------------

@@ -1,0 +1,76 @@
+"""Does PPO learn on this machine? The longest flat-ground training a 2-core CPU affords.
+
+Ball feet, flat task, the paper's networks and PPO settings, with a command range a few million
+steps can reach (forward -1..1 m/s, lateral -0.5..0.5 m/s, heading-driven yaw rate; the task's
+default is -2..2 m/s forward, which takes the GPU budget). Prints one line per evaluation
+(deterministic policy, --eval-envs robots, whole 20 s episodes): env steps, wall time, mean
+episode length, forward tracking error, return; then one JSON line with the whole curve.
+
+    python benchmarks/learning_cpu.py --out /tmp/learning --timesteps 5000000
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", type=Path, required=True, help="run folder (a new one)")
+    p.add_argument("--feet", default="ball", choices=("ball", "aff", "aof"))
+    p.add_argument("--timesteps", type=int, default=5_000_000)
+    p.add_argument("--num-envs", type=int, default=128)
+    p.add_argument("--eval-every", type=int, default=500_000, help="env steps between evaluations")
+    p.add_argument("--eval-envs", type=int, default=64)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--build-dir", type=Path, help="footforge build of the feet (default build/<feet>)")
+    args = p.parse_args(argv)
+    if args.out.exists():
+        p.error(f"--out {args.out} exists; give a new folder")
+
+    import jax
+
+    from footforge import envs, train
+
+    cfg = envs.default_config("flat", args.feet, "B")
+    cfg = replace(cfg, build_dir=str(args.build_dir) if args.build_dir else None,
+                  commands=replace(cfg.commands, lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-0.5, 0.5)))
+    ppo = train.default_ppo("flat", num_envs=args.num_envs, num_timesteps=args.timesteps, unroll_length=24,
+                            batch_size=args.num_envs // 2, num_minibatches=4, checkpoint_every_steps=args.eval_every,
+                            num_eval_envs=args.eval_envs, seed=args.seed)
+    t0 = time.time()
+    print("env steps | wall s | episode length (policy steps) | forward error m/s | return", flush=True)
+
+    seen = []
+
+    def progress(step, total, metrics):
+        # Called after evaluations and after logs of training episodes, with the latest value of
+        # every metric: a new evaluation is one whose figures changed.
+        key = (metrics.get("eval/episode_reward"), metrics.get("eval/avg_episode_length"))
+        if key[0] is None or (seen and seen[-1] == key):
+            return
+        seen.append(key)
+        print(f"{step:>9,} | {time.time() - t0:6.0f} | {metrics['eval/avg_episode_length']:6.1f} | "
+              f"{metrics['eval/episode_error/lin_vel_x_per_step']:.3f} | {metrics['eval/episode_reward']:.3f}",
+              flush=True)
+
+    train.train(cfg, ppo, args.out, progress=progress)
+    curve = [{"env_steps": e["global_step"], "wall_s": round(e["wall_s"], 1),
+              "episode_length": e["eval/avg_episode_length"],
+              "forward_error_mps": e["eval/episode_error/lin_vel_x_per_step"], "return": e["eval/episode_reward"]}
+             for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines())
+             if "eval/episode_reward" in e]
+    print(json.dumps({"benchmark": "learning_cpu", "machine": platform.platform(), "cpus": jax.device_count(),
+                      "feet": args.feet, "timesteps": args.timesteps, "num_envs": args.num_envs,
+                      "wall_s": round(time.time() - t0, 1), "curve": curve}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
