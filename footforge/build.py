@@ -279,7 +279,8 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
                 report["closure_residual_at_home_m"] = max(gaps.values())
         elif options.variant in ("aof", "aff"):
             with stage("compare mass properties"):
-                full_robot = build_robot(robot_parsed, full_foot, variant="full", params=params, friction=friction)
+                full_robot = build_robot(robot_parsed, full_foot, variant="full", params=params, friction=friction,
+                                         stand_keyframe=False)
                 full_model = foot_lib.compile_model(full_robot.mjcf)
                 roots = [f"{C.FOOT_MODEL_NAME.format(leg=leg)}/{foot.root_body}" for leg in C.LEGS]
                 comparison = compare_mass_properties(robot_model, full_model, "home", roots)

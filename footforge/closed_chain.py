@@ -126,7 +126,7 @@ def _load(config, feet: str, build_root: Path | None, terrain: Terrain | None, *
             raise InputError(f"the policy step {config.policy_dt} s is not a multiple of the {feet} model's "
                              f"{o.timestep} s step", file=str(ensure_built(config) / "robot.xml"), fix="rebuild the model")
         config = replace(config, sim_dt=o.timestep, decimation=int(round(decimation)), solver_iterations=o.iterations,
-                         solver_ls_iterations=o.ls_iterations)
+                         solver_ls_iterations=o.ls_iterations, contact_model="build")
     return load_robot(config, terrain, for_mjx=False)
 
 
@@ -140,11 +140,11 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     control = Controller(env, robot, policy)
     datas = [mujoco.MjData(model) for _ in range(num_robots)]
     for i, d in enumerate(datas):
-        d.qpos[:] = robot.home_qpos
+        d.qpos[:] = robot.stand_qpos  # at rest under the default targets, as the environment starts
         if terrain is not None:
             d.qpos[:2] = _spawn(terrain, i)
             d.qpos[2] += terrain.height_at(*d.qpos[:2])
-        d.ctrl[robot.actuator_ids] = robot.home_qpos[robot.actuated_qpos]
+        d.ctrl[robot.actuator_ids] = robot.default_q
         mujoco.mj_forward(model, d)
     info, obs = control.start(_stack(datas, "qpos"), _stack(datas, "qvel"), seed)
     equality = _EqualityResiduals(model) if model.neq else None
@@ -279,7 +279,7 @@ class Controller:
             command, heading = env._sample_command(key_cmd)
             info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(12),
                     "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32),
-                    "target": qpos[r.actuated_qpos]}  # the PD targets start at the joint angles
+                    "target": jp.asarray(r.default_q)}  # the PD targets start at the defaults
             info["command"] = env._heading_command(info, state)
             rng, key_obs = jax.random.split(rng)
             info["rng"] = rng

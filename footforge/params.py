@@ -67,6 +67,13 @@ class VariantParams:
     """MuJoCo solref (timeconst s, damping ratio) of the robot's and feet's collision geoms in the
     AFF, AOF and ball models: the sole pad's contact stiffness, dominant over the ground's (see
     urdf_import.CONTACT_SOLMIX). The closed chain has its own (full.contact_solref)."""
+    contact_solimp: tuple[float, float, float]
+    """MuJoCo solimp (dmin, dmax, width m) of the robot models' collision geoms (the drop-test
+    rigs keep MuJoCo's default, under which the feet were calibrated)."""
+    contact_cone: str
+    """Friction cone of the robot models: 'elliptic' or 'pyramidal' (rigs: pyramidal)."""
+    contact_impratio: float
+    """Ratio of frictional to normal constraint impedance (MuJoCo option impratio) of the robot models."""
 
     def joints_for(self, variant: str) -> dict[str, PassiveJoint]:
         """The passive joints of a derived variant (aff or aof)."""
@@ -139,8 +146,15 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     rig = top.get("rig")
     rig.get("payload_mass", allowed={"payload_mass", "slider_damping"})
     contact = top.get("contact")
-    contact.get("solref", allowed={"solref"})
+    contact.get("solref", allowed={"solref", "solimp", "cone", "impratio"})
     contact_solref = _pair(contact.get("solref"), 2)
+    solimp = _pair(contact.get("solimp", [0.9, 0.95, 0.001]), 3)  # MuJoCo's default
+    if not (0 < solimp[0] <= solimp[1] < 1 and solimp[2] > 0):
+        raise contact.get("solimp").fail(f"bad solimp {list(solimp)}", "give [dmin, dmax, width] with 0 < dmin <= dmax < 1 "
+                                         "and width > 0")
+    cone = contact.get("cone", "pyramidal").str()
+    if cone not in ("elliptic", "pyramidal"):
+        raise contact.get("cone").fail(f"unknown friction cone '{cone}'", "use elliptic or pyramidal")
     _check_timeconst(contact.get("solref"), contact_solref, simplified.get("timestep").float(min_value=1e-6))
     return VariantParams(
         source=path.resolve(), full=settings,
@@ -149,4 +163,5 @@ def load_params(path: str | Path | None = None) -> VariantParams:
         aof_split_x=aof.get("split_x").float(), aof_sole_range=sole_range, sole_lift_m=lifts,
         rig_payload_mass=rig.get("payload_mass").float(min_value=0.0),
         rig_slider_damping=rig.get("slider_damping", 0.0).float(min_value=0.0),
-        contact_solref=contact_solref)
+        contact_solref=contact_solref, contact_solimp=solimp, contact_cone=cone,
+        contact_impratio=contact.get("impratio", 1.0).float(min_value=1e-3))

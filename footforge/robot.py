@@ -15,6 +15,7 @@ from dm_control import mjcf
 from lxml import etree
 
 from footforge import constants as C
+from footforge.errors import CheckFailure
 from footforge.foot import FootModel, clone, collision_points, compile_model
 from footforge.params import VariantParams
 from footforge.urdf_import import (FLOATING_JOINT, MeshAssets, ParsedURDF, add_body_tree, add_default_classes,
@@ -30,11 +31,13 @@ class BuiltModel:
     """Name of the keyframe simulations start from."""
 
 
-def _options(root: mjcf.RootElement, variant: str, params: VariantParams) -> None:
+def _options(root: mjcf.RootElement, variant: str, params: VariantParams, *, robot: bool = False) -> None:
     root.compiler.angle = "radian"
     root.compiler.autolimits = True
     # implicitfast integrates joint damping and the actuators' kv implicitly: stable PD at 80/2.
     root.option.integrator = "implicitfast"
+    if robot:  # the standing contact model (parameter file, `contact`: cone, impratio, solimp)
+        root.option.set_attributes(cone=params.contact_cone, impratio=params.contact_impratio)
     if variant == "full":
         full = params.full
         root.option.set_attributes(timestep=full.timestep, iterations=full.iterations, tolerance=full.tolerance,
@@ -50,12 +53,14 @@ def _add_passive_sensors(foot_root: mjcf.RootElement, joints) -> None:
 
 
 def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, params: VariantParams,
-                friction: float) -> BuiltModel:
-    """ANYmal C with four feet of `variant` (`foot` None for the ball feet of the description)."""
+                friction: float, stand_keyframe: bool = True) -> BuiltModel:
+    """ANYmal C with four feet of `variant` (`foot` None for the ball feet of the description),
+    with keyframes `home` and (unless stand_keyframe is False) `stand`."""
     model = parsed.model
     root = mjcf.RootElement(model=f"anymal_c_{variant}")
-    _options(root, variant, params)
-    add_default_classes(root, friction=friction, contact_solref=params.contact_solref_for(variant))
+    _options(root, variant, params, robot=True)
+    add_default_classes(root, friction=friction, contact_solref=params.contact_solref_for(variant),
+                        contact_solimp=params.contact_solimp)
     root.default.add("default", dclass="leg").joint.set_attributes(type="hinge")
     actuator_class = root.default.add("default", dclass="leg_actuator")
     actuator_class.position.set_attributes(kp=C.KP_NM_PER_RAD, kv=C.KD_NMS_PER_RAD,
@@ -89,11 +94,15 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
         else:
             leg_foot = clone(foot, C.FOOT_MODEL_NAME.format(leg=leg))
             _add_passive_sensors(leg_foot.mjcf, leg_foot.passive_joints)
+            # The foot's own collision class (namespaced by attach) gets the robot's solimp.
+            leg_foot.mjcf.default.find("default", "collision").geom.solimp = list(params.contact_solimp)
             mount.attach(leg_foot.mjcf)
     for joint in C.ACTUATED_JOINTS:
         j = root.find("joint", joint)
         root.actuator.add("position", name=joint, joint=j, dclass="leg_actuator", ctrlrange=j.range)
     _add_home_keyframe(root, foot)
+    if stand_keyframe:
+        _add_stand_keyframe(root)
     return BuiltModel(root, "home")
 
 
@@ -124,6 +133,45 @@ def _add_home_keyframe(root: mjcf.RootElement, foot: FootModel | None) -> None:
     qpos[2] = -lowest
     ctrl = [C.DEFAULT_JOINT_ANGLES_RAD[mj.actuator(a).name] for a in range(mj.nu)]
     root.keyframe.add("key", name="home", qpos=qpos, ctrl=ctrl)
+
+
+STAND_SETTLE_MAX_S = 5.0
+"""The longest the robot is given to come to rest for the `stand` keyframe, s."""
+STAND_REST_QVEL = 1e-2
+"""At rest: the base's and the 12 leg joints' velocities below this (m/s, rad/s) for
+STAND_REST_HOLD_S (the closed chain's 8-16 g links keep a faint vibration of their own)."""
+STAND_REST_HOLD_S = 0.2
+
+
+def _add_stand_keyframe(root: mjcf.RootElement) -> None:
+    """Keyframe `stand`: the robot at rest on flat ground (z = 0) under the home keyframe's PD
+    targets, found by simulating it from `home` until it stops moving.
+
+    `home` is a pose, not an equilibrium: at kp 80 N m/rad the legs give under the robot's weight
+    (the base settles about 4 cm lower) and an adaptive foot's passive joints turn to their
+    loaded angles, so a simulation started there spends its first second falling and bouncing.
+    Starting from `stand`, a robot holding its targets does not move (footforge.stance).
+
+    Raises:
+      CheckFailure: the robot did not come to rest within STAND_SETTLE_MAX_S.
+    """
+    spec = mujoco.MjSpec.from_string(root.to_xml_string(), assets=root.get_assets())
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=FLOOR_CONTYPE, conaffinity=1)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    still_steps, needed = 0, int(round(STAND_REST_HOLD_S / model.opt.timestep))
+    watched = np.concatenate([np.arange(6), [model.joint(j).dofadr[0] for j in C.ACTUATED_JOINTS]])
+    while still_steps < needed:
+        if data.time > STAND_SETTLE_MAX_S or not np.isfinite(data.qvel).all():
+            dof = int(watched[np.argmax(np.abs(data.qvel[watched]))])
+            raise CheckFailure(f"the robot standing at its home keyframe did not come to rest within "
+                               f"{STAND_SETTLE_MAX_S:g} s (largest velocity {np.abs(data.qvel[dof]):.3g}, joint "
+                               f"'{model.joint(model.dof_jntid[dof]).name}')",
+                               fix="check the contact settings (parameter file, `contact`) and the passive joints")
+        mujoco.mj_step(model, data)
+        still_steps = still_steps + 1 if np.abs(data.qvel[watched]).max() < STAND_REST_QVEL else 0
+    root.keyframe.add("key", name="stand", qpos=data.qpos.copy(), ctrl=data.ctrl.copy())
 
 
 def build_rig(foot: FootModel | None, ball_radius: float | None, *, variant: str, params: VariantParams,

@@ -161,13 +161,16 @@ CONTACT_SOLMIX = 1000.0
 ground geom's default 1, so the sole pad's contact stiffness holds on any terrain."""
 
 
-def add_default_classes(root: mjcf.RootElement, *, friction: float, contact_solref: tuple[float, float]) -> None:
+def add_default_classes(root: mjcf.RootElement, *, friction: float, contact_solref: tuple[float, float],
+                        contact_solimp: tuple[float, float, float] | None = None) -> None:
     """The visual and collision classes every footforge model uses."""
     visual = root.default.add("default", dclass="visual")
     visual.geom.set_attributes(group=2, contype=0, conaffinity=0, density=0, mass=0)
     collision = root.default.add("default", dclass="collision")
     collision.geom.set_attributes(group=3, contype=0, conaffinity=1, friction=[friction, 0.005, 0.0001],
                                   solref=list(contact_solref), solmix=CONTACT_SOLMIX)
+    if contact_solimp is not None:
+        collision.geom.solimp = list(contact_solimp)
 
 
 def inertial_attributes(inertia: pin.Inertia) -> dict:

@@ -47,10 +47,13 @@ RICHEST = {"ball": "B", "aff": "BH", "aof": "BH"}
 @pytest.fixture(scope="module")
 def rollouts(built):
     """Per feet, the richest flat policy type's env with reset and step compiled once, a reset
-    and 3 steps of random actions: {feet: (env, states, jitted step)}."""
+    and 3 steps of random actions: {feet: (env, states, jitted step)}. Pushes are off: the
+    zero-action test measures standing, not push recovery."""
     out = {}
     for feet, policy in RICHEST.items():
-        env = envs.make("flat", feet, policy, build_dir=str(built[feet][0]))
+        config = envs.default_config("flat", feet, policy)
+        env = envs.make("flat", feet, policy, build_dir=str(built[feet][0]),
+                        pushes=replace(config.pushes, enabled=False))
         step = jax.jit(env.step)
         states = [jax.jit(env.reset)(jax.random.PRNGKey(0))]
         for k in jax.random.split(jax.random.PRNGKey(1), 3):
@@ -70,9 +73,15 @@ def test_reset_and_step_every_registered_env(rollouts, built):
             assert float(jp.abs(state.obs).max()) <= env.config.observations.clip
         assert set(states[-1].metrics) == set(states[0].metrics)
         assert {f"reward/{t}" for t in rewards.TERMS} <= set(states[-1].metrics)
-        # Home pose: the robot starts standing, 12 joints at the published defaults.
-        q0 = states[0].pipeline_state.qpos[env.robot.actuated_qpos]
-        np.testing.assert_allclose(q0, env.robot.default_q, atol=1e-9)
+        # The flat task starts at the build's `stand` keyframe (at rest under the published
+        # default targets), the PD targets at those defaults, joint velocities within +-0.1 rad/s.
+        first = states[0]
+        np.testing.assert_allclose(first.pipeline_state.qpos, env.robot.stand_qpos, atol=1e-6)
+        np.testing.assert_allclose(first.info["target"], env.robot.default_q, atol=1e-9)
+        np.testing.assert_allclose(first.pipeline_state.ctrl[env.robot.actuator_ids], env.robot.default_q, atol=1e-9)
+        qd = np.asarray(first.pipeline_state.qvel[env.robot.actuated_dof])
+        assert np.abs(qd).max() <= env.config.reset.joint_vel_max and np.abs(qd).max() > 0
+        assert float(jp.abs(first.pipeline_state.qvel[:6]).max()) == 0.0
         # The other policy types of these feet differ from the richest only in the observation:
         # each one's observation of the stepped state is sized by its layout, finite, and a
         # prefix of the richest one's (noise off).
@@ -120,8 +129,47 @@ def test_base_on_the_ground_terminates_and_time_out_is_a_truncation(rollouts):
     data = state.pipeline_state
     sunk = step(state.replace(pipeline_state=data.replace(qpos=data.qpos.at[2].set(0.05))), jp.zeros(12))
     assert float(sunk.done) == 1.0 and float(sunk.info["time_out"]) == 0.0  # a fall, not a time-out
-    np.testing.assert_allclose(sunk.pipeline_state.qpos, env.robot.home_qpos, atol=1e-6)  # restarted at home
+    np.testing.assert_allclose(sunk.pipeline_state.qpos, env.robot.stand_qpos, atol=1e-6)  # restarted standing
+    assert float(sunk.reward) == pytest.approx(env.config.rewards.fall)  # the fall penalty survives the clip
+    assert float(sunk.metrics["reward/fall"]) == pytest.approx(env.config.rewards.fall)
     last = state.replace(info=state.info | {"episode_step": jp.array(env.config.episode_steps - 1, jp.int32)})
     after = step(last, jp.zeros(12))
     assert float(after.info["time_out"]) == 1.0 and float(after.done) == 1.0
     assert int(after.info["episode_step"]) == 0
+    assert float(after.metrics["reward/fall"]) == 0.0 and float(after.reward) >= 0.0  # a time-out is no fall
+
+
+def test_velocity_actions_integrate_onto_the_previous_target(rollouts):
+    """Flat task: target_t = target_t-1 + 13.5 x clip(a, +-1) x dt, whatever the joints do; the
+    reward and the next observation see the clipped action."""
+    env, states, step = rollouts["ball"]
+    state = states[0]
+    dt, scale = env.config.policy_dt, env.config.action_scale
+    action = jp.linspace(-3.0, 3.0, 12)  # half of it beyond the clip
+    after = step(state, action)
+    clipped = np.clip(np.asarray(action), -1.0, 1.0)
+    expected = np.clip(np.asarray(state.info["target"]) + scale * clipped * dt, env.robot.q_limits[:, 0],
+                       env.robot.q_limits[:, 1])
+    np.testing.assert_allclose(after.info["target"], expected, atol=1e-6)
+    np.testing.assert_allclose(after.pipeline_state.ctrl[env.robot.actuator_ids], expected, atol=1e-6)
+    np.testing.assert_allclose(after.info["last_action"], clipped, atol=1e-7)
+    # A zero action keeps the target where it was, although the joints moved.
+    again = step(after, jp.zeros(12))
+    np.testing.assert_allclose(again.info["target"], after.info["target"], atol=1e-7)
+    moved = np.abs(np.asarray(again.pipeline_state.qpos[env.robot.actuated_qpos]) - expected).max()
+    assert moved > 1e-3
+
+
+@pytest.mark.parametrize("feet", list(RICHEST))
+def test_zero_action_robot_stands_a_whole_episode(rollouts, feet):
+    """The flat task's robot, given zero actions, holds its stance for a full 20 s episode: no
+    fall, no divergence, the base within 5 cm of where it started."""
+    env, states, step = rollouts[feet]
+    state = states[0]
+    z0 = float(env.base_height(state.pipeline_state))
+    lowest = z0
+    for _ in range(env.config.episode_steps - 1):
+        state = step(state, jp.zeros(12))
+        assert float(state.done) == 0.0, f"{feet}: fell at episode step {int(state.info['episode_step'])}"
+        lowest = min(lowest, float(env.base_height(state.pipeline_state)))
+    assert z0 - lowest < 0.05, (feet, z0, lowest)

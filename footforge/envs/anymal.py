@@ -22,12 +22,17 @@ FLOOR_GEOM = "floor"
 GEOM_NONE, GEOM_BASE = 0, 1
 """Geom categories for contact checks; thigh geoms of leg i are 3 + i, its foot geoms 10 + i."""
 GEOM_THIGH, GEOM_FOOT = 3, 10
+FAST_CONTACT_SOLIMP = (0.9, 0.95, 0.001)
+"""MuJoCo's default solimp, for EnvConfig.contact_model 'fast'."""
 
 
 @dataclass(frozen=True)
 class Robot:
     model: mujoco.MjModel
     home_qpos: np.ndarray
+    stand_qpos: np.ndarray
+    """The build's `stand` keyframe: at rest on flat ground under the default PD targets (builds
+    older than the keyframe: `home`)."""
     actuated_qpos: np.ndarray
     """qpos addresses of the 12 actuated joints, in constants.ACTUATED_JOINTS order."""
     actuated_dof: np.ndarray
@@ -90,6 +95,10 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     model.opt.timestep = config.sim_dt
     model.opt.iterations = config.solver_iterations
     model.opt.ls_iterations = config.solver_ls_iterations
+    if config.contact_model == "fast":  # EnvConfig.contact_model
+        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+        model.opt.impratio = 1.0
+        model.geom_solimp[:, :3] = FAST_CONTACT_SOLIMP
     category = np.zeros(model.ngeom, np.int32)
     body_names = [model.body(b).name for b in range(model.nbody)]
     for g in range(model.ngeom):
@@ -115,6 +124,8 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     passive.sort(key=lambda n: (C.LEGS.index(n.split("_")[0]), n))
     return Robot(
         model=model, home_qpos=model.key("home").qpos.copy(),
+        stand_qpos=model.key("stand" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand") >= 0
+                             else "home").qpos.copy(),
         actuated_qpos=np.array([j.qposadr[0] for j in joints]), actuated_dof=np.array([j.dofadr[0] for j in joints]),
         actuator_ids=actuators, default_q=np.array([C.DEFAULT_JOINT_ANGLES_RAD[n] for n in C.ACTUATED_JOINTS]),
         q_limits=np.array([j.range for j in joints]), haa=np.array([i for i, n in enumerate(C.ACTUATED_JOINTS) if n.endswith("HAA")]),

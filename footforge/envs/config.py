@@ -211,6 +211,18 @@ class EnvConfig:
     """MJX Newton iterations per step (Playground uses 1-4). The contact model itself (friction
     cone, impratio, solref, solimp) is the build's, from the parameter file's `contact` block."""
     solver_ls_iterations: int = 8
+    contact_model: Literal["fast", "build"] = "fast"
+    """The contact model the environment steps.
+
+    - build: the built scene's (parameter file `contact`: elliptic cone, impratio 10, solimp
+      0.99/0.999), under which a standing robot neither sinks nor slides at the build's 2 ms
+      step and 100 iterations. At this environment's 5 ms step it needs about 16 (ball) to 35
+      (aof) Newton iterations; at 4 it diverged (measured, benchmarks/RESULTS.md).
+    - fast (default): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp 0.9/0.95/0.001,
+      stable at 4 iterations (MuJoCo Playground trains at 1-4), at the price of creep: a robot
+      holding still slides and sinks about 2 cm/s (measured). Policies walk through it, but
+      stance and slippage figures are best measured with `build` (footforge.stance, or the
+      closed-chain runner at the build's own physics)."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)

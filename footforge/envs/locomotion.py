@@ -46,14 +46,14 @@ class LocomotionEnv(Env):
         self._n_passive = len(r.passive_qpos)
         self._obs_size = observations.size(config, self._n_passive)
         self._geom_category = jp.asarray(r.geom_category)
-        self._home = jp.asarray(r.home_qpos)
+        self._stand = jp.asarray(r.stand_qpos)
         self._ctrl_order = jp.asarray(r.actuator_ids)
         self._default_q = jp.asarray(r.default_q)
         self._q_lo, self._q_hi = jp.asarray(r.q_limits[:, 0]), jp.asarray(r.q_limits[:, 1])
-        home = mujoco.MjData(r.model)
-        home.qpos[:] = r.home_qpos
-        mujoco.mj_kinematics(r.model, home)
-        self._home_site_clearance = float(home.site_xpos[r.foot_sites, 2].min())  # flat ground at z = 0
+        stand = mujoco.MjData(r.model)
+        stand.qpos[:] = r.stand_qpos
+        mujoco.mj_kinematics(r.model, stand)
+        self._stand_site_clearance = float(stand.site_xpos[r.foot_sites, 2].min())  # flat ground at z = 0
         self._push_every = max(1, int(round(config.pushes.interval_s / config.policy_dt)))
         self._command_every = max(1, int(round(config.commands.resample_s / config.policy_dt)))
 
@@ -99,30 +99,35 @@ class LocomotionEnv(Env):
         obs = self._observe(data, info, key_obs)
         return State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info)
 
-    def _place(self, data, qpos, qvel, where=True):
-        """The robot at (qpos, qvel), its PD targets at qpos's joint angles (only where `where`:
-        the fields a restart sets, not the whole state, are selected)."""
+    def _place(self, data, qpos, qvel, target, where=True):
+        """The robot at (qpos, qvel) with PD targets `target` (only where `where`: the fields a
+        restart sets, not the whole state, are selected)."""
         fields = {"qpos": qpos, "qvel": qvel, "qacc_warmstart": jp.zeros(self.mjx_model.nv),
-                  "ctrl": jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(qpos[self.robot.actuated_qpos])}
+                  "ctrl": jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(target)}
         return data.replace(**{k: jp.where(where, v, getattr(data, k)) for k, v in fields.items()})
 
     def _start_state(self, info, key):
-        """(qpos, qvel) an episode starts from: the spawn pose with the actuated joints at
-        default x U(EnvConfig.reset.joint_pos_factor_range) within their ranges and velocities
-        in +-joint_vel_max (OmniIsaacGymEnvs' reset_idx), the base lowered or raised so that
-        the lowest foot touchdown point is on the ground (straighter legs would start buried)."""
+        """(qpos, qvel, PD targets) an episode starts from, after OmniIsaacGymEnvs' reset_idx:
+        targets at default x f, f drawn per joint in EnvConfig.reset.joint_pos_factor_range, and
+        joint velocities in +-joint_vel_max. The pose is the build's `stand` keyframe (at rest
+        under the default targets) at the spawn point, its leg joints moved by default x (f - 1):
+        with f = 1 the robot starts at rest. Otherwise the base is raised or lowered so that the
+        lowest foot touchdown point stays where it was (straighter legs would start buried)."""
         r, cfg = self.robot, self.config.reset
         k_pos, k_vel = jax.random.split(key)
         lo, hi = cfg.joint_pos_factor_range
-        q = self._default_q * jax.random.uniform(k_pos, (N_ACTUATED,), minval=lo, maxval=hi)
-        qpos = self._spawn_qpos(info).at[r.actuated_qpos].set(jp.clip(q, self._q_lo, self._q_hi))
+        factor = jax.random.uniform(k_pos, (N_ACTUATED,), minval=lo, maxval=hi)
+        target = jp.clip(self._default_q * factor, self._q_lo, self._q_hi)
+        qpos = self._spawn_qpos(info)
+        qpos = qpos.at[r.actuated_qpos].set(jp.clip(qpos[r.actuated_qpos] + target - self._default_q,
+                                                     self._q_lo, self._q_hi))
         qvel = jp.zeros(self.mjx_model.nv).at[r.actuated_dof].set(
             jax.random.uniform(k_vel, (N_ACTUATED,), minval=-cfg.joint_vel_max, maxval=cfg.joint_vel_max))
         if lo != 1.0 or hi != 1.0:
             sites = mjx.kinematics(self.mjx_model, mjx.make_data(self.mjx_model).replace(qpos=qpos)).site_xpos[r.foot_sites]
             clearance = jp.min(sites[:, 2] - self.terrain_height(sites[:, :2]))
-            qpos = qpos.at[2].add(self._home_site_clearance - clearance)
-        return qpos, qvel
+            qpos = qpos.at[2].add(self._stand_site_clearance - clearance)
+        return qpos, qvel, target
 
     # The policy's side of a step, shared with the CPU runner of footforge.closed_chain ---------
     def clip_action(self, action):
@@ -163,7 +168,7 @@ class LocomotionEnv(Env):
         return {}
 
     def _spawn_qpos(self, info):
-        return self._home
+        return self._stand
 
     def _task_metrics(self, info) -> dict:
         return {}

@@ -44,7 +44,7 @@ class RoughEnv(LocomotionEnv):
         geoms, local, category = _surface_points(self.robot.model, self.robot.geom_category)
         self._probe_geom, self._probe_local, self._probe_category = (jp.asarray(geoms), jp.asarray(local),
                                                                      jp.asarray(category))
-        self._home_z = float(self.robot.home_qpos[2])
+        self._stand_z = float(self.robot.stand_qpos[2])
 
     # Ground -------------------------------------------------------------------------------
     def terrain_height(self, xy):
@@ -108,9 +108,9 @@ class RoughEnv(LocomotionEnv):
     def _spawn_qpos(self, info):
         xy, yaw = info["spawn_xy"], info["spawn_yaw"]
         turn = jp.array([jp.cos(yaw / 2), 0.0, 0.0, jp.sin(yaw / 2)])
-        z = self._home_z + self.terrain_height(xy)
-        return (self._home.at[:2].set(xy).at[2].set(z)
-                .at[3:7].set(brax_math.quat_mul(turn, self._home[3:7])))
+        z = self._stand_z + self.terrain_height(xy)
+        return (self._stand.at[:2].set(xy).at[2].set(z)
+                .at[3:7].set(brax_math.quat_mul(turn, self._stand[3:7])))
 
     def _task_metrics(self, info):
         """The episode's level, and one indicator per level (their means over ended episodes are
