@@ -293,6 +293,9 @@ class Controller:
             return target, push_now, push, info | {"rng": rng, "step": step, "target": target}, (key_cmd, key_obs)
 
         def act(obs, qpos, info):
+            if config.privileged_critic:  # the policy reads "state" only; the critic's slice is not needed
+                obs = {"state": obs, "privileged_state": jp.zeros((obs.shape[0], env.observation_size[
+                    "privileged_state"][0]))}
             action = env.clip_action(policy(obs, jax.random.PRNGKey(0))[0])
             return action, *jax.vmap(targets)(qpos, action, info)
 

@@ -102,14 +102,17 @@ def from_dict(cls, data: dict):
     return cls(**kwargs)
 
 
-def network_factory(ppo: PPOConfig):
+def network_factory(ppo: PPOConfig, privileged: bool = False):
+    """Brax's PPO networks; with `privileged` (EnvConfig.privileged_critic) the value network
+    reads the observation dict's "privileged_state" and the policy its "state"."""
     from brax.training.agents.ppo import networks as ppo_networks
     from flax import linen
 
+    keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if privileged else {}
     return functools.partial(
         ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=ppo.policy_hidden_layers,
         value_hidden_layer_sizes=ppo.value_hidden_layers, activation=linen.elu,
-        distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std)
+        distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std, **keys)
 
 
 def latest_checkpoint(run_dir: Path) -> tuple[int, Path] | None:
@@ -186,7 +189,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
             return
         brax_checkpoint.save(str(run_dir / "checkpoints"), global_step, params,
                              brax_checkpoint.network_config(env.observation_size, env.action_size,
-                                                            ppo.normalize_observations, network_factory(ppo)))
+                                                            ppo.normalize_observations,
+                                                            network_factory(ppo, env_config.privileged_critic)))
         _write_json(state_file, {"global_step": global_step, "resumes": resumes, "metrics": last,
                                  "wall_s": time.time() - t0})
 
@@ -216,7 +220,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         max_grad_norm=ppo.max_grad_norm, reward_scaling=ppo.reward_scaling,
         normalize_observations=ppo.normalize_observations, bootstrap_on_timeout=True,
         learning_rate_schedule="ADAPTIVE_KL" if ppo.adaptive_kl else None, desired_kl=ppo.adaptive_kl or 0.01,
-        network_factory=network_factory(ppo), seed=ppo.seed + 1000 * resumes, num_evals=epochs + 1,
+        network_factory=network_factory(ppo, env_config.privileged_critic), seed=ppo.seed + 1000 * resumes,
+        num_evals=epochs + 1,
         num_eval_envs=ppo.num_eval_envs, progress_fn=log, policy_params_fn=save,
         restore_params=tuple(restore) if restore is not None else None, wrap_env_fn=wrap_for_training,
         randomization_fn=randomizer(env),  # EnvConfig.randomization: one draw per robot for the run
@@ -288,6 +293,16 @@ def _policy_meta(policy_dir: Path) -> dict:
     return json.loads(meta_file.read_text())
 
 
+def _observation_size(saved):
+    """The observation size as Brax's networks take it, from Brax's saved network config: an
+    int, an array spec ({"shape": [n], ...}), or for dict observations a mapping of each key to one
+    of these (made a shape tuple)."""
+    if isinstance(saved, dict) and "shape" not in saved:
+        return {key: tuple(v["shape"]) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else (int(v),)
+                for key, v in saved.items()}
+    return int(saved["shape"][0]) if isinstance(saved, dict) else int(saved)
+
+
 def load_policy(policy_dir: Path, *, deterministic: bool = True):
     """(policy function obs, key -> (action, extras), EnvConfig, PPOConfig) of a saved policy."""
     import jax
@@ -300,10 +315,8 @@ def load_policy(policy_dir: Path, *, deterministic: bool = True):
     env_config, ppo = from_dict(EnvConfig, meta["env"]), from_dict(PPOConfig, meta["ppo"])
     params = brax_checkpoint.load(str(policy_dir))
     cfg = json.loads((policy_dir / "ppo_network_config.json").read_text())
-    size = cfg["observation_size"]
-    size = size["shape"][0] if isinstance(size, dict) else int(size)  # Brax writes an array spec
-    networks = network_factory(ppo)(
-        observation_size=size, action_size=cfg["action_size"],
+    networks = network_factory(ppo, env_config.privileged_critic)(
+        observation_size=_observation_size(cfg["observation_size"]), action_size=cfg["action_size"],
         preprocess_observations_fn=running_statistics.normalize if ppo.normalize_observations else (lambda x, y: x))
     make = ppo_networks.make_inference_fn(networks)
     return jax.jit(make(tuple(params), deterministic=deterministic)), env_config, ppo

@@ -138,3 +138,24 @@ def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path
     assert np.isfinite(metrics[0]["slippage"]) or metrics[0]["falls"] == 2
     for name in ("comparison.md", "comparison.png", "contacts_0.png", "push_response_0.png"):
         assert (report / name).is_file()
+
+
+@pytest.mark.slow
+def test_privileged_critic_trains_and_its_policy_loads(built, tmp_path):
+    """Brax PPO with the asymmetric critic: a tiny run, then the saved policy acts on the
+    environment's dict observations and on the policy's slice alone."""
+    from dataclasses import replace
+
+    from footforge import train
+
+    cfg = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]), episode_length_s=1.0,
+                  privileged_critic=True)
+    ppo = PPOConfig(num_envs=8, unroll_length=4, batch_size=8, num_minibatches=1, num_timesteps=64,
+                    checkpoint_every_steps=32, num_eval_envs=4, policy_hidden_layers=(16,), value_hidden_layers=(16,))
+    train.train(cfg, ppo, tmp_path / "run")
+    policy, env_config, _ = load_policy(tmp_path / "run" / "policy")
+    assert env_config.privileged_critic
+    env = envs.from_config(env_config)
+    state = env.reset(jax.random.PRNGKey(0))
+    action, _ = policy(state.obs, jax.random.PRNGKey(1))
+    assert action.shape == (12,) and bool(jp.isfinite(action).all())

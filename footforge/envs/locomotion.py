@@ -45,6 +45,10 @@ class LocomotionEnv(Env):
         self.sys = mjx.put_model(r.model)
         self._n_passive = len(r.passive_qpos)
         self._obs_size = observations.size(config, self._n_passive)
+        # Privileged (critic-only) observations: true base velocity (3), each foot's normal
+        # force over the robot's weight (4), the noiseless height scan (points), ground friction (1).
+        self._privileged_size = 3 + 4 + config.height_scan.num_points + 1
+        self._weight_n = float(r.model.body_subtreemass[0] * -r.model.opt.gravity[2])
         self._geom_category = jp.asarray(r.geom_category)
         self._stand = jp.asarray(r.stand_qpos)
         self._ctrl_order = jp.asarray(r.actuator_ids)
@@ -96,7 +100,7 @@ class LocomotionEnv(Env):
         metrics |= self._task_metrics(info)
         rng, key_obs = jax.random.split(rng)
         info["rng"] = rng
-        obs = self._observe(data, info, key_obs)
+        obs = self.observation(data, info, key_obs)
         return State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info)
 
     def _place(self, data, qpos, qvel, target, where=True):
@@ -228,7 +232,8 @@ class LocomotionEnv(Env):
                     last_joint_vel=jp.where(ended, 0.0, qvel),
                     command=jp.where(ended, new_command, info["command"]),
                     heading_target=jp.where(ended, new_heading, info["heading_target"]))
-        obs = jp.nan_to_num(self._observe(data, info, key_obs), nan=0.0, posinf=0.0, neginf=0.0)
+        obs = jax.tree_util.tree_map(lambda o: jp.nan_to_num(o, nan=0.0, posinf=0.0, neginf=0.0),
+                                     self.observation(data, info, key_obs))
         return state.replace(pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32),
                              metrics=metrics, info=info)
 
@@ -256,6 +261,33 @@ class LocomotionEnv(Env):
         ang = data.qvel[3:6]  # MuJoCo's free-joint angular velocity is already in the body frame
         gravity = brax_math.inv_rotate(jp.array([0.0, 0.0, -1.0]), quat)
         return lin, ang, gravity
+
+    def observation(self, data, info, key):
+        """What the networks read: the policy's observation, or with EnvConfig.privileged_critic
+        Brax's dict {"state": the policy's, "privileged_state": the policy's + privileged}, the
+        value network reading the second (an asymmetric actor-critic)."""
+        obs = self._observe(data, info, key)
+        if not self.config.privileged_critic:
+            return obs
+        return {"state": obs, "privileged_state": jp.concatenate([obs, self.privileged(data)])}
+
+    def privileged(self, data):
+        """Critic-only quantities no robot measures directly: the true base linear velocity
+        (x lin_vel_scale, noiseless), each foot's normal ground force over the robot's weight,
+        the noiseless height scan, and the ground's friction coefficient."""
+        cfg = self.config.observations
+        lin, _, _ = self.base_state(data)
+        return jp.concatenate([lin * cfg.lin_vel_scale, self.foot_forces(data) / self._weight_n,
+                               self.height_scan(data), self.mjx_model.geom_friction[self.robot.floor_geom, :1]])
+
+    def foot_forces(self, data):
+        """Per leg (LF, RF, LH, RH): the normal force of its foot's contacts with the ground, N."""
+        from mujoco.mjx._src import support
+
+        force, index = support.contact_force_dim(self.mjx_model, data, 3)  # condim 3: every robot contact
+        contact = data._impl.contact
+        hit, other = _floor_hits(self._geom_category, self.robot.floor_geom, contact.geom[index], contact.dist[index])
+        return jp.stack([jp.sum(jp.where(hit & (other == GEOM_FOOT + i), force[:, 0], 0.0)) for i in range(4)])
 
     def _observe(self, data, info, key):
         cfg, r = self.config.observations, self.robot

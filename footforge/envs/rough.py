@@ -76,7 +76,7 @@ class RoughEnv(LocomotionEnv):
         data = mjx.forward(self.mjx_model, self._place(state.pipeline_state,
                                                        *self._start_state(info, jax.random.fold_in(rng, 2))))
         info |= {"target": data.ctrl[self._ctrl_order], "command": self._heading_command(info, data)}
-        return state.replace(pipeline_state=data, obs=self._observe(data, info, key), info=info)
+        return state.replace(pipeline_state=data, obs=self.observation(data, info, key), info=info)
 
     # Curriculum and spawns -------------------------------------------------------------------
     def _spawn(self, level, column, key):
