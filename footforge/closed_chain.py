@@ -275,7 +275,7 @@ class Controller:
 
         def start(qpos, qvel, rng):
             state = _State(qpos, qvel)
-            rng, key_cmd, _ = jax.random.split(rng, 3)  # the third: the environment's spawn
+            rng, key_cmd, _, _ = jax.random.split(rng, 4)  # as env.reset (the others: spawn, joint state)
             command, heading = env._sample_command(key_cmd)
             info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(12),
                     "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32),
@@ -286,7 +286,7 @@ class Controller:
             return info, env._observe(state, info, key_obs)
 
         def targets(qpos, action, info):
-            rng, key_push, key_cmd, key_obs, _ = jax.random.split(info["rng"], 5)
+            rng, key_push, key_cmd, key_obs, _, _ = jax.random.split(info["rng"], 6)  # as env.step
             step = info["step"] + 1
             push_now, push = env.push(step, key_push)
             target = env.joint_targets(info["target"], action)

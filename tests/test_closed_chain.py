@@ -38,7 +38,7 @@ def test_cpu_controller_matches_the_mjx_env(built, monkeypatch, task, policy):
     control = Controller(env, env.robot, lambda obs, key: (jp.broadcast_to(action, (obs.shape[0], 12)), {}))
     state = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(seed), 1)[0])  # the controller's key of robot 0
     qpos = np.array(state.pipeline_state.qpos)  # the environment's spawn (on the tile for rough)
-    info, obs = control.start(qpos[None], np.zeros((1, env.robot.model.nv)), seed)
+    info, obs = control.start(qpos[None], np.array(state.pipeline_state.qvel)[None], seed)
     np.testing.assert_allclose(obs[0], state.obs, atol=1e-5)
 
     # A state that exercises every slice: base turned and tilted, moving; joints off their defaults.
