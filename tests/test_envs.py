@@ -175,6 +175,7 @@ def zero_action_episodes(rollouts):
     return out
 
 
+@pytest.mark.slow  # 3 x 1000 single-robot steps
 @pytest.mark.parametrize("feet", [pytest.param("ball", marks=pytest.mark.xfail(
     strict=False, reason="issue 12, open: the ball robot sank below 0.25 m or fell in the last run (MJX "
     "contact creep, contact_model 'fast')")), "aff", "aof"])
@@ -185,6 +186,7 @@ def test_zero_action_robot_stands_a_whole_episode(zero_action_episodes, feet):
     assert not ended and heights.min() > 0.25, (feet, heights.min())
 
 
+@pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="issue 12, open: MJX at 5 ms and 4 Newton iterations creeps with "
                    "contact_model 'fast' (about 23 cm over 20 s); the build's contact model diverges there")
 @pytest.mark.parametrize("feet", list(RICHEST))
