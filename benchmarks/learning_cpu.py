@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import sys
 import time
@@ -66,7 +67,7 @@ def main(argv=None) -> int:
               "forward_error_mps": e["eval/episode_error/lin_vel_x_per_step"], "return": e["eval/episode_reward"]}
              for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines())
              if "eval/episode_reward" in e]
-    print(json.dumps({"benchmark": "learning_cpu", "machine": platform.platform(), "cpus": jax.device_count(),
+    print(json.dumps({"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(), "jax_devices": jax.device_count(),
                       "feet": args.feet, "timesteps": args.timesteps, "num_envs": args.num_envs,
                       "wall_s": round(time.time() - t0, 1), "curve": curve}))
     return 0

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from footforge import constants as C
+from footforge.envs.anymal import foot_sites
 
 
 @dataclass(frozen=True)
@@ -33,25 +33,12 @@ class Stance:
     """No NaN, and MuJoCo never reset the simulation for bad accelerations."""
 
 
-def touchdown_sites(model: mujoco.MjModel) -> list[int]:
-    """Each leg's foot touchdown site (LF, RF, LH, RH): an adaptive foot's, or the ball foot's."""
-    sites = []
-    for leg in C.LEGS:
-        for name in (f"{C.FOOT_MODEL_NAME.format(leg=leg)}/touchdown", f"{leg}_touchdown"):
-            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) >= 0:
-                sites.append(model.site(name).id)
-                break
-        else:
-            raise ValueError(f"the model has no touchdown site for leg {leg}")
-    return sites
-
-
 def stand(model: mujoco.MjModel, *, seconds: float = 10.0, settle_s: float = 0.5, keyframe: str = "home") -> Stance:
     """Simulates the robot standing at `keyframe` for `seconds` (see the module docstring)."""
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key(keyframe).id)
     mujoco.mj_forward(model, data)
-    sites = touchdown_sites(model)
+    sites = foot_sites(model)
     z_start = float(data.qpos[2])
     settle_steps = int(round(settle_s / model.opt.timestep))
     for _ in range(settle_steps):

@@ -241,27 +241,31 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     return last
 
 
-def initial_policy(env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observation_size: int,
+def initial_policy(env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observation_size,
                    action_size: int = 12) -> Path:
     """Writes a policy folder (as train() does) holding freshly initialised networks (seed ppo.seed).
 
     For checking pipelines end to end without training: evaluation of such a policy exercises
-    every code path; its indices mean nothing.
+    every code path; its indices mean nothing. `observation_size` is the environment's (an int,
+    or with a privileged critic the dict of shapes).
     """
     import jax
     import jax.numpy as jp
     from brax.training.acme import running_statistics, specs
     from brax.training.agents.ppo import checkpoint as brax_checkpoint
 
-    networks = network_factory(ppo)(observation_size=observation_size, action_size=action_size,
-                                    preprocess_observations_fn=running_statistics.normalize)
+    factory = network_factory(ppo, env_config.privileged_critic)
+    networks = factory(observation_size=observation_size, action_size=action_size,
+                       preprocess_observations_fn=running_statistics.normalize)
     k_policy, k_value = jax.random.split(jax.random.PRNGKey(ppo.seed))
-    normalizer = running_statistics.init_state(specs.Array((observation_size,), jp.dtype("float32")))
+    spec = ({key: specs.Array(shape, jp.dtype("float32")) for key, shape in observation_size.items()}
+            if isinstance(observation_size, dict) else specs.Array((observation_size,), jp.dtype("float32")))
+    normalizer = running_statistics.init_state(spec)
     params = (normalizer, networks.policy_network.init(k_policy), networks.value_network.init(k_value))
     out_dir = Path(out_dir)
     with atomic_directory(out_dir) as tmp:
         brax_checkpoint.save(str(tmp), 0, params, brax_checkpoint.network_config(
-            observation_size, action_size, ppo.normalize_observations, network_factory(ppo)))
+            observation_size, action_size, ppo.normalize_observations, factory))
         for item in (tmp / f"{0:012d}").iterdir():
             item.rename(tmp / item.name)
         (tmp / f"{0:012d}").rmdir()

@@ -177,8 +177,8 @@ def zero_action_episodes(rollouts):
 
 @pytest.mark.slow  # 3 x 1000 single-robot steps
 @pytest.mark.parametrize("feet", [pytest.param("ball", marks=pytest.mark.xfail(
-    strict=False, reason="issue 12, open: the ball robot sank below 0.25 m or fell in the last run (MJX "
-    "contact creep, contact_model 'fast')")), "aff", "aof"])
+    strict=True, reason="issue 12, open: the ball robot sinks below 0.25 m or falls (MJX contact creep, "
+    "contact_model 'fast'); deterministic, so strict")), "aff", "aof"])
 def test_zero_action_robot_stands_a_whole_episode(zero_action_episodes, feet):
     """The flat task's robot, given zero actions, stays up for a full 20 s episode: no fall, no
     divergence, its base never below 0.25 m (the action model of EnvConfig.action)."""

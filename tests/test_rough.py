@@ -177,7 +177,7 @@ def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason="issue 12, open: failed in the last run (MJX contact creep with "
+@pytest.mark.xfail(strict=True, reason="issue 12, open: fails deterministically (MJX contact creep with "
                    "contact_model 'fast', from the randomised start); not yet diagnosed")
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):

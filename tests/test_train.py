@@ -159,3 +159,23 @@ def test_privileged_critic_trains_and_its_policy_loads(built, tmp_path):
     state = env.reset(jax.random.PRNGKey(0))
     action, _ = policy(state.obs, jax.random.PRNGKey(1))
     assert action.shape == (12,) and bool(jp.isfinite(action).all())
+
+
+def test_initial_policy_of_a_privileged_critic_loads_and_acts(tmp_path):
+    """initial_policy builds the asymmetric networks a privileged config names; load_policy reads
+    them back, and the policy acts on the dict observation and its `state` slice only."""
+    from dataclasses import replace
+
+    from footforge import train
+
+    cfg = replace(envs.default_config("flat", "ball", "B"), privileged_critic=True)
+    ppo = PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,))
+    sizes = {"state": (48,), "privileged_state": (48 + 148,)}
+    train.initial_policy(cfg, ppo, tmp_path / "policy", observation_size=sizes)
+    policy, env_config, _ = load_policy(tmp_path / "policy")
+    assert env_config.privileged_critic
+    obs = {"state": jp.ones(48), "privileged_state": jp.zeros(48 + 148)}
+    action, _ = policy(obs, jax.random.PRNGKey(0))
+    other, _ = policy({"state": jp.ones(48), "privileged_state": jp.ones(48 + 148)}, jax.random.PRNGKey(0))
+    assert action.shape == (12,)
+    np.testing.assert_array_equal(action, other)  # the critic's slice does not reach the policy

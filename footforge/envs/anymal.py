@@ -132,11 +132,20 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         passive_qpos=np.array([model.joint(n).qposadr[0] for n in passive], int),
         passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int), passive_names=tuple(passive),
         geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id,
-        foot_sites=np.array([_foot_site(model, leg) for leg in C.LEGS]))
+        foot_sites=np.array(foot_sites(model)))
 
 
-def _foot_site(model: mujoco.MjModel, leg: str) -> int:
-    for name in (f"{C.FOOT_MODEL_NAME.format(leg=leg)}/touchdown", f"{leg}_touchdown"):
-        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) >= 0:
-            return model.site(name).id
-    raise InputError(f"the model has no touchdown site for leg {leg}", fix="rebuild it with footforge build")
+def foot_sites(model: mujoco.MjModel) -> list[int]:
+    """Each leg's foot touchdown site (LF, RF, LH, RH): an adaptive foot's or the ball foot's.
+
+    Raises:
+      InputError: a leg without one (a model not written by footforge build).
+    """
+    sites = []
+    for leg in C.LEGS:
+        names = (f"{C.FOOT_MODEL_NAME.format(leg=leg)}/touchdown", f"{leg}_touchdown")
+        found = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, n) for n in names]
+        if max(found) < 0:
+            raise InputError(f"the model has no touchdown site for leg {leg}", fix="rebuild it with footforge build")
+        sites.append(max(found))
+    return sites

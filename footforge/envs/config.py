@@ -208,8 +208,7 @@ class EnvConfig:
     """Policy outputs are clipped to +-this before they are used (rewards and the last-action
     observation see the clipped value): rl_games clips to the baselines' action space [-1, 1]."""
     solver_iterations: int = 4
-    """MJX Newton iterations per step (Playground uses 1-4). The contact model itself (friction
-    cone, impratio, solref, solimp) is the build's, from the parameter file's `contact` block."""
+    """MJX Newton iterations per step (Playground uses 1-4); the contact model is contact_model's."""
     solver_ls_iterations: int = 8
     contact_model: Literal["fast", "build"] = "fast"
     """The contact model the environment steps.
@@ -220,7 +219,7 @@ class EnvConfig:
       (aof) Newton iterations; at 4 it diverged (measured, benchmarks/RESULTS.md).
     - fast (default): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp 0.9/0.95/0.001,
       stable at 4 iterations (MuJoCo Playground trains at 1-4), at the price of creep: a robot
-      holding still slides and sinks about 2 cm/s (measured). Policies walk through it, but
+      holding still sinks about 23 cm in 20 s and slides (measured). Policies walk through it, but
       stance and slippage figures are best measured with `build` (footforge.stance, or the
       closed-chain runner at the build's own physics)."""
     commands: CommandConfig = field(default_factory=CommandConfig)
