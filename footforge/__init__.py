@@ -1,9 +1,41 @@
 """footforge: simulation models, validation and training for robots with passive adaptive feet."""
 
+import ctypes as _ctypes
 import os as _os
+import sys as _sys
 
 # footforge authors models with dm_control.mjcf and never renders through dm_control; without this
 # dm_control probes for an X display (GLFW) at import and warns on headless machines.
 _os.environ.setdefault("MUJOCO_GL", "disable")
+
+# MuJoCo loads the OpenGL backend named by MUJOCO_GL when it is imported, and with
+# MUJOCO_GL=osmesa (or egl) on a machine without that library `import mujoco` itself fails deep in
+# PyOpenGL ("'NoneType' object has no attribute 'glGetError'"). So the library is looked for the
+# way PyOpenGL does (dlopen of libNAME.so, then libNAME.so.N); where it is missing, MuJoCo is
+# imported without rendering and footforge.render refuses with the reason and the fix.
+GL_UNAVAILABLE: "tuple[str, str] | None" = None
+"""(backend asked for in MUJOCO_GL, why it cannot load), or None when nothing was switched off."""
+
+
+def _missing_gl_library(backend: str) -> "str | None":
+    name = {"osmesa": "OSMesa", "egl": "EGL"}.get(backend)
+    if name is None:
+        return None
+    base = f"lib{name}.so"
+    for filename in [base] + [f"{base}.{major}" for major in range(9, -1, -1)]:
+        try:
+            _ctypes.CDLL(filename)
+            return None
+        except OSError:
+            continue
+    return f"lib{name} was not found by the dynamic loader"
+
+
+if "mujoco" not in _sys.modules:  # once MuJoCo is imported, its backend is settled
+    _backend = _os.environ["MUJOCO_GL"].lower()
+    _reason = _missing_gl_library(_backend)
+    if _reason is not None:
+        GL_UNAVAILABLE = (_backend, _reason)
+        _os.environ["MUJOCO_GL"] = "disable"
 
 __version__ = "0.1.0"

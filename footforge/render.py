@@ -2,7 +2,8 @@
 
 MuJoCo chooses its OpenGL backend from the environment variable MUJOCO_GL when `mujoco` is first
 imported (egl: headless, GPU or Mesa; osmesa: software; glfw: needs a display; disable: none),
-so it must be set before Python starts; importing footforge sets it to disable where it is unset.
+so it must be set before Python starts; importing footforge sets it to disable where it is unset,
+and where the library it names is missing (footforge.GL_UNAVAILABLE says why).
 Frames are RGB uint8 arrays of shape (height, width, 3); the camera is a free camera that follows
 the base (qpos[:3], a free joint).
 """
@@ -17,6 +18,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+import footforge
 from footforge.atomic import atomic_file
 from footforge.errors import InputError
 
@@ -34,6 +36,9 @@ def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer
         model = copy.copy(model)  # the caller's model keeps its visual settings
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    if footforge.GL_UNAVAILABLE is not None:
+        backend, reason = footforge.GL_UNAVAILABLE
+        raise InputError(f"MuJoCo cannot render offscreen with MUJOCO_GL={backend}: {reason}", fix=RENDER_FIX)
     try:
         # Imported here, not taken from `mujoco`: `import mujoco` swallows an ImportError of its
         # rendering module (e.g. MUJOCO_GL=osmesa without libOSMesa); importing again raises it.

@@ -7,15 +7,16 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from conftest import REPO
 from PIL import Image
 
 # A red box on a checkered floor; an offscreen buffer smaller than the frames asked for below.
 RENDER = """
 import json, sys
-import mujoco, numpy as np
 from footforge.errors import InputError
-from footforge.render import render_frames, write_gif, write_strip
+from footforge.render import render_frames, write_gif, write_strip  # before mujoco, as footforge's tools do
+import mujoco, numpy as np
 
 model = mujoco.MjModel.from_xml_string('''<mujoco>
   <visual><global offwidth="64" offheight="48"/></visual>
@@ -45,12 +46,13 @@ def _run(code: str, mujoco_gl: str, *args: str) -> subprocess.CompletedProcess:
                           timeout=120, cwd=REPO)
 
 
-def test_render_writes_gif_and_strip_or_names_the_fix(tmp_path):
-    proc = _run(RENDER, "osmesa", str(tmp_path))
+@pytest.mark.parametrize("backend", ["osmesa", "egl"])
+def test_render_writes_gif_and_strip_or_names_the_fix(tmp_path, backend):
+    proc = _run(RENDER, backend, str(tmp_path))
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout.strip().splitlines()[-1])
-    if "error" in result:  # a machine without OSMesa: the message says what to install
-        assert "MUJOCO_GL=osmesa" in result["error"] and "libosmesa6" in result["error"]
+    if "error" in result:  # a machine without this backend's library: the message says what to install
+        assert f"MUJOCO_GL={backend}" in result["error"] and "libosmesa6" in result["error"]
         assert not list(tmp_path.iterdir())
         return
     assert result == {"frames": 5, "offwidth": 64}  # every 2nd of 10; the caller's model unchanged
