@@ -47,7 +47,7 @@ MASS_RTOL = 1e-9
 """Total mass and centre of mass of aff/aof must equal the closed chain's to this (relative)."""
 INERTIA_RTOL = 1e-9
 """Each foot's centroidal inertia likewise (relative, Frobenius norm)."""
-REPORT_FORMAT = 1
+REPORT_FORMAT = C.BUILD_FORMAT
 INPUT_ERROR_CODES = frozenset({"missing_mesh", "unresolved_package"})
 
 

@@ -32,3 +32,8 @@ ROBOT_MASS_KG = 52.13485
 
 BALL_FOOT_RADIUS_M = 0.03
 """ANYmal C's ball foot (the description's ball_radius); its centre is the foot mount."""
+
+BUILD_FORMAT = 2
+"""Version of what a build folder holds (build_report.json's "format"), raised whenever a newer
+footforge's environments rely on something older builds lack. 2: robot scenes carry the
+parameter file's `contact` settings and the `stand` keyframe."""

@@ -219,3 +219,38 @@ def test_privileged_critic_observations(built):
     assert np.all(forces > 0.1)  # every foot bears load
     assert abs(forces.sum() - 1.0) < 0.05, forces  # and together the robot's weight (vertical = normal here)
     assert extra[-1] == pytest.approx(float(env.robot.model.geom_friction[env.robot.floor_geom, 0]))
+
+
+def test_a_build_that_does_not_fit_is_refused_with_the_rebuild_command(built, tmp_path):
+    """ensure_built refuses, never silently uses or rebuilds, a build of another variant, of an
+    older build format (no `stand` keyframe), or whose inputs changed since it was built."""
+    import json
+    import shutil
+
+    from footforge.envs.anymal import ensure_built
+
+    params = tmp_path / "params.yaml"
+    shutil.copy(json.loads((built["ball"][0] / "build_report.json").read_text())["inputs"]["params"]["path"], params)
+
+    def variant_of(change):
+        folder = tmp_path / f"build_{len(list(tmp_path.iterdir()))}"
+        shutil.copytree(built["ball"][0], folder)
+        data = json.loads((folder / "build_report.json").read_text())
+        change(data)
+        (folder / "build_report.json").write_text(json.dumps(data))
+        return folder
+
+    good = variant_of(lambda d: None)
+    assert ensure_built(replace(envs.default_config("flat", "ball", "B"), build_dir=str(good))) == good
+    cases = {
+        "holds the 'ball' variant, not 'aff'": (variant_of(lambda d: None), "aff"),
+        "built by an older footforge (build format 1": (variant_of(lambda d: d.update(format=1)), "ball"),
+        f"input 'params' ({params}) changed since": (
+            variant_of(lambda d: d["inputs"].update(params={"path": str(params), "sha256": "0" * 64})), "ball"),
+    }
+    for expected, (folder, feet) in cases.items():
+        config = replace(envs.default_config("flat", feet, "B"), build_dir=str(folder))
+        with pytest.raises(InputError) as e:
+            ensure_built(config)
+        assert expected in str(e.value), str(e.value)
+        assert f"footforge build --variant {feet} --out {folder}" in str(e.value)

@@ -8,6 +8,8 @@ walk, the base and thighs end episodes on contact).
 
 from __future__ import annotations
 
+import hashlib
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,15 +63,55 @@ def build_dir(config: EnvConfig) -> Path:
 
 
 def ensure_built(config: EnvConfig) -> Path:
-    """The build folder of config.feet; runs `footforge build` there if it has no scene.xml."""
+    """The build folder of config.feet; runs `footforge build` there if it has no scene.xml.
+
+    Raises:
+      InputError: config.build_dir holds no scene.xml, or the folder holds a build this footforge
+        cannot use (another variant, an older build format, inputs changed since); never rebuilt
+        silently, since the folder may hold a user's build from their own parameter file.
+    """
     folder = build_dir(config)
     if not (folder / "scene.xml").is_file():
         if config.build_dir:
             raise InputError(f"{folder} holds no scene.xml", file=str(folder),
                              fix=f"run footforge build --variant {config.feet} --out {folder}")
         from footforge.build import BuildOptions, build
+
         build(BuildOptions(variant=config.feet, out_dir=folder, formats=("mjcf",)))
+    problem = build_problem(folder, config.feet)
+    if problem:
+        raise InputError(f"{folder} cannot be used: {problem}", file=str(folder / "build_report.json"),
+                         fix=f"rebuild it: footforge build --variant {config.feet} --out {folder} "
+                             "(add the --params or description flags it was built with)")
     return folder
+
+
+def build_problem(folder: Path, feet: str) -> str | None:
+    """Why the build in `folder` does not fit feet `feet` and this footforge, or None.
+
+    Read from its build_report.json: the variant, the build format (constants.BUILD_FORMAT), and
+    the SHA-256 of each input file that still exists at its recorded path (a build carried to
+    another machine keeps its recorded paths, which then do not exist there: not checked).
+    """
+    report_path = folder / "build_report.json"
+    try:
+        report = json.loads(report_path.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        return f"its build_report.json cannot be read ({e.__class__.__name__})"
+    if report.get("variant") != feet:
+        return f"it holds the '{report.get('variant')}' variant, not '{feet}'"
+    if report.get("format") != C.BUILD_FORMAT:
+        return (f"it was built by an older footforge (build format {report.get('format')}, this one needs "
+                f"{C.BUILD_FORMAT}: robot scenes with the `stand` keyframe and the parameter file's contacts)")
+    for name, entry in report.get("inputs", {}).items():
+        path = Path(entry.get("path", ""))
+        if entry.get("sha256") and path.is_file() and _sha256(path) != entry["sha256"]:
+            return f"its input '{name}' ({path}) changed since it was built"
+    return None
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robot:

@@ -227,7 +227,7 @@ class LocomotionEnv(Env):
         info.update(self._next_spawn_info(info, data, ended, key_spawn))
         data = self._place(data, *self._start_state(info, key_joints), where=ended)
         info.update(rng=rng, step=step, episode_step=jp.where(ended, 0, episode_step),
-                    target=jp.where(ended, data.ctrl[self._ctrl_order], target),
+                    target=data.ctrl[self._ctrl_order],  # this step's targets, or the restart's
                     time_out=time_out.astype(jp.float32), last_action=jp.where(ended, 0.0, action),
                     last_joint_vel=jp.where(ended, 0.0, qvel),
                     command=jp.where(ended, new_command, info["command"]),
