@@ -197,6 +197,7 @@ def test_zero_action_robot_neither_sinks_in_mjx(zero_action_episodes, feet):
     assert heights[0] - heights.min() < 0.010, (feet, heights[0], heights.min())
 
 
+@pytest.mark.slow  # its own compiled environment: about 2 minutes on 2 cores
 def test_privileged_critic_observations(built):
     """EnvConfig.privileged_critic: Brax's dict observation, the policy's slice unchanged and the
     critic's extra slice physical: at rest the feet carry the robot's weight."""

@@ -19,6 +19,7 @@ from conftest import REPO
 from footforge import envs
 from footforge.envs import curriculum, observations
 from footforge.envs.config import CurriculumConfig
+from footforge.envs.locomotion import foot_contacts, ground_contacts
 from footforge.envs.terrain import TerrainConfig, column_kinds
 from footforge.envs.wrappers import wrap_for_training
 
@@ -271,3 +272,50 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
         assert sorted(levels) == [str(level) for level in range(SMALL.num_levels)]
     table = (report / "comparison.md").read_text()
     assert "stepping_stones: vx error / falls" in table and "| P | ball | ball |" in table
+
+
+def test_shank_tubes_collide_with_the_terrain_as_capsules(built):
+    """On the heightfield the shank tubes collide (OmniIsaacGymEnvs collides the whole robot with
+    its terrain): capsules with the tube's radius and axial extent, whose MuJoCo contact with the
+    terrain has the depth computed from the geometry, and which count neither as feet nor knees."""
+    from footforge.envs.anymal import GEOM_SHANK, load_robot
+
+    for feet in RICHEST:
+        env = envs.make("rough", feet, "B", build_dir=str(built[feet][0]), terrain=SMALL)  # nothing compiled
+        model = env.robot.model
+        capsules = np.flatnonzero((env.robot.geom_category >= GEOM_SHANK) & (env.robot.geom_category < GEOM_SHANK + 4))
+        assert sorted(env.robot.geom_category[capsules]) == [GEOM_SHANK + i for i in range(4)], feet
+        cpu = load_robot(env.config, env.terrain, for_mjx=False).model  # the build's own geoms
+        for g in capsules:
+            assert model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE
+            assert cpu.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER
+            radius, half = cpu.geom_size[g, :2]
+            np.testing.assert_allclose(model.geom_size[g, :2], [radius, half - radius])
+        # The robot standing on the flat centre of a tile of the hardest level, lowered until the
+        # lowest tube point is 5 mm in the ground: MuJoCo then reports a tube contact 5 mm deep.
+        data = mujoco.MjData(model)
+        data.qpos[:] = env.robot.stand_qpos
+        data.qpos[:2] = env.terrain.tile_center(SMALL.num_levels - 1, 0)
+        data.qpos[2] += float(env.terrain_height(data.qpos[:2]))
+        mujoco.mj_kinematics(model, data)
+        axis_z = data.geom_xmat[capsules].reshape(-1, 3, 3)[:, 2, 2]  # z of each capsule's axis
+        lowest = data.geom_xpos[capsules, 2] - np.abs(axis_z) * model.geom_size[capsules, 1] - model.geom_size[capsules, 0]
+        ground = np.array([float(env.terrain_height(data.geom_xpos[g, :2])) for g in capsules])
+        data.qpos[2] -= (lowest - ground).min() + 0.005
+        mujoco.mj_forward(model, data)
+        depth = {}
+        for c in data.contact[: data.ncon]:
+            pair = {int(c.geom1), int(c.geom2)}
+            if env.robot.floor_geom in pair and pair & set(capsules.tolist()):
+                depth[(pair - {env.robot.floor_geom}).pop()] = float(c.dist)
+        deepest = min(depth.values())
+        assert deepest == pytest.approx(-0.005, abs=1e-3), (feet, depth)
+        # The environment's contact counts, given only the tube contacts: no foot, no knee, no base.
+        tube = [i for i, c in enumerate(data.contact[: data.ncon])
+                if {int(c.geom1), int(c.geom2)} & set(capsules.tolist())]
+        geoms = jp.asarray(np.array([data.contact.geom[i] for i in tube]))
+        dist = jp.asarray(np.array([data.contact.dist[i] for i in tube]))
+        category = jp.asarray(env.robot.geom_category)
+        assert not np.asarray(foot_contacts(category, env.robot.floor_geom, geoms, dist)).any()
+        base, knees = ground_contacts(category, env.robot.floor_geom, geoms, dist)
+        assert not bool(base) and int(knees) == 0

@@ -2,8 +2,9 @@
 
 The model is the build's scene.xml (robot.xml plus a floor), never a second hand-written model.
 For MJX the only changes are the step, the solver iterations, and switching off collisions that
-no task needs (hips and shank tubes; the feet, the base and the thighs keep theirs: the feet
-walk, the base and thighs end episodes on contact).
+no task needs (hips, and shank tubes on flat ground; the feet, the base and the thighs keep theirs:
+the feet walk, the base and thighs end episodes on contact). On a heightfield the shank tubes
+collide as capsules (MJX has no cylinder-heightfield collision).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ FLOOR_GEOM = "floor"
 GEOM_NONE, GEOM_BASE = 0, 1
 """Geom categories for contact checks; thigh geoms of leg i are 3 + i, its foot geoms 10 + i."""
 GEOM_THIGH, GEOM_FOOT = 3, 10
+GEOM_SHANK = 20
+"""Shank tube of leg i on a heightfield (MJX): 20 + i. It collides, but is neither a foot nor a knee."""
 FAST_CONTACT_SOLIMP = (0.9, 0.95, 0.001)
 """MuJoCo's default solimp, for EnvConfig.contact_model 'fast'."""
 
@@ -114,15 +117,32 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def _shank_tubes_as_capsules(spec: mujoco.MjSpec) -> None:
+    """Each shank's colliding tube (a cylinder longer than its diameter) becomes a capsule of the
+    same radius and the same extent along its axis, which MJX collides with heightfields (it
+    cannot collide cylinders with them). OmniIsaacGymEnvs' AnymalTerrain collides the whole robot
+    with the terrain; with this, shanks stop at stair risers instead of passing through them."""
+    for body in spec.bodies:
+        if not body.name.endswith("_SHANK"):
+            continue
+        for geom in body.geoms:
+            radius, half_length = geom.size[0], geom.size[1]
+            if (geom.type == mujoco.mjtGeom.mjGEOM_CYLINDER and (geom.contype or geom.conaffinity)
+                    and half_length > radius):
+                geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+                geom.size = [radius, half_length - radius, 0.0]
+
+
 def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robot:
     """The build's scene, set up for MJX as described in the module docstring.
 
     With a `terrain` (footforge.envs.terrain.Terrain) its heightfield replaces the floor plane,
     under the same geom name. MJX collides heightfields with spheres, capsules, boxes and meshes
     only, and a heightfield costs one prism test per sample under a geom's bounding sphere: the
-    feet (small spheres or boxes) keep their collisions; the base's and thighs' (cylinders, a
-    0.6 m box) are switched off and their ground contact is measured geometrically instead
-    (footforge.envs.rough). for_mjx=False keeps them, for MuJoCo on the CPU.
+    feet (small spheres or boxes) keep their collisions, the shank tubes collide as capsules
+    (_shank_tubes_as_capsules); the base's and thighs' (cylinders, a 0.6 m box) are switched off
+    and their ground contact is measured geometrically instead (footforge.envs.rough).
+    for_mjx=False keeps the model's own geoms, for MuJoCo on the CPU.
     """
     folder = ensure_built(config)
     if terrain is None:
@@ -133,6 +153,8 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         spec = mujoco.MjSpec.from_file(str(folder / "scene.xml"))
         spec.delete(spec.geom(FLOOR_GEOM))
         add_to_spec(spec, terrain, name=FLOOR_GEOM)
+        if for_mjx:
+            _shank_tubes_as_capsules(spec)
         model = spec.compile()
     model.opt.timestep = config.sim_dt
     model.opt.iterations = config.solver_iterations
@@ -155,6 +177,8 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
             category[g] = GEOM_FOOT + C.LEGS.index(body.split("_")[0])
         elif body.endswith("_THIGH"):
             category[g] = GEOM_THIGH + C.LEGS.index(body.split("_")[0])
+        elif body.endswith("_SHANK") and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            category[g] = GEOM_SHANK + C.LEGS.index(body.split("_")[0])
         # Hips and shank tubes: no task needs them to touch the ground. On a heightfield the base
         # and thighs are checked geometrically (module docstring).
         if category[g] == GEOM_NONE or (terrain is not None and for_mjx and category[g] < GEOM_FOOT):
