@@ -255,3 +255,17 @@ def test_a_build_that_does_not_fit_is_refused_with_the_rebuild_command(built, tm
             ensure_built(config)
         assert expected in str(e.value), str(e.value)
         assert f"footforge build --variant {feet} --out {folder}" in str(e.value)
+
+
+def _signature(state):
+    return [(jax.tree_util.keystr(path), x.shape, x.dtype, x.weak_type)
+            for path, x in jax.tree_util.tree_flatten_with_path(state)[0]]
+
+
+def test_step_returns_the_types_it_takes(rollouts):
+    """A step's state has reset's exact types (shape, dtype, weak type), so a jitted step compiles
+    once: a weakly typed metric once made every second call compile again (100x slower)."""
+    for feet, (_, states, step) in rollouts.items():
+        for state in states[1:]:
+            assert _signature(state) == _signature(states[0]), feet
+        assert step._cache_size() == 1, feet

@@ -319,3 +319,12 @@ def test_shank_tubes_collide_with_the_terrain_as_capsules(built):
         assert not np.asarray(foot_contacts(category, env.robot.floor_geom, geoms, dist)).any()
         base, knees = ground_contacts(category, env.robot.floor_geom, geoms, dist)
         assert not bool(base) and int(knees) == 0
+
+
+def test_rough_step_returns_the_types_it_takes(rough):
+    """As the flat environment's (tests/test_envs.py): one compilation of step."""
+    for feet, (_, states, step) in rough.items():
+        for state in states[1:]:
+            assert [(x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(state)] == \
+                   [(x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(states[0])], feet
+        assert step._cache_size() == 1, feet

@@ -210,7 +210,9 @@ class LocomotionEnv(Env):
         weighted = {t: jp.where(finite, v, 0.0) for t, v in weighted.items()}
         errors = {k: jp.where(finite, v, 0.0) for k, v in errors.items()}
         terminated = self._terminated(data) | ~finite
-        fall_penalty = scales.fall * terminated  # after the clip (RewardScales.fall)
+        # After the clip (RewardScales.fall). Strongly typed: a weakly typed metric would differ
+        # from reset's and make every second call of a jitted step compile again.
+        fall_penalty = jp.float32(scales.fall) * terminated.astype(jp.float32)
         reward = reward + fall_penalty
         # A time-out is reported as done with info['time_out'] = 1, which PPO
         # (bootstrap_on_timeout) bootstraps instead of treating as a fall.
