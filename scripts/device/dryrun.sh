@@ -21,8 +21,11 @@ if [[ $# -gt 1 || "${1:-}" == -* ]]; then
     echo "usage: $0 [WORKDIR]" >&2
     exit 2
 fi
-py="${PYTHON312:-$(command -v python3.12 || ls -1 "${PYENV_ROOT:-$HOME/.pyenv}"/versions/3.12.*/bin/python3 2>/dev/null | tail -1 || true)}"
-if [[ -z "$py" ]] || ! "$py" -c 'import sys; assert sys.version_info[:2] == (3, 12)' 2>/dev/null; then
+py=""
+for candidate in ${PYTHON312:-} python3.12 "${PYENV_ROOT:-$HOME/.pyenv}"/versions/3.12.*/bin/python3; do
+    if "$candidate" -c 'import sys; assert sys.version_info[:2] == (3, 12)' 2>/dev/null; then py="$candidate"; break; fi
+done
+if [[ -z "$py" ]]; then
     echo "dryrun: error: no Python 3.12 found (set PYTHON312)" >&2
     exit 2
 fi
