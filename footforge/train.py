@@ -11,7 +11,9 @@ and restart: a resumed run continues from the same policy, not the same optimise
 `max_wall_s` bounds a call's wall-clock time for machines whose jobs have a time limit: after each
 checkpoint and its evaluation, training stops when the next epoch (estimated by the last one)
 would end past the budget; the policy folder then holds the last checkpoint and
-`progress.json` says `"stopped": "wall-time budget"`; `--resume` continues.
+`progress.json` says `"stopped": "wall-time budget"`; `--resume` continues. The first epoch's
+time includes the compilation, so a call may stop after its first checkpoint although another
+epoch would have fitted: keep epochs (checkpoint_every_steps) short against the budget.
 """
 
 from __future__ import annotations

@@ -16,6 +16,10 @@ REPO = Path(__file__).resolve().parents[2]
 # What the GPU machine has (DEVELOPERS' notes on the machine), JAX at its version.
 MACHINE_PACKAGES = ["jax==0.11.2", "flax", "optax", "orbax-checkpoint", "numpy", "scipy", "matplotlib",
                     "tensorboard", "onnx", "onnxruntime", "rich", "pyyaml"]
+# Each job compiles Brax PPO anew, about 5 minutes on 2 busy cores: a 9-minute budget would stop
+# the first job after its first checkpoint (the budget's estimate of an epoch includes the
+# compilation), so the dry run gives each job 30 minutes; tests/test_train.py tests the stop.
+MINUTES = ["--minutes", "30"]
 TINY = ["--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
         "--eval-envs", "4", "--checkpoint-every", "32"]
 T0 = time.time()
@@ -82,14 +86,14 @@ def main(argv: list[str]) -> int:
             shutil.rmtree(r, ignore_errors=True)
 
         t = time.time()
-        step("train", [run_sh, "--results", results[0], "train-flat", "ball", "--", *TINY, "--timesteps", "64"],
+        step("train", [run_sh, *MINUTES, "--results", results[0], "train-flat", "ball", "--", *TINY, "--timesteps", "64"],
              cwd=repo, env=env)
         first = check(results[0], "train-flat", min_step=64)
         times["train_s"] = time.time() - t
 
         t = time.time()
         shutil.rmtree(repo / "runs")  # a fresh machine: only the tarball comes back
-        step("resume", [run_sh, "--results", results[1], "--resume", results[0] / "flat_ball_B.tar.gz",
+        step("resume", [run_sh, *MINUTES, "--results", results[1], "--resume", results[0] / "flat_ball_B.tar.gz",
                         "train-flat", "ball", "--", *TINY, "--timesteps", "128"], cwd=repo, env=env)
         second = check(results[1], "train-flat", min_step=128)
         progress = json.loads(extract(results[1] / "flat_ball_B.tar.gz", "flat_ball_B/progress.json"))
@@ -99,7 +103,7 @@ def main(argv: list[str]) -> int:
 
         t = time.time()
         shutil.rmtree(repo / "runs")
-        step("evaluate", [run_sh, "--results", results[2], "--resume", results[1] / "flat_ball_B.tar.gz",
+        step("evaluate", [run_sh, *MINUTES, "--results", results[2], "--resume", results[1] / "flat_ball_B.tar.gz",
                           "evaluate", "flat_ball_B", "--", "--num-envs", "2", "--seconds", "0.4"], cwd=repo, env=env)
         third = check(results[2], "evaluate", min_step=128)
         indices = third["evaluation"][0]["indices"]
