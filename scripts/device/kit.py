@@ -71,6 +71,12 @@ def main(argv: list[str]) -> int:
 def run_job(args, extra: list[str]) -> int:
     if args.minutes <= 0:
         raise UsageError("--minutes must be positive")
+    if args.job in ("train-flat", "train-rough") and (not 1 <= len(args.names) <= 2 or args.names[0] not in FEET):
+        raise UsageError(f"{args.job} FEET [POLICY]: FEET one of {', '.join(FEET)}")
+    if args.job == "evaluate" and not args.names:
+        raise UsageError("evaluate RUN [FEET...]")
+    if any(f not in FEET for f in (args.names[1:] if args.job == "evaluate" else args.names if args.job == "bench" else [])):
+        raise UsageError(f"FEET must be among {', '.join(FEET)}")
     results = args.results.resolve()
     results.mkdir(parents=True, exist_ok=True)
     runs = args.runs.resolve()
