@@ -7,6 +7,13 @@ count on resume; footforge keeps its own: after every epoch the parameters go to
 step. `--resume` restores the latest checkpoint and trains the remaining steps with a new seed
 (the same seed would replay the same experience). Adam's moments are not in Brax's checkpoints
 and restart: a resumed run continues from the same policy, not the same optimiser state.
+
+`max_wall_s` bounds a call's wall-clock time for machines whose jobs have a time limit: after each
+checkpoint and its evaluation, training stops when the next epoch (estimated by the last one)
+would end past the budget; the policy folder then holds the last checkpoint and
+`progress.json` says `"stopped": "wall-time budget"`; `--resume` continues. The first epoch's
+time includes the compilation, so a call may stop after its first checkpoint although another
+epoch would have fitted: keep epochs (checkpoint_every_steps) short against the budget.
 """
 
 from __future__ import annotations
@@ -121,13 +128,18 @@ def latest_checkpoint(run_dir: Path) -> tuple[int, Path] | None:
     return (steps[-1], folder / f"{steps[-1]:012d}") if steps else None
 
 
+class _OutOfTime(Exception):
+    """Raised from Brax's progress callback to stop training at a checkpoint (max_wall_s)."""
+
+
 def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False,
-          progress: Callable[[int, int, dict], None] | None = None) -> dict:
+          progress: Callable[[int, int, dict], None] | None = None, max_wall_s: float | None = None) -> dict:
     """Trains a policy; writes checkpoints, TensorBoard logs and the final policy into run_dir.
 
     Returns the final metrics. `progress(global_step, total_steps, metrics)` is called after each
     evaluation and each log of the training episodes' metrics, with the latest value of every
-    metric so far.
+    metric so far. `max_wall_s`: stop at the last checkpoint that leaves time for no further epoch
+    (see the module's docstring); the returned metrics then hold "stopped_for_time": 1.0.
 
     Raises:
       InputError: bad hyperparameters, or --resume without a checkpoint / with other configs.
@@ -142,7 +154,15 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
 
     import jax
 
+    from footforge import jax_compat
+
+    jax_compat.install()  # Brax 0.14.2's PPO on JAX >= 0.10
     ppo.check()
+    if max_wall_s is not None and max_wall_s <= 0:
+        raise InputError(f"max_wall_s must be positive, got {max_wall_s}", fix="give a positive time budget")
+    if max_wall_s is not None and jax.process_count() > 1:  # only process 0 would stop; the others would wait
+        raise InputError("a wall-time budget works on one machine only (one JAX process)",
+                         fix="leave out the time budget with --coordinator")
     if ppo.num_envs % jax.device_count():
         raise InputError(f"num_envs ({ppo.num_envs}) must be a multiple of the number of JAX devices "
                          f"({jax.device_count()}): Brax splits the robots evenly over them",
@@ -182,6 +202,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
     last: dict = {}
     t0 = time.time()
+    clock = {"last_eval": t0, "stopped": False}
 
     def save(step: int, make_policy, params) -> None:
         global_step = offset + step
@@ -192,7 +213,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                                                             ppo.normalize_observations,
                                                             network_factory(ppo, env_config.privileged_critic)))
         _write_json(state_file, {"global_step": global_step, "resumes": resumes, "metrics": last,
-                                 "wall_s": time.time() - t0})
+                                 "wall_s": time.time() - t0, "num_timesteps": ppo.num_timesteps})
 
     def log(step: int, metrics: dict) -> None:
         if not primary:
@@ -210,7 +231,36 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
             f.write(json.dumps({"global_step": global_step, "wall_s": time.time() - t0} | now) + "\n")
         if progress:
             progress(global_step, ppo.num_timesteps, last)
+        # An evaluation follows each checkpoint (step 0 has none): stop here if one more epoch,
+        # timed as the last one (training, checkpoint, evaluation), would overrun the budget.
+        if max_wall_s is not None and step > 0 and "eval/walltime" in metrics and offset + step < ppo.num_timesteps:
+            now_t = time.time()
+            epoch_s, clock["last_eval"] = now_t - clock["last_eval"], now_t
+            if now_t + epoch_s > t0 + max_wall_s:
+                raise _OutOfTime()
 
+    try:
+        _run_ppo(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save,
+                 wrap_for_training, randomizer)
+    except _OutOfTime:
+        clock["stopped"] = True
+    if writer:
+        writer.close()
+    final = latest_checkpoint(run_dir)
+    if final is not None and primary:  # the policy: the last checkpoint (the final parameters) and the configs
+        with atomic_directory(run_dir / "policy") as tmp:
+            shutil.copytree(final[1], tmp, dirs_exist_ok=True)
+            _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
+                                                 "global_step": final[0]})
+    if clock["stopped"]:
+        last["stopped_for_time"] = 1.0
+        if primary and state_file.exists():
+            _write_json(state_file, json.loads(state_file.read_text()) | {"metrics": last, "stopped": "wall-time budget"})
+    return last
+
+
+def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
+             resumes: int, log, save, wrap_for_training, randomizer) -> None:
     ppo_train.train(
         environment=env, num_timesteps=remaining, episode_length=env_config.episode_steps,
         num_envs=ppo.num_envs, unroll_length=ppo.unroll_length, batch_size=ppo.batch_size,
@@ -230,15 +280,6 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         # Training episodes' metrics (episode/...: the terrain levels the curriculum reached, reward
         # terms, tracking errors), logged between evaluations.
         log_training_metrics=True, training_metrics_steps=max(ppo.checkpoint_every_steps // 4, 1))
-    if writer:
-        writer.close()
-    final = latest_checkpoint(run_dir)
-    if final is not None and primary:  # the policy: the last checkpoint (the final parameters) and the configs
-        with atomic_directory(run_dir / "policy") as tmp:
-            shutil.copytree(final[1], tmp, dirs_exist_ok=True)
-            _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
-                                                 "global_step": final[0]})
-    return last
 
 
 def initial_policy(env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observation_size,

@@ -18,6 +18,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, required=True, help="run folder")
     p.add_argument("--resume", action="store_true", help="continue from the run folder's last checkpoint")
+    p.add_argument("--max-minutes", type=float,
+                   help="wall-clock budget: stop at the last checkpoint that leaves no time for another epoch "
+                        "(for time-limited jobs; --resume continues)")
     p.add_argument("--unroll-length", type=int, help="policy steps per robot per iteration (default 48)")
     p.add_argument("--batch-size", type=int, help="trajectories per minibatch (default 512)")
     p.add_argument("--minibatches", type=int, help="minibatches per iteration (default 4)")
@@ -70,10 +73,14 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                 if task == "rough":
                     text += f"  terrain level {metrics.get('episode/terrain/level_per_step', float('nan')):4.2f}"
                 progress.update(bar, completed=min(step, total), description=text)
-            metrics = train.train(env_config, ppo, args.out, resume=args.resume, progress=report)
+            metrics = train.train(env_config, ppo, args.out, resume=args.resume, progress=report,
+                                  max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None)
     except FootforgeError as e:
         console.print(f"train_{task}: error: {e}", markup=False, soft_wrap=True)
         return e.exit_code
+    if metrics.get("stopped_for_time"):
+        console.print(f"stopped at the wall-time budget ({args.max_minutes:g} min) after a checkpoint; "
+                      f"--resume continues")
     console.print(f"policy written to {args.out / 'policy'}; final evaluation return "
                   f"{metrics.get('eval/episode_reward', float('nan')):.2f}")
     return 0

@@ -181,3 +181,17 @@ def test_initial_policy_of_a_privileged_critic_loads_and_acts(tmp_path):
     other, _ = policy({"state": jp.ones(48), "privileged_state": jp.ones(48 + 148)}, jax.random.PRNGKey(0))
     assert action.shape == (12,)
     np.testing.assert_array_equal(action, other)  # the critic's slice does not reach the policy
+
+
+def test_time_budget_stops_at_a_checkpoint(built, tmp_path):
+    """--max-minutes: a run whose first epoch (compilation included) outlasts the budget stops
+    after that epoch's checkpoint and evaluation, with its policy written and the stop recorded."""
+    out = tmp_path / "run"
+    done = subprocess.run(_train(out, built["ball"][0], 100_000, "--max-minutes", "0.05"),
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert "wall-time budget" in done.stdout
+    progress = json.loads((out / "progress.json").read_text())
+    assert progress["stopped"] == "wall-time budget" and progress["global_step"] == 32
+    assert json.loads((out / "policy/footforge.json").read_text())["global_step"] == 32
+    assert latest_checkpoint(out)[0] == 32

@@ -1,0 +1,159 @@
+"""The CPU dry run of the GPU kit (started by scripts/device/dryrun.sh, which documents it)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+# What the GPU machine has (DEVELOPERS' notes on the machine), JAX at its version.
+MACHINE_PACKAGES = ["jax==0.11.2", "flax", "optax", "orbax-checkpoint", "numpy", "scipy", "matplotlib",
+                    "tensorboard", "onnx", "onnxruntime", "rich", "pyyaml"]
+# Each job compiles Brax PPO anew, about 5 minutes on 2 busy cores: a 9-minute budget would stop
+# the first job after its first checkpoint (the budget's estimate of an epoch includes the
+# compilation), so the dry run gives each job 30 minutes; tests/test_train.py tests the stop.
+MINUTES = ["--minutes", "30"]
+TINY = ["--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
+        "--eval-envs", "4", "--checkpoint-every", "32"]
+T0 = time.time()
+
+
+class Failed(Exception):
+    pass
+
+
+def step(name: str, cmd: list[str], **kw) -> subprocess.CompletedProcess:
+    t = time.time()
+    print(f"dryrun: {name}: {' '.join(map(str, cmd))}", flush=True)
+    done = subprocess.run([str(c) for c in cmd], text=True, capture_output=True, **kw)
+    print(done.stdout[-3000:] + done.stderr[-3000:], flush=True)
+    print(f"dryrun: {name}: exit {done.returncode} in {time.time() - t:.0f} s", flush=True)
+    if done.returncode:
+        raise Failed(f"{name} exited {done.returncode}")
+    return done
+
+
+def main(argv: list[str]) -> int:
+    work = Path(argv[0]).resolve() if argv else Path(tempfile.mkdtemp(prefix="footforge-dryrun-"))
+    work.mkdir(parents=True, exist_ok=True)
+    times: dict[str, float] = {}
+    summary = {"dryrun": "failed", "workdir": str(work)}
+    try:
+        t = time.time()
+        venv = work / "venv"
+        if not (venv / ".complete").is_file():
+            shutil.rmtree(venv, ignore_errors=True)
+            step("venv", [sys.executable, "-m", "venv", venv])
+            step("machine packages", [venv / "bin/python", "-m", "pip", "install", "-q", *MACHINE_PACKAGES])
+            (venv / ".complete").write_text("\n".join(MACHINE_PACKAGES))
+        python = venv / "bin/python"
+        jax_version = step("jax", [python, "-c", "import jax; print(jax.__version__)"]).stdout.strip()
+        if jax_version != "0.11.2":
+            raise Failed(f"the venv has jax {jax_version}, not 0.11.2")
+        times["venv_s"] = time.time() - t
+
+        t = time.time()
+        kit = Path(os.environ.get("KIT", REPO / ".kit")).resolve()
+        if not (kit / "wheels").is_dir():
+            env = dict(os.environ, PYTHON=os.environ.get("PREPARE_PYTHON", "python3"))
+            step("prepare", [REPO / "scripts/device/prepare.sh", kit], env=env)
+        repo = work / "repo"
+        shutil.rmtree(repo, ignore_errors=True)
+        repo.mkdir()
+        files = subprocess.run(["git", "-C", REPO, "ls-files", "-z", "-co", "--exclude-standard"],
+                               capture_output=True, check=True).stdout.split(b"\0")
+        for name in filter(None, (f.decode() for f in files)):
+            if (REPO / name).is_file():
+                (repo / name).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(REPO / name, repo / name)
+        shutil.copytree(kit, repo / ".kit")
+        times["copy_s"] = time.time() - t
+
+        # As on the machine: run.sh installs the wheels with pip --target and runs the job.
+        env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV", "OUT")}
+        env |= {"PYTHON": str(python), "KIT_SITE": str(work / "site"), "JAX_PLATFORMS": "cpu"}
+        shutil.rmtree(work / "site", ignore_errors=True)
+        run_sh = repo / "scripts/device/run.sh"
+        results = [work / f"results{i}" for i in (1, 2, 3)]
+        for r in results:
+            shutil.rmtree(r, ignore_errors=True)
+
+        t = time.time()
+        step("train", [run_sh, *MINUTES, "--results", results[0], "train-flat", "ball", "--", *TINY, "--timesteps", "64"],
+             cwd=repo, env=env)
+        first = check(results[0], "train-flat", min_step=64)
+        times["train_s"] = time.time() - t
+
+        t = time.time()
+        shutil.rmtree(repo / "runs")  # a fresh machine: only the tarball comes back
+        step("resume", [run_sh, *MINUTES, "--results", results[1], "--resume", results[0] / "flat_ball_B.tar.gz",
+                        "train-flat", "ball", "--", *TINY, "--timesteps", "128"], cwd=repo, env=env)
+        second = check(results[1], "train-flat", min_step=128)
+        progress = json.loads(extract(results[1] / "flat_ball_B.tar.gz", "flat_ball_B/progress.json"))
+        if progress.get("resumes") != 1:
+            raise Failed(f"the second job did not resume from the first's checkpoint: {progress}")
+        times["resume_s"] = time.time() - t
+
+        t = time.time()
+        shutil.rmtree(repo / "runs")
+        step("evaluate", [run_sh, *MINUTES, "--results", results[2], "--resume", results[1] / "flat_ball_B.tar.gz",
+                          "evaluate", "flat_ball_B", "--", "--num-envs", "2", "--seconds", "0.4"], cwd=repo, env=env)
+        third = check(results[2], "evaluate", min_step=128)
+        indices = third["evaluation"][0]["indices"]
+        if "flat_ball_B/evaluation/metrics.json" not in tar_names(results[2] / "flat_ball_B.tar.gz"):
+            raise Failed("the evaluation is not in the results tarball")
+        times["evaluate_s"] = time.time() - t
+        summary |= {"dryrun": "ok", "jax": third["jax"].get("version"), "steps": [first["global_step"], second["global_step"]],
+                    "forward_error": indices.get("lin_vel_x_error", {}).get("mean") if isinstance(indices, dict) else None,
+                    "tarball_kib": round((results[1] / "flat_ball_B.tar.gz").stat().st_size / 1024)}
+        return 0
+    except Failed as e:
+        summary["error"] = str(e)
+        return 1
+    finally:
+        summary |= {k: round(v) for k, v in times.items()} | {"total_s": round(time.time() - T0)}
+        print(json.dumps(summary))
+
+
+def check(results: Path, job: str, min_step: int) -> dict:
+    summary_file = results / "summary.json"
+    if not summary_file.is_file():
+        raise Failed(f"{job}: no summary.json in {results}")
+    s = json.loads(summary_file.read_text())
+    if s.get("returncode") != 0:
+        raise Failed(f"{job}: the job failed: {s}")
+    if s.get("forbidden_imported"):
+        raise Failed(f"{job}: the training path imported {s['forbidden_imported']}")
+    if s.get("global_step", 0) < min_step:
+        raise Failed(f"{job}: global step {s.get('global_step')} < {min_step}")
+    tarball = results / s.get("tarball", "missing")
+    if not tarball.is_file() or tarball.stat().st_size > 16 * 2**20:
+        raise Failed(f"{job}: no results tarball under 16 MiB: {tarball}")
+    names = tar_names(tarball)
+    for needed in ("progress.json", "config.json", "metrics.jsonl", "policy/footforge.json"):
+        if f"flat_ball_B/{needed}" not in names:
+            raise Failed(f"{job}: {needed} missing from {tarball.name}")
+    if len(list(results.iterdir())) > 8:
+        raise Failed(f"{job}: more than 8 result files")
+    return s
+
+
+def tar_names(tarball: Path) -> set[str]:
+    with tarfile.open(tarball) as tar:
+        return set(tar.getnames())
+
+
+def extract(tarball: Path, name: str) -> str:
+    with tarfile.open(tarball) as tar:
+        return tar.extractfile(name).read().decode()
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,80 @@
+"""footforge.jax_compat: the device_put_replicated that Brax 0.14.2 needs on JAX >= 0.10, compared
+with JAX 0.9's own (the pinned set) on values, dtypes, shapes, shardings and device placement."""
+
+import os
+import subprocess
+import sys
+import warnings
+
+import jax
+import jax.numpy as jp
+import numpy as np
+import pytest
+
+from footforge import jax_compat
+
+
+def _real():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return getattr(jax, "device_put_replicated", None)
+
+
+def _tree():
+    return {"w": jp.arange(6.0).reshape(2, 3), "n": np.int32(7), "s": 1.5, "b": np.array([True, False]),
+            "steps": jp.zeros((), jp.uint32), "nested": (jp.ones(4, jp.bfloat16), [np.float64(2.0)])}
+
+
+def _check_same(ours, real):
+    assert jax.tree_util.tree_structure(ours) == jax.tree_util.tree_structure(real)
+    for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(real)):
+        assert a.shape == b.shape and a.dtype == b.dtype and a.weak_type == b.weak_type
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+        assert a.sharding == b.sharding, (a.sharding, b.sharding)
+        assert [s.device for s in a.addressable_shards] == [s.device for s in b.addressable_shards]
+        for sa, sb in zip(a.addressable_shards, b.addressable_shards):
+            np.testing.assert_array_equal(np.asarray(sa.data), np.asarray(sb.data))
+
+
+@pytest.mark.skipif(_real() is None, reason="this JAX has no device_put_replicated to compare with")
+def test_shim_matches_jax_device_put_replicated():
+    devices = jax.local_devices()
+    _check_same(jax_compat.device_put_replicated(_tree(), devices), _real()(_tree(), devices))
+    with pytest.raises(ValueError):
+        jax_compat.device_put_replicated(_tree(), [])
+
+
+def test_install_adds_only_what_is_missing():
+    before = _real()
+    added = jax_compat.install()
+    if before is not None:  # the pinned JAX: left alone
+        assert added == [] and _real() is before
+    else:
+        assert added == ["device_put_replicated"] and _real() is jax_compat.device_put_replicated
+
+
+SCRIPT = """
+import warnings, jax, jax.numpy as jp, numpy as np
+from footforge import jax_compat
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    real = jax.device_put_replicated
+tree = {"w": jp.arange(6.0).reshape(2, 3), "s": 1.5, "i": np.int32(3)}
+devices = jax.local_devices()
+assert len(devices) == 2
+ours, theirs = jax_compat.device_put_replicated(tree, devices), real(tree, devices)
+for a, b in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(theirs)):
+    assert a.shape == b.shape == (2,) + np.shape(a)[1:] and a.dtype == b.dtype and a.sharding == b.sharding
+    assert [s.device for s in a.addressable_shards] == [s.device for s in b.addressable_shards] == devices
+    np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # inside pmap each device sees its own copy
+    np.testing.assert_array_equal(np.asarray(jax.pmap(lambda x: x * 2)(a)), np.asarray(b) * 2)
+print("ok")
+"""
+
+
+@pytest.mark.skipif(_real() is None, reason="this JAX has no device_put_replicated to compare with")
+def test_shim_matches_on_two_devices():
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2", JAX_PLATFORMS="cpu")
+    done = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and done.stdout.strip().endswith("ok"), done.stderr[-3000:]
