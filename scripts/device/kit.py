@@ -172,8 +172,13 @@ def link_builds(kit: Path) -> None:
         own, theirs = REPO / "build" / feet, kit / "build" / feet
         if (own / "scene.xml").is_file() or not (theirs / "scene.xml").is_file():
             continue
-        if own.is_symlink() or own.exists():
-            own.unlink() if own.is_symlink() else shutil.rmtree(own)
+        if own.is_symlink():
+            own.unlink()  # a link of an earlier job
+        elif own.is_dir() and not any(own.iterdir()):
+            own.rmdir()
+        elif own.exists():  # something of the user's: never removed
+            print(f"run: note: {own} is not a build and not empty; left alone, the kit's build not linked", flush=True)
+            continue
         own.parent.mkdir(exist_ok=True)
         own.symlink_to(theirs, target_is_directory=True)
 

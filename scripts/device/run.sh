@@ -31,6 +31,10 @@ fi
 stamp="$site/.footforge-kit"
 wanted="$(cd "$kit/wheels" && ls -1 *.whl | sort)"
 if [[ ! -f "$stamp" || "$(cat "$stamp")" != "$wanted" ]]; then
+    if [[ -e "$site" && ! -f "$stamp" && -n "$(ls -A "$site" 2>/dev/null)" ]]; then  # never delete what the kit did not write
+        echo "run: error: $site exists and was not made by the kit: set KIT_SITE to a new or empty folder" >&2
+        exit 2
+    fi
     echo "run: installing $(echo "$wanted" | wc -l) wheels into $site"
     rm -rf "$site"
     "$python" -m pip install -q --no-index --no-deps --no-compile --target "$site" "$kit"/wheels/*.whl \
