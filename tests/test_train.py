@@ -103,6 +103,7 @@ def resumed(built, tmp_path_factory):
     return out, killed_at
 
 
+@pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
 def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
     out, killed_at = resumed
     assert killed_at >= 64
@@ -115,6 +116,7 @@ def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
     assert other.returncode == 2 and "other settings" in other.stdout + other.stderr
 
 
+@pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
 def test_saved_policy_loads_for_inference(resumed):
     out, _ = resumed
     policy, env_config, ppo = load_policy(out / "policy")
@@ -125,6 +127,7 @@ def test_saved_policy_loads_for_inference(resumed):
         load_policy(out / "checkpoints")
 
 
+@pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
 def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path):
     from footforge.evaluate import INDICES
     out, _ = resumed
@@ -183,6 +186,7 @@ def test_initial_policy_of_a_privileged_critic_loads_and_acts(tmp_path):
     np.testing.assert_array_equal(action, other)  # the critic's slice does not reach the policy
 
 
+@pytest.mark.slow  # a real training stopped by its budget: about 3 minutes on 2 cores
 def test_time_budget_stops_at_a_checkpoint(built, tmp_path):
     """--max-minutes: a run whose first epoch (compilation included) outlasts the budget stops
     after that epoch's checkpoint and evaluation, with its policy written and the stop recorded."""
