@@ -29,6 +29,10 @@ GEOM_SHANK = 20
 """Shank tube of leg i on a heightfield (MJX): 20 + i. It collides, but is neither a foot nor a knee."""
 FAST_CONTACT_SOLIMP = (0.9, 0.95, 0.001)
 """MuJoCo's default solimp, for EnvConfig.contact_model 'fast'."""
+BUILD_CONTACT_MIN_ITERATIONS = (16, 50)
+"""Newton and line-search iterations the build's stiff contact needs at a 5 ms step: with fewer, an
+unconverged solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo
+(benchmarks/contact_sweep.py, benchmarks/RESULTS.md)."""
 
 
 @dataclass(frozen=True)
@@ -144,6 +148,13 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     and their ground contact is measured geometrically instead (footforge.envs.rough).
     for_mjx=False keeps the model's own geoms, for MuJoCo on the CPU.
     """
+    needed = BUILD_CONTACT_MIN_ITERATIONS
+    if config.contact_model == "build" and (config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]):
+        raise InputError(
+            f"contact_model 'build' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
+            f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations}): with fewer "
+            "its stiff friction diverges", fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}, "
+            "or contact_model='fast'")
     folder = ensure_built(config)
     if terrain is None:
         model = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))

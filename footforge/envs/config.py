@@ -214,14 +214,17 @@ class EnvConfig:
     """The contact model the environment steps.
 
     - build: the built scene's (parameter file `contact`: elliptic cone, impratio 10, solimp
-      0.99/0.999), under which a standing robot neither sinks nor slides at the build's 2 ms
-      step and 100 iterations. At this environment's 5 ms step it needs about 16 (ball) to 35
-      (aof) Newton iterations; at 4 it diverged (measured, benchmarks/RESULTS.md).
+      0.99/0.999): a standing robot neither sinks nor slides (about 1 mm in 10 s, ball, AFF and
+      AOF), but only with a converged solve: at this 5 ms step it needs solver_iterations >= 16
+      and solver_ls_iterations >= 50, and is refused with fewer (with fewer, an unconverged solve
+      of its stiff friction diverges from any moving start, in MJX as on the CPU), at roughly ten
+      times the cost of `fast` (measured: benchmarks/contact_sweep.py, benchmarks/RESULTS.md).
+      For measuring stance, base height and slippage.
     - fast (default): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp 0.9/0.95/0.001,
-      stable at 4 iterations (MuJoCo Playground trains at 1-4), at the price of creep: a robot
-      holding still sinks about 23 cm in 20 s and slides (measured). Policies walk through it, but
-      stance and slippage figures are best measured with `build` (footforge.stance, or the
-      closed-chain runner at the build's own physics)."""
+      stable at 4 iterations from any start (MuJoCo Playground trains at 1-4), at the price of
+      creep: its regularised friction lets a robot holding still slide and sink about 22 cm in
+      10-20 s (measured). Policies walk through it (the baselines' PhysX friction does not creep:
+      a known difference, issue 12)."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)
