@@ -245,7 +245,7 @@ def _main(argv: list[str] | None) -> int:
     except FootforgeError as e:
         if args.verbose:
             traceback.print_exc()
-        errors.print(f"footforge: error: {e}", markup=False, highlight=False)
+        errors.print(f"footforge: error: {e}", markup=False, highlight=False, soft_wrap=True)  # paths unbroken
         return e.exit_code
     except KeyboardInterrupt:
         errors.print("footforge: interrupted; no output was written")
