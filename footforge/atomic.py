@@ -40,7 +40,7 @@ def remove_stale_temporaries(out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
     if not out_dir.parent.is_dir():
         return []
-    pattern = re.compile(rf"^\.{re.escape(out_dir.name)}\.(?:tmp-(\d+)-.*|old-(\d+))$")
+    pattern = re.compile(rf"^\.{re.escape(out_dir.name)}\.(?:tmp-(\d+)-[a-z0-9_]+|old-(\d+))$")  # mkdtemp suffix
     removed = []
     for entry in out_dir.parent.iterdir():
         m = pattern.match(entry.name)

@@ -66,6 +66,8 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
     if target == cwd or target in cwd.parents:
         raise InputError(f"{flag} {given}: is the current folder or one above it, which footforge would replace "
                          f"as a whole; give a new or footforge-written folder, e.g. {flag} build/out")
+    if target.is_symlink() and not target.exists():
+        raise InputError(f"{flag} {given}: is a broken link; remove it or give another {flag} folder")
     if target.exists() and not target.is_dir():
         raise InputError(f"{flag} {given}: is a file, not a folder; footforge does not replace files: "
                          f"give another {flag} folder")
