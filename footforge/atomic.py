@@ -1,32 +1,90 @@
-"""Output folders that appear whole or not at all."""
+"""Output folders that appear whole or not at all.
+
+The output is written into a temporary folder beside it, `.NAME.tmp-PID-XXXX`, and renamed into
+place at the end; a folder being replaced is first renamed aside to `.NAME.old-PID`. The PID in
+both names lets a later run tell the leftovers of a killed run (whose process is gone, so nothing
+else removed them) from those of a run still going: `remove_stale_temporaries`.
+"""
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from footforge.errors import InputError
+from footforge.outputs import check_output_folder, write_marker, written_by_footforge
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_stale_temporaries(out_dir: Path) -> list[Path]:
+    """Removes the temporary and set-aside folders of `out_dir` left by runs that were killed.
+
+    Only names of the form `.NAME.tmp-PID-...` and `.NAME.old-PID` whose process no longer exists
+    on this machine (a PID reused by another process keeps the leftover until it ends). Returns
+    the removed paths.
+    """
+    out_dir = Path(out_dir)
+    if not out_dir.parent.is_dir():
+        return []
+    pattern = re.compile(rf"^\.{re.escape(out_dir.name)}\.(?:tmp-(\d+)-[a-z0-9_]+|old-(\d+))$")  # mkdtemp suffix
+    removed = []
+    for entry in out_dir.parent.iterdir():
+        m = pattern.match(entry.name)
+        if not m or entry.is_symlink() or not entry.is_dir():
+            continue
+        pid = int(m.group(1) or m.group(2))
+        if pid != os.getpid() and not _process_alive(pid):
+            shutil.rmtree(entry, ignore_errors=True)
+            removed.append(entry)
+    return removed
+
 
 @contextmanager
-def atomic_directory(out_dir: Path) -> Iterator[Path]:
+def atomic_directory(out_dir: Path, *, force: bool = False, command: str | None = None) -> Iterator[Path]:
     """Yields a temporary folder beside `out_dir`; on success it replaces `out_dir` by rename, on
-    any error (or interruption) it is deleted and `out_dir` is left as it was."""
+    any error (or interruption) it is deleted and `out_dir` is left as it was.
+
+    `out_dir` may be new, empty, or a folder footforge wrote (it holds outputs.MARKER); any other
+    folder only with `force` (outputs.check_output_folder, checked on entry and again before the
+    replacement, since the folder may have changed meanwhile). The new folder gets the marker,
+    naming `command` (default: this process's command line).
+
+    Raises:
+      InputError: `out_dir` may not be written or replaced.
+    """
     out_dir = Path(out_dir)
+    check_output_folder(out_dir, force=force)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    remove_stale_temporaries(out_dir)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-{os.getpid()}-", dir=out_dir.parent))
     umask = os.umask(0)
     os.umask(umask)
     tmp.chmod(0o777 & ~umask)  # mkdtemp makes 0700; the output is an ordinary folder
     try:
         yield tmp
-        if out_dir.exists():
+        write_marker(tmp, command)
+        if out_dir.is_dir() and (force or written_by_footforge(out_dir) or not any(out_dir.iterdir())):
             old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
             os.replace(out_dir, old)
             os.replace(tmp, out_dir)
             shutil.rmtree(old, ignore_errors=True)
+        elif out_dir.exists() or out_dir.is_symlink():
+            check_output_folder(out_dir, force=force)  # raises: someone put files there meanwhile
+            raise InputError(f"{out_dir}: appeared during the run; not replaced")
         else:
             os.replace(tmp, out_dir)
     except BaseException:

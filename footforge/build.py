@@ -33,6 +33,7 @@ from footforge.collision import DecompositionConfig
 from footforge.description import (Description, default_foot_description, default_robot_description,
                                    load_description)
 from footforge.errors import CheckFailure, InputError
+from footforge.outputs import check_output_folder
 from footforge.params import VariantParams, load_params
 from footforge.robot import build_rig, build_robot, scene_xml
 from footforge.sidecar import Sidecar, default_sidecar_path, load_sidecar
@@ -56,7 +57,10 @@ class BuildOptions:
     variant: Variant
     """Which feet: full (closed chain), aof, aff, ball."""
     out_dir: Path
-    """Output folder; replaced as a whole when the build succeeds."""
+    """Output folder; replaced as a whole when the build succeeds (if new, empty, or written by
+    footforge: footforge.outputs)."""
+    force: bool = False
+    """Replace `out_dir` even if footforge did not write it (the user's --force)."""
     foot_only: bool = False
     """Write the foot alone (foot.xml) and its rig, no robot."""
     foot_description: Path | None = None
@@ -215,6 +219,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
     if unknown or not options.formats:
         raise InputError(f"unknown output format '{', '.join(unknown)}'" if unknown else "no output format given",
                          fix=f"use one or more of {', '.join(FORMATS)}, e.g. --format mjcf,usd")
+    check_output_folder(options.out_dir, force=options.force)  # before minutes of CoACD
     stage = Stages(progress)
     report: dict = {"format": REPORT_FORMAT, "variant": options.variant, "foot_only": options.foot_only,
                     "versions": versions(), "machine": platform.platform(), "repairs": [], "warnings": []}
@@ -292,7 +297,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
                            fix="report this as a bug: derived bodies must be exact composites")
     if "mjcf" not in options.formats:
         files, asset_sets = {}, []
-    _write_atomically(options.out_dir, files, asset_sets, report, stages)
+    _write_atomically(options.out_dir, files, asset_sets, report, stages, force=options.force)
     return report
 
 
@@ -391,8 +396,8 @@ def _xml(root: mjcf.RootElement, asset_sets: list[dict]) -> str:
 
 
 def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dict], report: dict,
-                      stages: Mapping[str, object] = {}) -> None:
-    with atomic_directory(out_dir) as tmp:
+                      stages: Mapping[str, object] = {}, *, force: bool = False) -> None:
+    with atomic_directory(out_dir, force=force) as tmp:
         outputs = sorted(files)
         if asset_sets:
             (tmp / "assets").mkdir()

@@ -49,7 +49,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--format", default="mjcf,usd", metavar="FORMATS",
                    help="comma-separated outputs: mjcf (MuJoCo XML), usd (robot.usda/.usd for Isaac Sim); "
                         "default mjcf,usd")
-    b.add_argument("--out", type=Path, help="output folder (default build/<variant>)")
+    b.add_argument("--out", type=Path, help="output folder (default build/<variant>); replaced only if footforge "
+                                            "wrote it (or it is empty), see --force")
+    b.add_argument("--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)")
 
     v = sub.add_parser("validate", help="drop tests of AFF/AOF/ball against the closed chain; fidelity report")
     v.add_argument("--variant", default="all", help="aof, aff, ball, a comma-separated list, or all (default)")
@@ -69,7 +71,9 @@ def _parser() -> argparse.ArgumentParser:
     v.add_argument("--params", type=Path, help="variant parameter file (read, and written by --calibrate)")
     v.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR")
     v.add_argument("--cache-dir", type=Path, help="CoACD cache folder")
-    v.add_argument("--out", type=Path, default=Path("validation"), help="report folder (default validation/)")
+    v.add_argument("--out", type=Path, default=Path("validation"),
+                   help="report folder (default validation/); replaced only if footforge wrote it, see --force")
+    v.add_argument("--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)")
 
     c = sub.add_parser("check", help="report physical and structural defects of a URDF or xacro")
     c.add_argument("path", type=Path)
@@ -96,7 +100,7 @@ def _run_build(args, console) -> int:
         variant=args.variant, out_dir=args.out or Path("build") / args.variant, foot_only=args.foot_only,
         foot_description=args.description, sidecar=args.sidecar, robot_description=args.robot,
         package_paths=tuple(args.package_path), foot_args=parse_args(args.arg), params=args.params,
-        repair=args.repair, cache_dir=args.cache_dir,
+        repair=args.repair, cache_dir=args.cache_dir, force=args.force,
         formats=tuple(f.strip() for f in args.format.split(",") if f.strip()),
         decomposition=DecompositionConfig(max_hull_vertices=args.max_hull_vertices, timeout_s=args.coacd_timeout))
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
@@ -148,6 +152,7 @@ def _run_validate(args, console) -> int:
 
     from footforge.build import BuildOptions
     from footforge.errors import InputError
+    from footforge.outputs import check_output_folder
     from footforge.validate import report as report_lib
     from footforge.validate.fidelity import Thresholds
     from footforge.validate.runner import ValidateOptions, parse_variants, validate
@@ -158,6 +163,7 @@ def _run_validate(args, console) -> int:
     if args.evaluations < 2:
         raise InputError(f"--evaluations {args.evaluations} must be at least 2", fix="e.g. 120")
     select(args.scenarios)  # unknown names are usage errors before anything is built
+    check_output_folder(args.out, force=args.force)  # before minutes of simulation
     options = ValidateOptions(
         variants=parse_variants(args.variant), scenarios=tuple(args.scenarios), calibrate=args.calibrate,
         calibration_evaluations=args.evaluations, jobs=args.jobs,
@@ -171,7 +177,7 @@ def _run_validate(args, console) -> int:
             return lambda: progress.advance(task)
         report = validate(options, progress=tracker)
         progress.add_task("writing the report", total=None)
-        report_lib.write(report, args.out, "footforge " + " ".join(sys.argv[1:]))
+        report_lib.write(report, args.out, "footforge " + " ".join(sys.argv[1:]), force=args.force)
     _print_validation(report, args.out, console)
     return EXIT_OK if report["passed"] else EXIT_CHECK_FAILED
 
@@ -219,6 +225,13 @@ def _run_check(args, console) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from footforge.processes import sigterm_as_interrupt
+
+    with sigterm_as_interrupt():  # a terminated run cleans up as an interrupted one
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     from rich.console import Console
 
     try:
@@ -232,7 +245,7 @@ def main(argv: list[str] | None = None) -> int:
     except FootforgeError as e:
         if args.verbose:
             traceback.print_exc()
-        errors.print(f"footforge: error: {e}", markup=False, highlight=False)
+        errors.print(f"footforge: error: {e}", markup=False, highlight=False, soft_wrap=True)  # paths unbroken
         return e.exit_code
     except KeyboardInterrupt:
         errors.print("footforge: interrupted; no output was written")

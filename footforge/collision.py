@@ -22,6 +22,7 @@ import numpy as np
 import trimesh
 
 from footforge.errors import InputError
+from footforge.processes import die_with_parent
 
 CACHE_VERSION = 1
 
@@ -59,7 +60,8 @@ class Hulls:
         return mesh.export(file_type="stl")
 
 
-def _coacd_worker(vertices, faces, config: dict, queue) -> None:
+def _coacd_worker(vertices, faces, config: dict, queue, parent_pid: int) -> None:
+    die_with_parent(parent_pid)  # a killed build must not leave CoACD running for minutes
     try:
         import coacd
 
@@ -130,10 +132,13 @@ def _run_coacd(mesh_path: Path, mesh: trimesh.Trimesh, config: DecompositionConf
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
     proc = ctx.Process(target=_coacd_worker, daemon=True,
-                       args=(np.asarray(mesh.vertices), np.asarray(mesh.faces), asdict(config), queue))
+                       args=(np.asarray(mesh.vertices), np.asarray(mesh.faces), asdict(config), queue, os.getpid()))
     proc.start()
     try:
         result = queue.get(timeout=config.timeout_s)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: stop CoACD now, not when this process exits
+        proc.kill()
+        raise
     except Exception:
         proc.kill()
         raise InputError(f"CoACD did not finish within {config.timeout_s:.0f} s", file=str(mesh_path),

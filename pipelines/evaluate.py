@@ -37,18 +37,30 @@ def main(argv: list[str] | None = None) -> int:
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
     p.add_argument("--video", type=float, metavar="SECONDS",
                    help="also record one robot this long: video_<i>.gif and strip_<i>.png (needs MUJOCO_GL)")
-    p.add_argument("--out", type=Path, default=Path("evaluation"))
+    p.add_argument("--out", type=Path, default=Path("evaluation"),
+                   help="output folder (default evaluation/); replaced only if footforge wrote it, see --force")
+    p.add_argument("--force", action="store_true",
+                   help="replace --out even if footforge did not write it (it may hold your files)")
     args = p.parse_args(argv)
 
-    from footforge.atomic import atomic_directory
-    from footforge.errors import FootforgeError
-    from footforge.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
-    from footforge.train import load_policy_config
+    from footforge.processes import sigterm_as_interrupt
 
     if args.num_envs < 1 or (args.seconds is not None and args.seconds <= 0) or (args.video is not None and args.video <= 0):
         print("evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
         return 2
+    with sigterm_as_interrupt():  # a terminated run cleans up as an interrupted one
+        return _run(args)
+
+
+def _run(args) -> int:
+    from footforge.atomic import atomic_directory
+    from footforge.errors import FootforgeError
+    from footforge.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
+    from footforge.outputs import check_output_folder
+    from footforge.train import load_policy_config
+
     try:
+        check_output_folder(args.out, force=args.force)  # before minutes of evaluation
         if args.video:
             from footforge.render import check_renderer, render_frames, write_gif, write_strip
 
@@ -67,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
                         suffix = f"{i}_{kind}" if kind else f"{i}"
                         recordings.append((suffix, results[i]["policy_dt_s"], *record(
                             policy, feet=feet, seconds=args.video, seed=args.seed, build_dir=build_dir, kind=kind)))
-        with atomic_directory(args.out) as tmp:
+        with atomic_directory(args.out, force=args.force) as tmp:
             files = plot(results, tmp)
             for suffix, policy_dt_s, model, qpos in recordings:
                 frames = render_frames(model, qpos, every=2)  # real time at half the policy rate: 25 fps
@@ -80,6 +92,9 @@ def main(argv: list[str] | None = None) -> int:
     except FootforgeError as e:
         print(f"evaluate: error: {e}", file=sys.stderr)
         return e.exit_code
+    except KeyboardInterrupt:
+        print("evaluate: interrupted; no output was written", file=sys.stderr)
+        return 2
     print((args.out / "comparison.md").read_text())
     print(f"written to {args.out}: metrics.json, comparison.md, " + ", ".join(files))
     return 0

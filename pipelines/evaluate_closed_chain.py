@@ -30,18 +30,31 @@ def main(argv: list[str] | None = None) -> int:
                    help="walk on a few terrain tiles (slopes, stairs, obstacles) instead of flat ground")
     p.add_argument("--build-root", type=Path,
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
-    p.add_argument("--out", type=Path, default=Path("closed_chain_evaluation"))
+    p.add_argument("--out", type=Path, default=Path("closed_chain_evaluation"),
+                   help="output folder (default closed_chain_evaluation/); replaced only if footforge wrote it, "
+                        "see --force")
+    p.add_argument("--force", action="store_true",
+                   help="replace --out even if footforge did not write it (it may hold your files)")
     args = p.parse_args(argv)
 
+    from footforge.processes import sigterm_as_interrupt
+
+    with sigterm_as_interrupt():  # a terminated run cleans up as an interrupted one
+        return _run(args)
+
+
+def _run(args) -> int:
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from footforge.atomic import atomic_directory
     from footforge.closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
     from footforge.errors import FootforgeError
+    from footforge.outputs import check_output_folder
 
     console = Console()
     try:
+        check_output_folder(args.out, force=args.force)  # before minutes of simulation
         results = []
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       console=console, transient=True) as progress:
@@ -55,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
                 results.append(evaluate_closed_chain(
                     policy, seconds=args.seconds, num_robots=args.robots, seed=args.seed, build_root=args.build_root,
                     terrain_tiles=TERRAIN_TILES if args.terrain else None, progress=report))
-        with atomic_directory(args.out) as tmp:
+        with atomic_directory(args.out, force=args.force) as tmp:
             files = []
             for i, r in enumerate(results):
                 plot(r, tmp / f"closed_chain_{i}.png")
@@ -67,6 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     except FootforgeError as e:
         print(f"evaluate_closed_chain: error: {e}", file=sys.stderr)
         return e.exit_code
+    except KeyboardInterrupt:
+        print("evaluate_closed_chain: interrupted; no output was written", file=sys.stderr)
+        return 2
     print((args.out / "closed_chain.md").read_text())
     print(f"written to {args.out}: metrics.json, closed_chain.md, " + ", ".join(files))
     return 0

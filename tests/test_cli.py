@@ -30,7 +30,7 @@ def test_build_writes_outputs_and_summary(capsys, tmp_path):
     assert "total mass" in text and "pass" in text
     assert {p.name for p in (tmp_path / "out").iterdir()} == {
         "robot.xml", "scene.xml", "foot_rig.xml", "assets", "build_report.json",
-        "robot.usda", "robot.usd", "foot_rig.usda", "foot_rig.usd"}
+        "robot.usda", "robot.usd", "foot_rig.usda", "foot_rig.usd", ".footforge-output"}
 
 
 def test_foot_only(capsys, tmp_path):

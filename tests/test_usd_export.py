@@ -271,7 +271,7 @@ def test_format_selects_outputs(tmp_path):
     usd_only, mjcf_only = tmp_path / "usd", tmp_path / "mjcf"
     assert main(["build", "--variant", "ball", "--format", "usd", "--out", str(usd_only)]) == 0
     assert sorted(p.name for p in usd_only.iterdir()) == sorted(
-        ["robot.usda", "robot.usd", "foot_rig.usda", "foot_rig.usd", "build_report.json"])
+        ["robot.usda", "robot.usd", "foot_rig.usda", "foot_rig.usd", "build_report.json", ".footforge-output"])
     assert main(["build", "--variant", "ball", "--format", "mjcf", "--out", str(mjcf_only)]) == 0
     names = {p.name for p in mjcf_only.iterdir()}
     assert "robot.xml" in names and not any(n.endswith((".usd", ".usda")) for n in names)

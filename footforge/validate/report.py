@@ -164,8 +164,9 @@ def _json_ready(report: dict) -> dict:
     return out
 
 
-def write(report: dict, out_dir: Path, command: str) -> None:
-    with atomic_directory(out_dir) as tmp:
+def write(report: dict, out_dir: Path, command: str, *, force: bool = False) -> None:
+    """Writes the report folder as a whole; `force` replaces a folder footforge did not write."""
+    with atomic_directory(out_dir, force=force, command=command) as tmp:
         (tmp / "plots").mkdir()
         for s in report["scenarios"]:
             plot_scenario(report, s["name"], tmp / "plots" / f"{s['name']}.png")

@@ -4,6 +4,7 @@ parallel processes, and measure how far the variants are from the reference."""
 from __future__ import annotations
 
 import multiprocessing
+import os
 import platform
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
@@ -15,6 +16,7 @@ from footforge import foot as foot_lib
 from footforge.build import BuildOptions, Stages, load_foot_source, versions
 from footforge.errors import InputError
 from footforge.params import VariantParams
+from footforge.processes import die_with_parent
 from footforge.validate import calibrate as calibration
 from footforge.validate import fidelity, rigs, simulate
 from footforge.validate.scenarios import Scenario, select
@@ -56,11 +58,16 @@ def parse_variants(text: str) -> tuple[str, ...]:
 
 
 class Pool:
-    """Worker processes that simulate rig cases; `map` keeps the input order."""
+    """Worker processes that simulate rig cases; `map` keeps the input order.
+
+    The workers exit when this process dies (processes.die_with_parent): killed, it would
+    otherwise leave them blocked on their pipes forever. Interrupted, `close` drops the pending
+    cases instead of running them."""
 
     def __init__(self, jobs: int):
         self.jobs = max(1, int(jobs))
-        self._pool = (ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"))
+        self._pool = (ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"),
+                                          initializer=die_with_parent, initargs=(os.getpid(),))
                       if self.jobs > 1 else None)
 
     def map(self, cases: list[simulate.RigCase], progress: Callable[[], None] | None = None) -> list[dict]:
@@ -74,7 +81,7 @@ class Pool:
 
     def close(self) -> None:
         if self._pool is not None:
-            self._pool.shutdown()
+            self._pool.shutdown(cancel_futures=True)
 
 
 def _seeded(scenarios: list[Scenario], seed: int) -> list[Scenario]:

@@ -1,0 +1,84 @@
+"""Which output folders footforge may write, and replace.
+
+An output folder is replaced as a whole (footforge.atomic), so a careless `--out` could delete a
+user's files. footforge therefore replaces only a folder it wrote itself, recognised by the marker
+file MARKER that it writes into every output folder; an empty folder is filled; anything else is
+refused unless the user passes `--force`. The checks run before the long work (a build runs
+CoACD for minutes), so a bad `--out` fails in a second with one line, not after the work with a
+traceback.
+
+`check_output_folder` is the one entry point, meant for every command with an output folder
+(build, validate, the evaluation pipelines; training's run folder can call it too).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+
+from footforge.errors import InputError
+
+MARKER = ".footforge-output"
+"""File in every output folder footforge writes: a small JSON naming the tool, command and version."""
+
+
+def write_marker(folder: Path, command: str | None = None) -> None:
+    """Writes the marker into `folder` (a folder footforge is writing), so a later run may replace it."""
+    from footforge import __version__
+
+    if command is None:
+        command = " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
+    (Path(folder) / MARKER).write_text(json.dumps(
+        {"tool": "footforge", "command": command, "version": __version__}, indent=1) + "\n")
+
+
+def written_by_footforge(folder: Path) -> bool:
+    """Whether `folder` holds footforge's marker file (content not trusted, only its presence)."""
+    return (Path(folder) / MARKER).is_file()
+
+
+def _nearest_existing(path: Path) -> Path:
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
+                        force_flag: str = "--force") -> Path:
+    """Checks that `path` can be written as an output folder that replaces what is there.
+
+    Call it before any long work. `flag` and `force_flag` name the command's options in the
+    message. Returns the absolute path.
+
+    Refused always: the current folder or one above it (it cannot be replaced by a rename), an
+    existing file (footforge writes folders; a file is the user's), a path under a file, and a
+    parent folder this process cannot write in (the output is made beside it, then renamed).
+    Refused unless `force`: an existing non-empty folder without footforge's marker.
+
+    Raises:
+      InputError: one line naming the path and what to change; exit 2.
+    """
+    given = Path(path)
+    target = Path(os.path.abspath(given))
+    cwd = Path.cwd()
+    if target == cwd or target in cwd.parents:
+        raise InputError(f"{flag} {given}: is the current folder or one above it, which footforge would replace "
+                         f"as a whole; give a new or footforge-written folder, e.g. {flag} build/out")
+    if target.is_symlink() and not target.exists():
+        raise InputError(f"{flag} {given}: is a broken link; remove it or give another {flag} folder")
+    if target.exists() and not target.is_dir():
+        raise InputError(f"{flag} {given}: is a file, not a folder; footforge does not replace files: "
+                         f"give another {flag} folder")
+    parent = _nearest_existing(target.parent)
+    if not parent.is_dir():
+        raise InputError(f"{flag} {given}: {parent} is a file, so no folder can be made under it; "
+                         f"give another {flag} folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{flag} {given}: cannot write in {parent} (permission denied); "
+                         f"give a {flag} folder in a writable place")
+    if target.is_dir() and not force and not written_by_footforge(target) and any(target.iterdir()):
+        raise InputError(f"{flag} {given}: the folder holds files footforge did not write (no {MARKER}); "
+                         f"pass {force_flag} to replace it anyway, or give another {flag} folder")
+    return target
