@@ -34,9 +34,21 @@ def write_marker(folder: Path, command: str | None = None) -> None:
         {"tool": "footforge", "command": command, "version": __version__}, indent=1) + "\n")
 
 
+LEGACY_BUILD_REPORT = "build_report.json"
+"""What footforge build wrote into every build folder before the marker existed."""
+
+
 def written_by_footforge(folder: Path) -> bool:
-    """Whether `folder` holds footforge's marker file (content not trusted, only its presence)."""
-    return (Path(folder) / MARKER).is_file()
+    """Whether `folder` holds footforge's marker file (content not trusted, only its presence), or
+    is a build folder from before the marker: its build_report.json names a footforge version."""
+    folder = Path(folder)
+    if (folder / MARKER).is_file():
+        return True
+    try:
+        report = json.loads((folder / LEGACY_BUILD_REPORT).read_text())
+        return bool(report.get("versions", {}).get("footforge")) and "variant" in report
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def _nearest_existing(path: Path) -> Path:

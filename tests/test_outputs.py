@@ -306,3 +306,22 @@ def test_sigterm_during_build_cleans_up_like_ctrl_c(capsys, monkeypatch, tmp_pat
     assert code == 2 and "interrupted" in text
     assert list(tmp_path.iterdir()) == []
     assert signal.getsignal(signal.SIGTERM) == before  # restored
+
+
+def test_a_build_folder_from_before_the_marker_counts_as_footforge_s(tmp_path):
+    """Builds written before the marker existed carry footforge's build_report.json: replaced
+    without --force; a folder whose report is not footforge's still needs it."""
+    import json
+
+    from footforge.outputs import check_output_folder
+
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "build_report.json").write_text(json.dumps({"variant": "aof", "versions": {"footforge": "0.1.0"}}))
+    (old / "robot.xml").write_text("<mujoco/>")
+    check_output_folder(old)  # no error
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "build_report.json").write_text(json.dumps({"my": "data"}))
+    with pytest.raises(InputError):
+        check_output_folder(other)
