@@ -20,7 +20,8 @@ Findings (severity; repairable or not):
 * `massless_moving_link` (error): the child of a moving joint carries no mass, on itself or on
   links fixed to it; MuJoCo cannot simulate a massless moving body.
 * `missing_mesh`, `unresolved_package` (errors): a mesh file that is not there, or whose
-  `package://` package cannot be found.
+  `package://` package cannot be found. `unusable_collision_mesh` (error): a collision mesh that
+  cannot be read, has no faces or is flat (no volume: no convex hull, so the build would fail).
 * `repeated_element` (error, repairable: the first is kept, as ROS does): an element URDF allows
   once (for example two `<origin>` in a joint). `duplicate_name`, `missing_name` (errors).
 * `dangling_joint`, `multiple_roots` (also for a link with two parent joints), `no_root`
@@ -506,7 +507,30 @@ def _mesh_items(root: etree._Element, resolve_uri: Callable[[str], Path]) -> lis
                             "missing_mesh", label,
                             f"mesh '{uri}' resolves to {resolved}, which does not exist",
                             "check the file name, its case and the package's meshes folder")))
+                    elif kind == "collision":
+                        problem = _collision_mesh_problem(resolved, mesh.get("scale"))
+                        if problem:
+                            items.append(_Item(_error(
+                                "unusable_collision_mesh", label, f"mesh '{uri}': {problem}",
+                                "export a closed solid mesh, or remove this <collision> element")))
     return items
+
+
+def _collision_mesh_problem(path: Path, scale: str | None) -> str | None:
+    """Why the collision mesh at `path` cannot be built (footforge.collision.flat_mesh_problem)."""
+    import trimesh
+
+    from footforge.collision import flat_mesh_problem
+
+    try:
+        mesh = trimesh.load(path, force="mesh")
+    except Exception as e:  # trimesh raises many kinds for a malformed file
+        return f"cannot be read ({e})"
+    try:
+        factor = min(abs(float(x)) for x in scale.split()) if scale else 1.0
+    except ValueError:
+        factor = 1.0
+    return flat_mesh_problem(mesh, factor)
 
 
 def _repairable_scope_items(root: etree._Element) -> list[_Item]:

@@ -2,6 +2,7 @@
 
 import shutil
 
+import numpy as np
 import pytest
 import yaml
 
@@ -53,6 +54,30 @@ def test_missing_mesh_names_link_and_leaves_no_output(capsys, tmp_path, foot_cop
     assert code == 2
     assert "arch.stl" in text and "front_arch" in text and "fix:" in text and "Traceback" not in text
     assert not out.exists() and not any(p.name.startswith(".out.tmp") for p in tmp_path.iterdir())
+
+
+def _flat_stl(path):
+    """A 5 cm square of two triangles: a mesh with area but no volume."""
+    import trimesh
+
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) * 0.05
+    trimesh.Trimesh(square, [[0, 1, 2], [0, 2, 3]], process=False).export(path)
+
+
+def test_a_flat_collision_mesh_is_found_by_check_and_refused_by_build(capsys, tmp_path, foot_copy):
+    """A degenerate (flat) collision mesh: `check` reports it (it used to say "no findings"), and the
+    build refuses it in its description check, before CoACD, with the file named (exit 1, a check
+    failure; it used to crash in trimesh, needing networkx)."""
+    _flat_stl(foot_copy / "meshes/arch.stl")
+    xacro = foot_copy / "urdf/softfoot_q.urdf.xacro"
+    code, text = run(capsys, "check", xacro, "--package-path", tmp_path)
+    assert code == 1 and "unusable_collision_mesh" in text and "arch.stl" in text and "flat" in text
+    out = tmp_path / "out"
+    code, text = run(capsys, "build", "--variant", "aof", "--description", xacro, "--package-path", tmp_path,
+                     "--out", out, "--cache-dir", tmp_path / "c")
+    assert code == 1 and "unusable_collision_mesh" in text and "arch.stl" in text
+    assert "Traceback" not in text and "networkx" not in text
+    assert not out.exists()
 
 
 def test_malformed_xacro(capsys, tmp_path, foot_copy):

@@ -54,3 +54,26 @@ def test_unreadable_mesh(tmp_path):
     path.write_bytes(b"not a mesh")
     with pytest.raises(InputError):
         decompose(path, cache_dir=tmp_path / "cache")
+
+
+def test_mesh_thickness_is_the_thinnest_extent_whatever_the_orientation():
+    """Computed two ways: a 30 x 20 x 4 mm box turned by a random rotation is 4 mm thick; squashed
+    flat it is 0, and decompose refuses it with the file named."""
+    from footforge.collision import mesh_thickness_m
+
+    box = trimesh.creation.box(extents=(0.03, 0.02, 0.004))
+    rotation = trimesh.transformations.random_rotation_matrix(np.random.default_rng(3).random(3))
+    box.apply_transform(rotation)
+    assert mesh_thickness_m(box.vertices) == pytest.approx(0.004, rel=1e-9)
+    flat = box.vertices @ rotation[:3, :3]  # back to the box frame
+    flat[:, 2] = 0.0
+    assert mesh_thickness_m(flat @ rotation[:3, :3].T) < 1e-12
+
+
+def test_a_flat_mesh_is_refused_before_any_hull(tmp_path):
+    path = tmp_path / "flat.stl"
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) * 0.05
+    trimesh.Trimesh(square, [[0, 1, 2], [0, 2, 3]], process=False).export(path)
+    with pytest.raises(InputError, match="flat") as e:
+        decompose(path, cache_dir=tmp_path / "cache")
+    assert e.value.file == str(path)
