@@ -21,11 +21,27 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT_ERROR, f"footforge: error: {message}\n")
 
 
+def _versions() -> str:
+    """footforge's version and the simulators it was run with (what a bug report needs)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    import footforge
+
+    parts = [footforge.__version__]
+    for dist in ("mujoco", "mujoco-mjx", "jax", "brax"):
+        try:
+            parts.append(f"{dist} {version(dist)}")
+        except PackageNotFoundError:
+            parts.append(f"{dist} absent")
+    return parts[0] + " (" + ", ".join(parts[1:]) + ")"
+
+
 def _parser() -> argparse.ArgumentParser:
     from footforge.build import VARIANTS
 
     p = _Parser(prog="footforge", description=__doc__.splitlines()[0])
     p.add_argument("--verbose", action="store_true", help="print tracebacks on errors")
+    p.add_argument("--version", action="version", version=f"footforge {_versions()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     b = sub.add_parser("build", help="build MJCF models of ANYmal C with a foot variant")

@@ -154,3 +154,10 @@ def test_bad_params_and_args(capsys, tmp_path):
     assert code == 2 and "timeconst" in text
     code, text = run(capsys, "build", "--variant", "aff", "--arg", "novalue", "--out", tmp_path / "o")
     assert code == 2 and "NAME:=VALUE" in text
+
+
+def test_version(capsys):
+    import footforge
+
+    code, text = run(capsys, "--version")
+    assert code == 0 and text.startswith(f"footforge {footforge.__version__} (mujoco ")
