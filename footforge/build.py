@@ -366,12 +366,18 @@ def load_foot_source(options: BuildOptions, stage: Stages, report: dict,
         reference = kinematics.reference_pose(parsed, sidecar)
     with stage("decompose collision meshes"):
         hull_report = []
+        started_s = [0.0]
+
+        def starting(mesh, i, n):
+            started_s[0] = time.perf_counter()
+            stage.progress(f"decompose collision meshes: {i}/{n} {Path(mesh).name}")
+
         hulls = foot_lib.decompose_collision_meshes(
-            parsed, options.decomposition, cache_dir=options.cache_dir,
-            starting=lambda mesh, i, n: stage.progress(f"decompose collision meshes: {i}/{n} {Path(mesh).name}"),
+            parsed, options.decomposition, cache_dir=options.cache_dir, starting=starting,
             progress=lambda mesh, h: hull_report.append(
                 {"mesh": str(mesh), "hulls": len(h.vertices), "vertices": [len(v) for v in h.vertices],
-                 "decomposed": h.decomposed, "cached": h.cached}))
+                 "decomposed": h.decomposed, "cached": h.cached,
+                 "seconds": round(time.perf_counter() - started_s[0], 3)}))
         report["collision"] = {"config": asdict(options.decomposition), "meshes": hull_report}
     return foot_lib.FootSource(parsed, sidecar, params, reference, hulls)
 

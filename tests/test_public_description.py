@@ -177,3 +177,20 @@ def test_simplify_to_budget_is_deterministic_and_keeps_the_shape():
 def test_face_budget_flag_is_checked(capsys, tmp_path):
     code, text = run(capsys, "build", "--variant", "aof", "--face-budget", "-1", "--out", tmp_path / "o")
     assert code == 2 and "--face-budget" in text
+
+
+def test_progress_names_each_mesh(tmp_path, public_pkg):
+    """CoACD's minutes per mesh showed one spinner for all: each mesh now has its progress line
+    and its time in the report."""
+    from footforge.build import BuildOptions, build
+
+    lines = []
+    report = build(BuildOptions(variant="aof", out_dir=tmp_path / "out", foot_only=True, formats=("mjcf",),
+                                foot_description=robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+                                package_paths=(public_pkg,), repair=True, cache_dir=tmp_path / "c"),
+                   progress=lines.append)
+    per_mesh = [l for l in lines if l.startswith("decompose collision meshes: ")]
+    assert per_mesh[0] == "decompose collision meshes: 1/6 ankle.stl"
+    assert len(per_mesh) == 6 and per_mesh[-1].startswith("decompose collision meshes: 6/6 ")
+    assert all(m["seconds"] >= 0 for m in report["collision"]["meshes"])
+    assert report["collision"]["config"]["face_budget"] == 1000
