@@ -19,11 +19,17 @@ from pathlib import Path
 
 from lxml import etree
 
-from footforge.description import Description
+from footforge.description import Description, descriptions_dir
 from footforge.errors import InputError
 
 WORLD_LINK = "world"
 """MuJoCo's world body: a foot's root link cannot have this name."""
+
+
+def _is_shipped(sidecar_path: Path) -> bool:
+    """Whether the sidecar is one of footforge's own (under descriptions/): its user should copy
+    it rather than edit it."""
+    return Path(sidecar_path).resolve().is_relative_to(descriptions_dir().resolve())
 
 
 def _is_empty_link(link: etree._Element) -> bool:
@@ -77,11 +83,16 @@ def select_foot_root(description: Description, root_link: str | None, *,
         if chosen not in links:
             near = difflib.get_close_matches(chosen, links, n=3, cutoff=0.5)
             hint = f" (close: {', '.join(near)})" if near else ""
+            if sidecar_path and _is_shipped(sidecar_path):
+                fix = (f"this sidecar, shipped with footforge, names one foot of a published description; "
+                       f"copy {sidecar_path}, set root_link and the other joint and link names to those of "
+                       "your file (e.g. another foot's prefix), and pass the copy with --sidecar")
+            else:
+                fix = (f"set root_link in {sidecar_path or 'the sidecar'} to one of the description's links "
+                       "(the one the robot's foot mount carries), or remove the key to detect it")
             raise InputError(
                 f"the sidecar's root_link '{chosen}' is not a link of {description.source.name}{hint}",
-                file=str(sidecar_path) if sidecar_path else None, element="root_link",
-                fix=f"set root_link in {sidecar_path or 'the sidecar'} to one of the description's links "
-                    "(the one the robot's foot mount carries), or remove the key to detect it")
+                file=str(sidecar_path) if sidecar_path else None, element="root_link", fix=fix)
     if chosen == WORLD_LINK:
         raise InputError(
             f"the foot's root link is '{WORLD_LINK}', the name MuJoCo reserves for its world body",

@@ -194,3 +194,16 @@ def test_progress_names_each_mesh(tmp_path, public_pkg):
     assert len(per_mesh) == 6 and per_mesh[-1].startswith("decompose collision meshes: 6/6 ")
     assert all(m["seconds"] >= 0 for m in report["collision"]["meshes"])
     assert report["collision"]["config"]["face_budget"] == 1000
+
+
+def test_four_feet_rig_with_the_shipped_sidecar_says_copy_it(capsys, tmp_path, public_pkg):
+    """A rig whose foot has another prefix: the shipped sidecar does not fit, and the message says
+    to copy it and pass the copy, not to edit footforge's file."""
+    rig = robot_file(public_pkg, "floating_softfoot.urdf.xacro")
+    four = rig.with_name("four_softfeet.urdf.xacro")
+    four.write_text(rig.read_text().replace('name="softfoot"', 'name="softfoot_1"'))
+    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--repair", "--description", four,
+                     "--package-path", public_pkg, "--out", tmp_path / "out", "--cache-dir", tmp_path / "c")
+    assert code == 2, text
+    assert "softfoot_1_ankle_base_link" in text and "root_link" in text
+    assert "copy" in text and "--sidecar" in text
