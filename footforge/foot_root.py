@@ -76,6 +76,13 @@ def select_foot_root(description: Description, root_link: str | None, *,
     """
     root = description.root()
     links = [l.get("name") for l in root.findall("link")]
+    if not links:  # a file of macros only, e.g. the public package's model/softfoot_thing.urdf.xacro
+        raise InputError(
+            "the description expands to no links: it only defines xacro macros",
+            file=str(description.source), element="<robot>",
+            fix="pass a file that instantiates the foot (one that calls the macro, such as the "
+                "public package's robot/floating_softfoot.urdf.xacro), or write a small xacro that "
+                "includes this one and calls its macro")
     if root_link is None:
         chosen = _detect_root(root, description, sidecar_path)
     else:

@@ -207,3 +207,23 @@ def test_four_feet_rig_with_the_shipped_sidecar_says_copy_it(capsys, tmp_path, p
     assert code == 2, text
     assert "softfoot_1_ankle_base_link" in text and "root_link" in text
     assert "copy" in text and "--sidecar" in text
+
+
+def test_macro_file_alone_is_explained(capsys, tmp_path, public_pkg):
+    """The package's macro file expands to an empty robot: say so, instead of blaming root_link."""
+    macros = public_pkg / "softfoot_thing_description" / "model" / "softfoot_thing.urdf.xacro"
+    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--description", macros,
+                     "--package-path", public_pkg, "--out", tmp_path / "out", "--cache-dir", tmp_path / "c")
+    assert code == 2, text
+    assert "no links" in text and "macro" in text and str(macros) in text
+
+
+def test_sidecar_beside_the_description_wins_over_the_shipped_one(public_pkg):
+    from footforge.sidecar import find_sidecar
+
+    rig = robot_file(public_pkg, "floating_softfoot.urdf.xacro")
+    assert find_sidecar(rig) == PUBLIC_SIDECAR
+    beside = rig.with_name("floating_softfoot.sidecar.yaml")
+    beside.write_text(PUBLIC_SIDECAR.read_text())
+    assert find_sidecar(rig) == beside
+    assert find_sidecar(REPO / "descriptions/softfoot_q/urdf/softfoot_q.urdf.xacro").name == "softfoot_q.sidecar.yaml"
