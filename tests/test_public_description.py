@@ -227,3 +227,19 @@ def test_sidecar_beside_the_description_wins_over_the_shipped_one(public_pkg):
     beside.write_text(PUBLIC_SIDECAR.read_text())
     assert find_sidecar(rig) == beside
     assert find_sidecar(REPO / "descriptions/softfoot_q/urdf/softfoot_q.urdf.xacro").name == "softfoot_q.sidecar.yaml"
+
+
+def test_check_with_the_public_sidecar_closes_the_loops(capsys, public_pkg):
+    """`footforge check --sidecar` cuts the rig at root_link too; with the defects fixed by hand,
+    the shipped sidecar's three closures close at its reference pose."""
+    model = public_pkg / "softfoot_thing_description" / "model"
+    for name in ("softfoot_thing.urdf.xacro", "chain_thing.urdf.xacro"):
+        path = model / name
+        path.write_text(path.read_text().replace('<origin xyz="0 0 0" rpy="0 0 0"/>', ""))
+    inertia = model / "softfoot_thing_inertia.xacro"
+    inertia.write_text(inertia.read_text().replace('zz="1.0468"', 'zz="4.0468"'))
+    code, text = run(capsys, "check", robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+                     "--package-path", public_pkg, "--sidecar", PUBLIC_SIDECAR)
+    assert code == 0, text
+    gaps = [float(line.split("gap ")[1].split(" m")[0]) for line in text.splitlines() if "gap" in line]
+    assert len(gaps) == 3 and max(gaps) < 1e-9, text
