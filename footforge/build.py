@@ -11,6 +11,7 @@ The default is both formats: the USD export costs a fraction of a second per mod
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import platform
@@ -36,7 +37,8 @@ from footforge.errors import CheckFailure, InputError
 from footforge.outputs import check_output_folder
 from footforge.params import VariantParams, load_params
 from footforge.robot import build_rig, build_robot, scene_xml
-from footforge.sidecar import Sidecar, default_sidecar_path, load_sidecar
+from footforge.foot_root import select_foot_root
+from footforge.sidecar import Sidecar, find_sidecar, load_sidecar
 from footforge.urdf_check import Finding, check_urdf, format_findings, has_errors, repair_urdf
 from footforge.urdf_import import parse_urdf
 
@@ -345,11 +347,14 @@ def load_foot_source(options: BuildOptions, stage: Stages, report: dict,
     with stage("read foot description"):
         path = Path(options.foot_description or default_foot_description())
         description = load_description(path, args=options.foot_args, package_paths=options.package_paths)
+        sidecar = load_sidecar(Path(options.sidecar) if options.sidecar else find_sidecar(path))
+        # The foot alone: a test rig's `world` and leg above the foot's root link are dropped
+        # before the checks, which then speak of the foot only.
+        description, root_notes = select_foot_root(description, sidecar.root_link, sidecar_path=sidecar.source)
+        report.setdefault("repairs", []).extend(f"{path.name}: {n}" for n in root_notes)
         description, findings, notes = checked_description(description, repair=options.repair, what="foot")
         report.setdefault("repairs", []).extend(f"{path.name}: {n}" for n in notes)
         report.setdefault("warnings", []).extend(f"{path.name}: {f.element}: {f.message}" for f in findings)
-        sidecar_path = Path(options.sidecar) if options.sidecar else default_sidecar_path(path)
-        sidecar = load_sidecar(sidecar_path)
         inputs = report.setdefault("inputs", {})
         inputs["foot_description"] = {"path": str(description.source), "sha256": _sha256(description.source),
                                       "args": dict(options.foot_args)}
@@ -361,24 +366,51 @@ def load_foot_source(options: BuildOptions, stage: Stages, report: dict,
         reference = kinematics.reference_pose(parsed, sidecar)
     with stage("decompose collision meshes"):
         hull_report = []
+        started_s = [0.0]
+
+        def starting(mesh, i, n):
+            started_s[0] = time.perf_counter()
+            stage.progress(f"decompose collision meshes: {i}/{n} {Path(mesh).name}")
+
         hulls = foot_lib.decompose_collision_meshes(
-            parsed, options.decomposition, cache_dir=options.cache_dir,
+            parsed, options.decomposition, cache_dir=options.cache_dir, starting=starting,
             progress=lambda mesh, h: hull_report.append(
                 {"mesh": str(mesh), "hulls": len(h.vertices), "vertices": [len(v) for v in h.vertices],
-                 "decomposed": h.decomposed, "cached": h.cached}))
+                 "decomposed": h.decomposed, "cached": h.cached,
+                 "seconds": round(time.perf_counter() - started_s[0], 3)}))
         report["collision"] = {"config": asdict(options.decomposition), "meshes": hull_report}
     return foot_lib.FootSource(parsed, sidecar, params, reference, hulls)
 
 
 def _check_sidecar_names(parsed, sidecar: Sidecar) -> None:
-    for name in list(sidecar.arch_joints) + list(sidecar.roll_joints) + list(sidecar.reference_joints):
-        if not parsed.model.existJointName(name):
-            raise InputError(f"the sidecar names joint '{name}', which the description does not have",
-                             file=str(sidecar.source), element=f"joint '{name}'",
-                             fix="use the description's joint names (without any robot prefix)")
-    for c in sidecar.closures:
-        for link in (c.link, c.to_link):
-            parsed.body_of_link(link)
+    """Every joint and link the sidecar names must be in the description: a typo is the sidecar's,
+    so the message names the sidecar file and the key to edit, and the closest names."""
+    wanted: list[tuple[str, str, str]] = [(f"arch_joints[{i}]", "joint", n) for i, n in enumerate(sidecar.arch_joints)]
+    wanted += [("roll_joints.front", "joint", sidecar.roll_front), ("roll_joints.back", "joint", sidecar.roll_back)]
+    if sidecar.roll_coupling:
+        wanted += [("roll_coupling.joint", "joint", sidecar.roll_coupling.joint),
+                   ("roll_coupling.follows", "joint", sidecar.roll_coupling.follows)]
+    if sidecar.arch_spring:
+        wanted += [("arch_spring.joints", "joint", n) for n in sidecar.arch_spring.joints]
+    wanted += [("reference_pose.joints", "joint", n) for n in sidecar.reference_joints]
+    for i, c in enumerate(sidecar.closures):
+        wanted += [(f"closures[{i}].link", "link", c.link), (f"closures[{i}].to_link", "link", c.to_link)]
+    root = parsed.description.root()
+    names = {"joint": [j.get("name") for j in root.findall("joint")],
+             "link": [l.get("name") for l in root.findall("link")]}
+    unknown = [(key, kind, name) for key, kind, name in wanted if name not in names[kind]]
+    if unknown:
+        lines = []
+        for key, kind, name in unknown:
+            near = difflib.get_close_matches(name, names[kind], n=2, cutoff=0.5)
+            lines.append(f"  {key}: {kind} '{name}' is not in the description"
+                         + (f" (closest: {', '.join(near)})" if near else ""))
+        raise InputError(
+            f"the sidecar names {len(unknown)} joint(s)/link(s) that {parsed.description.source.name} "
+            "does not have:\n" + "\n".join(lines),
+            file=str(sidecar.source), element=unknown[0][0],
+            fix=f"edit those keys in {sidecar.source} to the description's names as expanded "
+                "(with the macro's prefix, if any), or pass the right sidecar with --sidecar")
 
 
 def _xml(root: mjcf.RootElement, asset_sets: list[dict]) -> str:

@@ -11,6 +11,7 @@ import numpy as np
 from footforge import kinematics
 from footforge.description import load_description
 from footforge.errors import CheckFailure
+from footforge.foot_root import select_foot_root
 from footforge.sidecar import load_sidecar
 from footforge.urdf_check import Finding, check_urdf, has_errors
 from footforge.urdf_import import parse_urdf
@@ -39,7 +40,8 @@ def check_description(path: str | Path, *, package_paths: Sequence[str | Path] =
     gaps: dict[str, float] = {}
     if sidecar is not None and not has_errors(findings):
         side = load_sidecar(sidecar)
-        parsed = parse_urdf(description, floating=True)
+        foot, _ = select_foot_root(description, side.root_link, sidecar_path=side.source)
+        parsed = parse_urdf(foot, floating=True)
         try:
             pose = kinematics.reference_pose(parsed, side)
             residuals = kinematics.closure_residuals(parsed, side, pose.q)

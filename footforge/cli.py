@@ -13,6 +13,7 @@ import traceback
 from pathlib import Path
 
 from footforge.errors import EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError
+from footforge.mesh_simplify import DEFAULT_FACE_BUDGET
 
 
 class _Parser(argparse.ArgumentParser):
@@ -60,7 +61,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--repair", action="store_true",
                    help="repair repairable description defects (reported in build_report.json)")
     b.add_argument("--max-hull-vertices", type=int, default=64, help="vertex cap per convex hull (default 64)")
-    b.add_argument("--coacd-timeout", type=float, default=120.0, help="seconds before CoACD is stopped")
+    b.add_argument("--coacd-timeout", type=float, default=120.0, help="seconds before CoACD is stopped, per mesh")
+    b.add_argument("--face-budget", type=int, default=DEFAULT_FACE_BUDGET,
+                   help=f"simplify collision meshes above this many faces before CoACD (default {DEFAULT_FACE_BUDGET}; 0: never)")
     b.add_argument("--cache-dir", type=Path, help="CoACD cache folder (default ~/.cache/footforge/coacd)")
     b.add_argument("--format", default="mjcf,usd", metavar="FORMATS",
                    help="comma-separated outputs: mjcf (MuJoCo XML), usd (robot.usda/.usd for Isaac Sim); "
@@ -112,13 +115,17 @@ def _run_build(args, console) -> int:
                          fix="a convex hull needs at least 4 vertices; the default is 64")
     if args.coacd_timeout <= 0:
         raise InputError("--coacd-timeout must be positive", fix="give seconds, e.g. 120")
+    if args.face_budget < 0:
+        raise InputError(f"--face-budget {args.face_budget} is negative",
+                         fix=f"give a face count (default {DEFAULT_FACE_BUDGET}), or 0 to keep every face")
     options = BuildOptions(
         variant=args.variant, out_dir=args.out or Path("build") / args.variant, foot_only=args.foot_only,
         foot_description=args.description, sidecar=args.sidecar, robot_description=args.robot,
         package_paths=tuple(args.package_path), foot_args=parse_args(args.arg), params=args.params,
         repair=args.repair, cache_dir=args.cache_dir, force=args.force,
         formats=tuple(f.strip() for f in args.format.split(",") if f.strip()),
-        decomposition=DecompositionConfig(max_hull_vertices=args.max_hull_vertices, timeout_s=args.coacd_timeout))
+        decomposition=DecompositionConfig(max_hull_vertices=args.max_hull_vertices, timeout_s=args.coacd_timeout,
+                                          face_budget=args.face_budget))
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
                   console=console, transient=True) as progress:
         task = progress.add_task("building", total=None)

@@ -5,7 +5,9 @@ hull. Any other mesh is decomposed by CoACD into convex hulls of at most `max_hu
 vertices each (PhysX's default cap is 64; MJX is fastest with small hulls). CoACD can crash on
 some inputs, so it runs in a child process with a timeout. Results are cached under
 `cache_dir`, keyed by the SHA-256 of the mesh file's bytes and of the parameters, so a rebuild
-with the same inputs does not decompose again.
+with the same inputs does not decompose again. A mesh of more than `face_budget` faces is
+simplified first (footforge.mesh_simplify): CoACD's time grows with the input's size, and a CAD
+export of 40-50 thousand faces took minutes per part.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 import trimesh
 
 from footforge.errors import InputError
+from footforge.mesh_simplify import DEFAULT_FACE_BUDGET, simplify_to_budget
 from footforge.processes import die_with_parent
 
 CACHE_VERSION = 1
@@ -42,7 +45,10 @@ class DecompositionConfig:
     convex_tolerance: float = 0.02
     """A mesh whose hull volume exceeds its volume by less than this fraction counts as convex."""
     timeout_s: float = 120.0
-    """Kill CoACD after this long and report the mesh."""
+    """Kill CoACD after this long and report the mesh (the user's --coacd-timeout)."""
+    face_budget: int = DEFAULT_FACE_BUDGET
+    """A mesh with more faces is simplified to this many before CoACD (footforge.mesh_simplify;
+    the user's --face-budget; 0 keeps every face)."""
 
 
 @dataclass(frozen=True)
@@ -148,6 +154,9 @@ def decompose(mesh_path: Path, config: DecompositionConfig = DecompositionConfig
         parts = [(np.asarray(mesh.vertices), np.asarray(mesh.faces))]
         decomposed = False
     else:
+        if config.face_budget and len(mesh.faces) > config.face_budget:
+            v, f = simplify_to_budget(mesh.vertices, mesh.faces, config.face_budget)
+            mesh = trimesh.Trimesh(v, f, process=False)
         parts = _run_coacd(mesh_path, mesh, config)
         decomposed = True
     cache_dir.mkdir(parents=True, exist_ok=True)
@@ -173,8 +182,10 @@ def _run_coacd(mesh_path: Path, mesh: trimesh.Trimesh, config: DecompositionConf
         raise
     except Exception:
         proc.kill()
-        raise InputError(f"CoACD did not finish within {config.timeout_s:.0f} s", file=str(mesh_path),
-                         fix="simplify the mesh, or replace it by primitives in the description") from None
+        raise InputError(f"CoACD did not finish within {config.timeout_s:.0f} s ({len(mesh.faces)} faces)",
+                         file=str(mesh_path),
+                         fix=f"raise --coacd-timeout (now {config.timeout_s:.0f} s), lower --face-budget "
+                             f"(now {config.face_budget}), or replace the mesh by primitives in the description") from None
     finally:
         proc.join(timeout=5)
     if isinstance(result, Exception):

@@ -72,15 +72,20 @@ class FootSource:
 
 
 def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, *, cache_dir=None,
-                               progress=None) -> dict[str, Hulls]:
-    """Hulls of every collision mesh of `parsed`, decomposing each distinct file once."""
+                               progress=None, starting=None) -> dict[str, Hulls]:
+    """Hulls of every collision mesh of `parsed`, decomposing each distinct file once.
+
+    `starting(mesh_path, number, count)` is called before each distinct mesh (CoACD can take a
+    minute on one: the user sees which), `progress(mesh_path, hulls)` after it."""
     by_file: dict[str, Hulls] = {}
     out = {}
-    for go in parsed.collision.geometryObjects:
-        if not is_mesh(go):
-            continue
+    meshes = [go for go in parsed.collision.geometryObjects if is_mesh(go)]
+    distinct = list(dict.fromkeys(f"{go.meshPath}|{tuple(go.meshScale)}" for go in meshes))
+    for go in meshes:
         key = f"{go.meshPath}|{tuple(go.meshScale)}"
         if key not in by_file:
+            if starting:
+                starting(go.meshPath, distinct.index(key) + 1, len(distinct))
             hulls = decompose(go.meshPath, config, cache_dir=cache_dir)
             if not np.allclose(go.meshScale, 1.0):
                 hulls = Hulls(tuple(v * np.asarray(go.meshScale) for v in hulls.vertices), hulls.faces,

@@ -66,8 +66,9 @@ class JointDynamics:
 @dataclass(frozen=True)
 class Sidecar:
     source: Path
-    root_link: str
-    """Link of the foot description bolted to the robot's foot mount."""
+    root_link: str | None
+    """Link of the foot description bolted to the robot's foot mount; None: detected
+    (footforge.foot_root). Links above it (a test rig's `world`, a leg) are dropped."""
     arch_joints: tuple[str, ...]
     roll_front: str
     roll_back: str
@@ -85,6 +86,36 @@ class Sidecar:
     @property
     def roll_joints(self) -> tuple[str, str]:
         return (self.roll_front, self.roll_back)
+
+
+SHIPPED_SIDECARS = {"softfoot_thing_description": ("softfoot_q", "public_sidecar.yaml")}
+"""ROS package name of a published foot description -> the sidecar footforge ships for it, under
+descriptions/ (its owners cannot be asked to add ours beside their files)."""
+
+
+def _enclosing_package(path: Path) -> str | None:
+    """Name in the package.xml of the nearest folder above `path` that has one."""
+    from footforge.description import _package_name
+
+    for folder in Path(path).resolve().parents:
+        if (folder / "package.xml").is_file():
+            return _package_name(folder / "package.xml")
+    return None
+
+
+def find_sidecar(description: Path) -> Path:
+    """The sidecar of a foot description when --sidecar is not given: `<stem>.sidecar.yaml`
+    beside it if that exists, else the one footforge ships for the ROS package that holds the
+    description (SHIPPED_SIDECARS), else the path beside it (whose absence load_sidecar reports)."""
+    beside = default_sidecar_path(description)
+    if beside.is_file():
+        return beside
+    shipped = SHIPPED_SIDECARS.get(_enclosing_package(description) or "")
+    if shipped:
+        from footforge.description import descriptions_dir
+
+        return descriptions_dir().joinpath(*shipped)
+    return beside
 
 
 def default_sidecar_path(description: Path) -> Path:
@@ -162,7 +193,7 @@ def load_sidecar(path: str | Path) -> Sidecar:
     ref.get("joints", {}, allowed={"joints", "solve_closures"})
     return Sidecar(
         source=path.resolve(),
-        root_link=top.get("root_link").str(),
+        root_link=top.get("root_link").str() if top.mapping().get("root_link") is not None else None,
         arch_joints=top.get("arch_joints").str_list(),
         roll_front=roll.get("front").str(),
         roll_back=roll.get("back").str(),

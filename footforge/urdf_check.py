@@ -69,13 +69,13 @@ _INERTIA_FIXES = {
     "non_finite": "replace the nan/inf value with the CAD value",
     "not_symmetric": "use one value for each off-diagonal pair (Ixy = Iyx, ...)",
     "not_positive_definite": "take the inertia from CAD (about the COM, in the inertial frame); "
-                             "repair_urdf raises the zero or negative principal moments to a tiny "
+                             "--repair (footforge build) raises the zero or negative principal moments to a tiny "
                              "positive floor",
     "triangle_inequality": "compare the moments with CAD (a dropped digit is the usual cause); "
-                           "repair_urdf raises the smallest principal moment to the difference "
+                           "--repair (footforge build) raises the smallest principal moment to the difference "
                            "of the other two",
     "pseudo_inertia_not_psd": "no mass distribution has these moments: take them from CAD; "
-                              "repair_urdf balances the principal moments",
+                              "--repair (footforge build) balances the principal moments",
 }
 
 
@@ -250,7 +250,7 @@ def _repeated_items(container: etree._Element, label: str, where: str) -> list[_
             "repeated_element", label,
             f"{len(found)} <{tag}> elements {where}(URDF allows one: ROS takes the first, "
             "MuJoCo rejects the file)",
-            f"keep one <{tag}> {where}and delete the others (repair_urdf keeps the first)",
+            f"keep one <{tag}> {where}and delete the others (footforge build --repair keeps the first)",
             repairable=True)
         items.append(_Item(finding, key=("repeated", container, tag), action=remove))
     return items
