@@ -180,7 +180,11 @@ def link_builds(kit: Path) -> None:
             print(f"run: note: {own} is not a build and not empty; left alone, the kit's build not linked", flush=True)
             continue
         own.parent.mkdir(exist_ok=True)
-        own.symlink_to(theirs, target_is_directory=True)
+        try:
+            own.symlink_to(theirs, target_is_directory=True)
+        except FileExistsError:  # a job started beside this one (campaign.sh) linked it first
+            if not (own.is_symlink() and own.resolve() == theirs.resolve()):
+                raise
 
 
 def call(cmd: list[str], log: Path, timeout: float, stdout=None) -> int:

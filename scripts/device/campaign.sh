@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# Several kit jobs at once on one GPU (each a run.sh job in its own process), then one bundle.
+#
+#   scripts/device/campaign.sh [--results DIR] [--minutes M] [--kit DIR] SPEC [SPEC...]
+#
+# SPEC: one run.sh job with its arguments, quoted, e.g. "train-flat ball B" or
+# "--resume in/flat_aof_B.tar.gz train-flat aof B -- --checkpoint-every 2000000".
+# One MJX training of the paper's 2048 robots leaves most of an H100 idle (MJX steps are many
+# small kernels) and compiling takes one core for minutes: jobs side by side use the GPU and the
+# machine's cores together. Each job gets 1/N of the GPU memory (XLA_PYTHON_CLIENT_MEM_FRACTION,
+# unless set) and --minutes of wall time. Throughput of jobs that shared the GPU is not a
+# benchmark: run `bench` alone for that.
+#
+# Writes into --results (default $OUT, else results/): NAME.summary.json for each job (NAME from
+# its job and arguments, e.g. train-flat_ball_B) and campaign.tar.gz (every job's results folder:
+# summary, log, RUN.tar.gz), so that few files come back. Exit codes: 0 every job done, 1 one
+# failed, 2 usage error.
+set -uo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+results="${OUT:-results}"
+minutes=9
+kit_args=()
+while [[ $# -gt 0 && "$1" == --* ]]; do
+    case "$1" in
+        --results) results="$2"; shift 2 ;;
+        --minutes) minutes="$2"; shift 2 ;;
+        --kit) kit_args=(--kit "$2"); shift 2 ;;
+        *) echo "campaign: error: unknown option $1" >&2; exit 2 ;;
+    esac
+done
+if [[ $# -eq 0 ]]; then
+    echo "usage: $0 [--results DIR] [--minutes M] [--kit DIR] SPEC [SPEC...]  (SPEC: a quoted run.sh job)" >&2
+    exit 2
+fi
+mkdir -p "$results" || exit 2
+work="$(mktemp -d "${TMPDIR:-/tmp}/footforge-campaign-XXXXXX")"
+trap 'kill $(jobs -p) 2>/dev/null' INT TERM
+
+# Install the wheels once (run.sh installs before the job starts; kit.py --help then exits 0).
+"$here/run.sh" "${kit_args[@]}" --help >/dev/null || { echo "campaign: error: the kit did not install" >&2; exit 1; }
+export XLA_PYTHON_CLIENT_MEM_FRACTION="${XLA_PYTHON_CLIENT_MEM_FRACTION:-$(python3 -c "print(round(0.9 / $#, 3))")}"
+
+names=()
+pids=()
+for spec in "$@"; do
+    read -r -a words <<<"$spec"
+    name=""
+    skip=0
+    for w in "${words[@]}"; do  # the job and its arguments, without options and extra arguments
+        if [[ "$w" == "--" ]]; then break; fi
+        if (( skip )); then skip=0; continue; fi
+        if [[ "$w" == --* ]]; then skip=1; continue; fi
+        name="${name:+${name}_}$w"
+    done
+    mkdir -p "$work/$name"
+    echo "campaign: $name: run.sh --results $work/$name --minutes $minutes $spec"
+    "$here/run.sh" "${kit_args[@]}" --results "$work/$name" --minutes "$minutes" "${words[@]}" \
+        >"$work/$name/stdout.log" 2>&1 &
+    pids+=($!)
+    names+=("$name")
+    sleep 2  # staggered: the jobs' first steps (linking builds, unpacking) do not collide
+done
+
+failed=0
+for i in "${!pids[@]}"; do
+    wait "${pids[$i]}"
+    code=$?
+    name="${names[$i]}"
+    echo "campaign: $name exited $code: $(tail -1 "$work/$name/stdout.log")"
+    if [[ -f "$work/$name/summary.json" ]]; then cp "$work/$name/summary.json" "$results/$name.summary.json"; fi
+    (( code == 0 )) || failed=1
+done
+tar -czf "$results/campaign.tar.gz" -C "$work" . && echo "campaign: $(du -h "$results/campaign.tar.gz" | cut -f1) in $results/campaign.tar.gz"
+exit $failed
