@@ -30,26 +30,50 @@ import mujoco
 import numpy as np
 
 SETTINGS = {
-    # name: (cone, impratio, solimp[:2], solref time constant s, iterations, ls_iterations)
+    # name: (cone, impratio, solimp[:2], solref time constant s, iterations, ls_iterations[, step s])
     "fast": ("pyramidal", 1.0, (0.9, 0.95), 0.02, 4, 8),
     "pyramidal-impratio10": ("pyramidal", 10.0, (0.99, 0.999), 0.02, 4, 8),
     "elliptic-impratio10": ("elliptic", 10.0, (0.99, 0.999), 0.004, 4, 8),
     "elliptic-impratio10-16it": ("elliptic", 10.0, (0.99, 0.999), 0.004, 16, 8),
     "elliptic-firm-8it": ("elliptic", 1.0, (0.99, 0.999), 0.02, 8, 8),
     "elliptic-converged": ("elliptic", 10.0, (0.99, 0.999), 0.004, 16, 50),
+    # friction stiffened alone (impratio) on MuJoCo's default, soft normal impedance
+    "elliptic-soft-impratio10": ("elliptic", 10.0, (0.9, 0.95), 0.02, 4, 8),
+    "elliptic-soft-impratio100": ("elliptic", 100.0, (0.9, 0.95), 0.02, 4, 8),
+    "elliptic-soft-impratio100-8it": ("elliptic", 100.0, (0.9, 0.95), 0.02, 8, 8),
+    "elliptic-soft-impratio1000": ("elliptic", 1000.0, (0.9, 0.95), 0.02, 4, 8),
+    # the same kinds at a 2 ms physics step (MuJoCo's refsafe floor is then 4 ms)
+    "fast-2ms": ("pyramidal", 1.0, (0.9, 0.95), 0.004, 4, 8, 0.002),
+    "pyramidal-firm-2ms": ("pyramidal", 1.0, (0.99, 0.999), 0.004, 4, 8, 0.002),
+    "pyramidal-mid-2ms": ("pyramidal", 1.0, (0.95, 0.99), 0.004, 4, 8, 0.002),
+    "elliptic-firm-2ms": ("elliptic", 1.0, (0.99, 0.999), 0.004, 4, 8, 0.002),
+    "pyramidal-firm-1ms": ("pyramidal", 1.0, (0.99, 0.999), 0.002, 4, 8, 0.001),
 }
 """solref time constants below 2 steps (10 ms) are raised to 10 ms by MuJoCo (refsafe)."""
 
 
-def configure(model: mujoco.MjModel, setting: str) -> mujoco.MjModel:
-    cone, impratio, solimp, timeconst, iterations, ls_iterations = SETTINGS[setting]
+def configure(model: mujoco.MjModel, setting: str, leg_armature: float | None = None,
+              foot_armature: float | None = None, integrator: str | None = None) -> mujoco.MjModel:
+    cone, impratio, solimp, timeconst, iterations, ls_iterations, *step = SETTINGS[setting]
     m = copy.copy(model)
+    if step:
+        m.opt.timestep = step[0]
     m.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL if cone == "pyramidal" else mujoco.mjtCone.mjCONE_ELLIPTIC
     m.opt.impratio = impratio
     m.opt.iterations, m.opt.ls_iterations = iterations, ls_iterations
     m.geom_solimp[:, :2] = solimp
     m.geom_solimp[:, 2] = 0.001
     m.geom_solref[:, 0] = timeconst
+    if integrator is not None:
+        m.opt.integrator = {"euler": mujoco.mjtIntegrator.mjINT_EULER,
+                            "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}[integrator]
+    # armature (reflected rotor inertia, kg m^2) of the actuated leg joints and of the passive foot joints
+    legs = m.jnt_dofadr[m.actuator_trnid[:, 0]]
+    if leg_armature is not None:
+        m.dof_armature[legs] = leg_armature
+    if foot_armature is not None:
+        passive = np.setdiff1d(np.arange(6, m.nv), legs)
+        m.dof_armature[passive] = foot_armature
     return m
 
 
@@ -127,20 +151,24 @@ def main(argv=None) -> int:
     p.add_argument("--amp", type=float, default=0.1, help="initial velocity bound, rad/s (joints)")
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--integrator", choices=["euler", "implicitfast"], help="default: the model's")
+    p.add_argument("--leg-armature", type=float, help="armature of the 12 actuated joints, kg m^2 (default: the model's)")
+    p.add_argument("--foot-armature", type=float, help="armature of the passive foot joints, kg m^2 (default: the model's)")
     args = p.parse_args(argv)
 
     from footforge.envs.anymal import load_robot
     from footforge.envs.config import EnvConfig
 
     out = {"benchmark": "contact_sweep", "machine": platform.platform(), "mujoco": mujoco.__version__,
-           "sim": args.sim, "robots": args.robots, "amp": args.amp, "seconds": args.seconds}
+           "sim": args.sim, "robots": args.robots, "amp": args.amp, "seconds": args.seconds,
+           "integrator": args.integrator, "leg_armature": args.leg_armature, "foot_armature": args.foot_armature}
     for feet in args.feet:
         robot = load_robot(EnvConfig(feet=feet))
-        steps = int(round(args.seconds / robot.model.opt.timestep))
-        settle = int(round(0.5 / robot.model.opt.timestep))
         qvel = initial_velocities(robot.model, args.robots, args.amp, args.seed)
         for setting in args.settings:
-            m = configure(robot.model, setting)
+            m = configure(robot.model, setting, args.leg_armature, args.foot_armature, args.integrator)
+            steps = int(round(args.seconds / m.opt.timestep))
+            settle = int(round(0.5 / m.opt.timestep))
             run = run_cpu if args.sim == "cpu" else run_mjx
             out[f"{feet}/{setting}"] = run(m, robot, qvel, steps, settle)
     print(json.dumps(out))
