@@ -208,7 +208,7 @@ def _run_validate(args, console) -> int:
 def _print_validation(report: dict, out: Path, console) -> None:
     from rich.table import Table
 
-    from footforge.validate.report import METRICS, _fmt
+    from footforge.validate.report import METRICS, _fmt, failing_metrics
 
     ref = report["reference"]
     table = Table(title=f"footforge validate -> {out}/report.md")
@@ -220,6 +220,12 @@ def _print_validation(report: dict, out: Path, console) -> None:
                       "[green]pass[/green]" if f["summary"]["passed"] else "[red]FAIL[/red]")
     table.add_row("threshold", *[_fmt(report["thresholds"][k]) for k in METRICS], "", "")
     console.print(table)
+    for v, f in report["fidelity"].items():
+        failing = failing_metrics(f["summary"])
+        if failing:
+            console.print(f"[red]{v} fails[/red] on: " + "; ".join(failing))
+        if f["summary"].get("missed_obstacle"):
+            console.print(f"{v} missed the obstacle in {', '.join(f['summary']['missed_obstacle'])}: excluded from the means")
     console.print(f"closed-chain reference: largest closure opening {_fmt(ref['max_closure_gap_mm'])} mm "
                   f"(limit {ref['closure_limit_mm']}), largest energy gain {_fmt(ref['max_energy_gain_j'])} J: "
                   + ("[green]trustworthy[/green]" if ref["passed"] else "[red]NOT trustworthy[/red]"))

@@ -163,3 +163,96 @@ def test_a_sole_lift_above_the_other_collision_boxes_is_refused(tmp_path, capsys
     err = capsys.readouterr().err
     assert "sole_lift_m 0.04 m raises the aff sole" in err and "keep sole_lift_m below" in err
     assert not (tmp_path / "b").exists()
+
+
+# Forces at the physics rate, obstacles that are hit, and the project's headline claim (issue 15).
+
+@pytest.fixture(scope="module")
+def drops():
+    """Every variant dropped on flat ground and onto the step under the toe, through the library."""
+    return validate(ValidateOptions(variants=("aof", "aff", "ball"), jobs=2, scenarios=("flat_2cm", "step_toe")))
+
+
+def test_ground_impulse_equals_momentum_change_plus_weight_times_time(drops):
+    """From the last sample before contact to the end, the ground's impulse (summed over every
+    physics step from contact forces) equals the hanging mass's momentum change (from its
+    velocities) plus weight x time: two independent routes to the same number."""
+    for variant, runs in drops["runs"].items():
+        run = runs["flat_2cm"]
+        s = run["series"]
+        first = int(np.flatnonzero(s["force_z_n"] > 1e-6)[0])
+        before = first - 1
+        arrival = -s["momentum_z_ns"][before]
+        assert arrival > 5.0, variant  # a 13 kg foot and payload falling about 2 cm: about 8 N s
+        impulse = float(s["impulse_ns"][first:].sum())
+        expected = (s["momentum_z_ns"][-1] - s["momentum_z_ns"][before]
+                    + run["supported_weight_n"] * (s["time_s"][-1] - s["time_s"][before]))
+        assert impulse == pytest.approx(expected, rel=0.01), variant
+        # stopping the fall takes at least the arrival momentum (it was 4.91 N s < 8.0 for the ball when sampled)
+        assert run["scalars"]["impulse_ns"] > arrival, variant
+
+
+def test_peak_force_and_impulse_do_not_depend_on_the_recording_interval():
+    """The closed chain (0.25 ms step) recorded every 2 ms and every 1 ms: same peak, same impulse."""
+    from footforge.build import Stages
+    from footforge.validate import simulate
+    from footforge.validate.runner import Session
+
+    session = Session(ValidateOptions(variants=()), Stages(None))
+    (case,) = session.cases("full", select(["flat_2cm"]))
+    coarse = simulate.run(case, sample_dt_s=0.002)["scalars"]
+    fine = simulate.run(case, sample_dt_s=0.001)["scalars"]
+    assert fine["peak_force_n"] == pytest.approx(coarse["peak_force_n"], rel=0.02)
+    assert fine["impulse_ns"] == pytest.approx(coarse["impulse_ns"], rel=0.02)
+    assert coarse["peak_force_n"] > 2 * coarse["final_force_n"]  # an impact, not the settled weight
+
+
+def test_obstacles_are_hit_or_the_miss_is_reported_and_excluded(drops, quick):
+    """The closed chain, AOF and AFF land on every obstacle of the quick set; the ball, a point
+    under the middle of the sole, misses the step under the toe, which is then reported and left
+    out of its means."""
+    _, report, _ = quick
+    obstacle_scenarios = [s["name"] for s in report["scenarios"] if s["obstacle"] not in ("flat", "slope")]
+    assert "step_toe" in obstacle_scenarios and len(obstacle_scenarios) >= 3
+    for variant in ("full", "aof", "aff"):
+        for name in obstacle_scenarios:
+            assert report["runs"][variant][name]["scalars"]["obstacle_share"] >= fidelity.OBSTACLE_SHARE_MIN, \
+                (variant, name)
+    ball = drops["runs"]["ball"]["step_toe"]["scalars"]
+    assert ball["obstacle_share"] < fidelity.OBSTACLE_SHARE_MIN
+    summary = drops["fidelity"]["ball"]["summary"]
+    assert summary["missed_obstacle"] == ["step_toe"]
+    assert drops["fidelity"]["ball"]["per_scenario"]["step_toe"] == {"failed": False, "missed_obstacle": True}
+    flat_only = fidelity.errors(drops["runs"]["ball"]["flat_2cm"], drops["runs"]["full"]["flat_2cm"])
+    assert summary["metrics"]["final_height_mm"]["mean"] == pytest.approx(flat_only["final_height_mm"])
+    assert report["fidelity"]["ball"]["summary"]["missed_obstacle"] == ["step_toe"]
+    assert "ball: the obstacle carried under 1% of the ground impulse in step_toe" in (quick[2] / "report.md").read_text()
+
+
+def test_adaptive_feet_follow_the_closed_chain_closer_than_the_ball_on_obstacles(quick):
+    """The project's headline claim, on the quick set's obstacle scenarios that every variant
+    engaged: AOF's and AFF's mean errors against the closed chain are below the ball foot's."""
+    _, report, _ = quick
+    fid = report["fidelity"]
+    names = [s["name"] for s in report["scenarios"] if s["obstacle"] != "flat"
+             and not any(fid[v]["per_scenario"][s["name"]].get("missed_obstacle") for v in fid)]
+    assert len(names) >= 3
+    for metric in ("force_nrmse", "peak_force_rel", "final_height_mm", "cop_mm", "slip_mm"):
+        ball = np.mean([fid["ball"]["per_scenario"][n][metric] for n in names])
+        for variant in ("aof", "aff"):
+            mine = np.mean([fid[variant]["per_scenario"][n][metric] for n in names])
+            assert mine < ball, (variant, metric, mine, ball)
+
+
+def test_the_report_names_what_failed(quick):
+    _, report, out = quick
+    text = (out / "report.md").read_text()
+    html_text = (out / "report.html").read_text()
+    for variant, f in report["fidelity"].items():
+        for name, m in f["summary"]["metrics"].items():
+            if m["passed"] is False:
+                assert f"{name} " in text.split(f"{variant} fails on:")[1].split("\n")[0], (variant, name)
+    assert "`" not in html_text  # markdown code spans became <code>
+    verdicts = [f["summary"]["passed"] for f in report["fidelity"].values()]
+    assert html_text.count("<td class='fail'>FAIL</td>") == verdicts.count(False)
+    assert html_text.count("<td class='pass'>pass</td>") == verdicts.count(True)

@@ -54,10 +54,22 @@ class Thresholds:
         return asdict(self)
 
 
+OBSTACLE_SHARE_MIN = 0.01
+"""An obstacle scenario engaged a foot only if the obstacle carried at least this share of the
+ground impulse over the run; below it the foot missed the obstacle (the ball, a point under the
+middle of the sole, misses a step under the toe) and the run says nothing about obstacles."""
+
+
+def missed_obstacle(run: dict) -> bool:
+    return run["scalars"].get("obstacle_share", 1.0) < OBSTACLE_SHARE_MIN
+
+
 def errors(variant: dict, full: dict) -> dict:
     """Fidelity errors of one variant run against the full chain's run of the same scenario."""
     if variant["scalars"].get("failed") or full["scalars"].get("failed"):
         return {"failed": True}
+    if missed_obstacle(variant) or missed_obstacle(full):
+        return {"failed": False, "missed_obstacle": True}
     a, b = variant["scalars"], full["scalars"]
     orientation = math.hypot(a["final_pitch_deg"] - b["final_pitch_deg"], a["final_roll_deg"] - b["final_roll_deg"])
     return {
@@ -113,10 +125,13 @@ def objective(errors: dict) -> float:
 
 def summarise(per_scenario: dict[str, dict], thresholds: Thresholds) -> dict:
     """Mean and worst of each error over the scenarios, and pass/fail against the thresholds
-    (a metric that is undefined for the variant, like the ball's sole orientation, is skipped)."""
-    out = {"metrics": {}, "passed": True, "failed_runs": sorted(s for s, e in per_scenario.items() if e.get("failed"))}
+    (a metric that is undefined for the variant, like the ball's sole orientation, is skipped, and
+    so are scenarios whose obstacle the variant or the closed chain missed: `missed_obstacle`)."""
+    out = {"metrics": {}, "passed": True, "failed_runs": sorted(s for s, e in per_scenario.items() if e.get("failed")),
+           "missed_obstacle": sorted(s for s, e in per_scenario.items() if e.get("missed_obstacle"))}
     for name, limit in thresholds.as_dict().items():
-        values = np.array([e[name] for e in per_scenario.values() if not e.get("failed")], float)
+        values = np.array([e[name] for e in per_scenario.values()
+                           if not e.get("failed") and not e.get("missed_obstacle")], float)
         values = values[np.isfinite(values)]
         if not values.size:
             out["metrics"][name] = {"mean": None, "max": None, "threshold": limit, "passed": None}

@@ -12,6 +12,7 @@ import numpy as np
 
 from footforge.atomic import atomic_directory
 from footforge.build import json_default
+from footforge.validate import fidelity as fidelity_lib
 
 METRICS = ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm", "slip_mm")
 COLOURS = {"full": "black", "aof": "tab:blue", "aff": "tab:orange", "ball": "tab:green"}
@@ -25,6 +26,16 @@ def _fmt(value, digits=3) -> str:
     if isinstance(value, float):
         return f"{value:.{digits}g}"
     return str(value)
+
+
+def failing_metrics(summary: dict) -> list[str]:
+    """'name mean > threshold' for each metric whose mean exceeds its threshold, and the runs
+    that failed, in words a user can act on."""
+    out = [f"{name} {_fmt(m['mean'])} > {_fmt(m['threshold'])}"
+           for name, m in summary["metrics"].items() if m["passed"] is False]
+    if summary["failed_runs"]:
+        out.append("runs failed: " + ", ".join(summary["failed_runs"]))
+    return out
 
 
 def blocks(report: dict, command: str) -> list[tuple]:
@@ -51,6 +62,14 @@ def blocks(report: dict, command: str) -> list[tuple]:
             ("p", "Thresholds (mean): " + ", ".join(f"{k} {v:g}" for k, v in report["thresholds"].items())
                   + ". Speed: simulated seconds per wall-clock second over the same scenarios, "
                   f"full = {report['speed']['full']['realtime_factor']:.2f}.")]
+    for v, f in report["fidelity"].items():
+        failing = failing_metrics(f["summary"])
+        if failing:
+            out.append(("p", f"{v} fails on: " + "; ".join(failing) + "."))
+        missed = f["summary"].get("missed_obstacle", [])
+        if missed:
+            out.append(("p", f"{v}: the obstacle carried under {fidelity_lib.OBSTACLE_SHARE_MIN:.0%} of the ground "
+                             f"impulse in {', '.join(missed)} (it landed beside it); excluded from the means."))
     if "calibration" in report:
         out.append(("h", 2, "Calibration"))
         for v, cal in report["calibration"].items():
@@ -68,7 +87,9 @@ def blocks(report: dict, command: str) -> list[tuple]:
     out.append(("h", 2, "Per scenario"))
     for v, f in report["fidelity"].items():
         out += [("h", 3, v), ("table", ["scenario", *METRICS],
-                              [[n, *[_fmt(e.get(m)) for m in METRICS]] if not e.get("failed") else [n, "run failed"]
+                              [[n, "run failed"] if e.get("failed") else
+                               [n, "obstacle missed (excluded)"] if e.get("missed_obstacle") else
+                               [n, *[_fmt(e.get(m)) for m in METRICS]]
                                for n, e in f["per_scenario"].items()])]
     out.append(("h", 2, "Scalars per run"))
     keys = ("peak_force_n", "impulse_ns", "settling_time_s", "final_height_m", "final_pitch_deg", "final_roll_deg",
@@ -104,6 +125,17 @@ def to_markdown(items: list[tuple]) -> str:
     return "\n".join(lines)
 
 
+def _html_text(text: str) -> str:
+    """Escaped text with markdown's `code` spans as <code> (the markdown report's own markup)."""
+    parts = html.escape(text).split("`")
+    return "".join(f"<code>{p}</code>" if i % 2 else p for i, p in enumerate(parts))
+
+
+def _html_cell(text: str) -> str:
+    css = {"pass": "pass", "FAIL": "fail"}.get(text.strip(), "")
+    return f"<td class='{css}'>{_html_text(text)}</td>" if css else f"<td>{_html_text(text)}</td>"
+
+
 def to_html(items: list[tuple]) -> str:
     e = html.escape
     body = []
@@ -111,16 +143,18 @@ def to_html(items: list[tuple]) -> str:
         if item[0] == "h":
             body.append(f"<h{item[1]}>{e(item[2])}</h{item[1]}>")
         elif item[0] == "p":
-            body.append(f"<p>{e(item[1])}</p>")
+            body.append(f"<p>{_html_text(item[1])}</p>")
         elif item[0] == "table":
             head = "".join(f"<th>{e(h)}</th>" for h in item[1])
-            rows = "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in item[2])
-            body.append(f"<table><tr>{head}</tr>{rows}</table>")
+            rows = "".join("<tr>" + "".join(_html_cell(c) for c in row) + "</tr>" for row in item[2])
+            body.append(f"<div class='scroll'><table><tr>{head}</tr>{rows}</table></div>")
         elif item[0] == "img":
             body.append(f'<figure><img src="{e(item[1])}" alt="{e(item[2])}" width="900"><figcaption>{e(item[2])}'
                         "</figcaption></figure>")
     style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;"
-             "font-size:12px;margin:8px 0}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}")
+             "font-size:12px;margin:8px 0}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}"
+             ".scroll{overflow-x:auto;max-width:100%}td.pass{background:#d8f5d8}td.fail{background:#f8d0d0;"
+             "font-weight:bold}img{max-width:100%;height:auto}code{background:#f2f2f2}")
     return f"<!doctype html><html><head><meta charset='utf-8'><title>footforge validate</title><style>{style}</style>" \
            f"</head><body>{''.join(body)}</body></html>\n"
 
@@ -132,11 +166,15 @@ def plot_scenario(report: dict, scenario: str, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    # The main force axis shows the settling (up to 4x the weight); the inset shows the whole
+    # range, impact peaks included, on a log scale.
+    peaks = axes[0].inset_axes([0.5, 0.5, 0.47, 0.45])
     for v, runs in report["runs"].items():
         r = runs[scenario]
         s, c = r["series"], COLOURS.get(v, None)
         width = 2.0 if v == "full" else 1.0
         axes[0].plot(s["time_s"], s["force_z_n"], color=c, lw=width, label=v)
+        peaks.plot(s["time_s"], np.maximum(s["force_peak_n"], 1.0), color=c, lw=0.8)
         if np.isfinite(s["pitch_rad"]).any():
             axes[1].plot(s["time_s"], np.degrees(s["pitch_rad"]), color=c, lw=width, label=f"{v} pitch")
             axes[1].plot(s["time_s"], np.degrees(s["roll_rad"]), color=c, lw=width, ls="--", label=f"{v} roll")
@@ -146,11 +184,14 @@ def plot_scenario(report: dict, scenario: str, path: Path) -> None:
                             color=c, alpha=0.6, label=v)
     axes[0].set(xlabel="time (s)", ylabel="vertical ground force (N)", title=f"{scenario}: force",
                 ylim=(0, 4 * max(r[scenario]["supported_weight_n"] for r in report["runs"].values())))
+    peaks.set_yscale("log")
+    peaks.set_title("peak force per interval (N, log)", fontsize=7)
+    peaks.tick_params(labelsize=6)
     axes[1].set(xlabel="time (s)", ylabel="deg", title="sole pitch (solid) and roll (dashed)")
     axes[2].set(xlabel="x (mm)", ylabel="y (mm)", title="settled contacts (size ~ force)", aspect="equal")
     for ax in axes:
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     plt.close(fig)
@@ -159,7 +200,8 @@ def plot_scenario(report: dict, scenario: str, path: Path) -> None:
 def _json_ready(report: dict) -> dict:
     """The report without the time series (they go to series.npz)."""
     out = {k: v for k, v in report.items() if k != "runs"}
-    out["runs"] = {v: {n: {k: r[k] for k in ("scalars", "failed", "wall_s", "steps", "timestep_s", "supported_weight_n")}
+    out["runs"] = {v: {n: {k: r[k] for k in ("scalars", "failed", "wall_s", "steps", "timestep_s", "supported_weight_n",
+                                             "hanging_mass_kg") if k in r}
                        for n, r in runs.items()} for v, runs in report["runs"].items()}
     return out
 

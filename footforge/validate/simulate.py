@@ -5,6 +5,7 @@ Runs in a worker process: inputs are plain MJCF text and asset bytes, outputs pl
 
 from __future__ import annotations
 
+import collections
 import time
 from dataclasses import dataclass
 
@@ -16,7 +17,14 @@ from footforge.validate.scenarios import Scenario
 
 SAMPLE_DT_S = 0.002
 """Recording interval, s: a multiple of every variant's timestep (0.25 ms full, 2 ms others), so
-all variants are sampled at the same instants."""
+all variants are sampled at the same instants. Forces are not sampled at this rate but integrated
+over every physics step of each interval (see `run`), so that a 0.25 ms impact between two samples
+is neither missed nor counted twice."""
+PEAK_WINDOW_S = 0.002
+"""Peak force is the largest mean ground force over any window of this length, slid one physics
+step at a time. It is the physics step of the coarsest variants, so that every variant's peak is
+an average over the same duration (a single 0.25 ms step of the closed chain, when a light link
+strikes, can be several times its 2 ms average); it does not depend on the recording interval."""
 SOLE_BODY_PREFIXES = ("chain_", "sole")
 """Bodies (after the `foot/` prefix) whose bottoms form the sole: the closed chain's links, the
 derived feet's sole bodies."""
@@ -111,6 +119,27 @@ def _ground_contacts(model, data, foot_mask):
             np.maximum(0.0, -data.contact.dist[chosen]).reshape(-1))
 
 
+def _ground_force_z(model, data, foot_mask, obstacle: int) -> tuple[float, float]:
+    """Vertical force (N) the ground exerts on the foot in the step MuJoCo last took, in all and
+    through the obstacle geom (id `obstacle`, -1 if none): after mj_step, `data.contact` and the
+    constraint forces are those computed at the start of that step, i.e. the forces that moved the
+    state to the current one."""
+    ncon = data.ncon
+    if not ncon:
+        return 0.0, 0.0
+    geoms = data.contact.geom[:ncon].reshape(-1, 2)
+    on_foot = foot_mask[model.geom_bodyid[geoms]]
+    total, through_obstacle, force = 0.0, 0.0, np.zeros(6)
+    for i in np.flatnonzero(on_foot[:, 0] != on_foot[:, 1]):
+        mujoco.mj_contactForce(model, data, i, force)
+        f_z = data.contact.frame[i].reshape(3, 3)[:, 2] @ force[:3]  # world z of the force on geom2
+        f_z = -f_z if on_foot[i, 0] else f_z
+        total += f_z
+        if obstacle in geoms[i]:
+            through_obstacle += f_z
+    return float(total), float(through_obstacle)
+
+
 def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
     """Sets the slider so the foot's lowest point is `drop_height_m` above the obstacle
     (bisection on the first contact; works for every geom type, heightfields included)."""
@@ -131,8 +160,16 @@ def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
     mujoco.mj_forward(model, data)
 
 
-def run(case: RigCase) -> dict:
-    """Simulates one case; returns time series (sampled every SAMPLE_DT_S) and scalars.
+def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
+    """Simulates one case; returns time series (sampled every `sample_dt_s`) and scalars.
+
+    Ground force is accumulated at the physics rate: for sample i > 0, `impulse_ns` is the ground
+    impulse of every physics step since sample i-1 (sum of F dt), `force_z_n` that impulse divided
+    by the interval (the interval's mean force) and `force_peak_n` the largest PEAK_WINDOW_S mean
+    force that ended in it. Kinematic quantities (height, orientation, centre of pressure) are the state at the sample.
+    `momentum_z_ns` is the vertical momentum of everything that hangs from the slider (the payload,
+    carriage and foot, from their centre of mass velocity), so that impulse and momentum can be
+    checked against each other.
 
     `wall_s` is the wall-clock time spent in mj_step alone (the recording is not counted), so
     that variants' speeds compare the physics, not this function's bookkeeping.
@@ -154,18 +191,38 @@ def run(case: RigCase) -> dict:
     mount = model.site("mount").id
     weight = float(-model.opt.gravity[2] * mujoco.mj_getTotalmass(model))  # payload, carriage and foot
     steps = int(round(scenario.duration_s / model.opt.timestep))
-    every = max(1, int(round(SAMPLE_DT_S / model.opt.timestep)))
+    every = max(1, int(round(sample_dt_s / model.opt.timestep)))
+    if not np.isclose(every * model.opt.timestep, sample_dt_s, rtol=1e-9, atol=0.0):
+        raise ValueError(f"sample interval {sample_dt_s} s is not a multiple of the timestep {model.opt.timestep} s")
     n = steps // every + 1
-    series = {k: np.full(n, np.nan) for k in ("time_s", "force_z_n", "height_m", "pitch_rad", "roll_rad", "contacts",
+    series = {k: np.full(n, np.nan) for k in ("time_s", "force_z_n", "force_peak_n", "impulse_ns", "momentum_z_ns",
+                                              "height_m", "pitch_rad", "roll_rad", "contacts",
                                               "cop_x_m", "cop_y_m", "spread_m", "penetration_m", "closure_gap_m", "energy_j",
                                               "sole_x_m", "sole_y_m")}
+    root = int(model.body_rootid[model.body("carriage").id])
+    hanging_mass = float(model.body_subtreemass[root])
+    com_jac = np.zeros((3, model.nv))
     failed, wall, footprint = None, 0.0, np.zeros((0, 3))
+    obstacle = int(model.geom("obstacle").id) if scenario.obstacle not in ("flat", "slope") else -1
+    obstacle_impulse = 0.0  # through the obstacle, over the whole run
+    impulse, peak = 0.0, 0.0  # over the physics steps since the last sample
+    window = collections.deque(maxlen=max(1, int(round(PEAK_WINDOW_S / model.opt.timestep))))
     for k in range(steps + 1):
         if k % every == 0:
             i = k // every
             pos, force, penetration = _ground_contacts(model, data, foot_mask)
             series["time_s"][i] = data.time
-            series["force_z_n"][i] = force[:, 2].sum()
+            if i == 0:  # released: the force of the placing forward pass (zero: the foot hangs above the ground)
+                series["force_z_n"][i] = series["force_peak_n"][i] = force[:, 2].sum()
+                series["impulse_ns"][i] = 0.0
+            else:
+                series["force_z_n"][i] = impulse / (every * model.opt.timestep)
+                series["force_peak_n"][i], series["impulse_ns"][i] = peak, impulse
+            impulse, peak = 0.0, 0.0
+            # The current velocities through the centre-of-mass Jacobian (data.cvel and
+            # subtree_linvel still hold the previous step's velocities after mj_step).
+            mujoco.mj_jacSubtreeCom(model, data, com_jac, root)
+            series["momentum_z_ns"][i] = hanging_mass * float(com_jac[2] @ data.qvel)
             series["height_m"][i] = data.site_xpos[mount][2]
             sole_world = _sole_world(data, sole_bodies, sole_local)
             series["pitch_rad"][i], series["roll_rad"][i] = _sole_orientation(sole_world)
@@ -188,14 +245,23 @@ def run(case: RigCase) -> dict:
         t0 = time.perf_counter()
         mujoco.mj_step(model, data)
         wall += time.perf_counter() - t0
+        f_z, f_obstacle = _ground_force_z(model, data, foot_mask, obstacle)
+        obstacle_impulse += f_obstacle * model.opt.timestep
+        impulse += f_z * model.opt.timestep
+        window.append(f_z)
+        peak = max(peak, sum(window) / window.maxlen)
         if data.warning.number.any() or not np.isfinite(data.qacc).all():
             warnings = [mujoco.mjtWarning(j).name for j, w in enumerate(data.warning) if w.number]
             failed = f"step {k}: " + (", ".join(warnings) if warnings else "non-finite acceleration")
             footprint = np.zeros((0, 3))
             break
+    result_scalars = scalars(series, weight, failed)
+    if obstacle >= 0 and not failed:
+        total = float(np.nansum(series["impulse_ns"]))
+        result_scalars["obstacle_share"] = obstacle_impulse / total if total > 0 else 0.0
     return {"footprint": footprint, "scenario": scenario.name, "variant": case.variant, "series": series,
-            "scalars": scalars(series, weight, failed), "failed": failed, "wall_s": wall, "steps": k,
-            "timestep_s": model.opt.timestep, "supported_weight_n": weight}
+            "scalars": result_scalars, "failed": failed, "wall_s": wall, "steps": k,
+            "timestep_s": model.opt.timestep, "supported_weight_n": weight, "hanging_mass_kg": hanging_mass}
 
 
 def _tail_mean_deg(values: np.ndarray) -> float:
@@ -217,10 +283,11 @@ def scalars(s: dict, weight_n: float, failed: str | None) -> dict:
     v = np.gradient(h, t)
     rising = np.flatnonzero(v[first:] >= 0)
     end = first + int(rising[0]) if rising.size else len(t) - 1
-    impulse = float(np.trapezoid(f[first:end + 1], t[first:end + 1])) if end > first else 0.0
+    # Every physics step's impulse from the interval in which contact began to the end of compression.
+    impulse = float(np.sum(s["impulse_ns"][first:end + 1])) if end > first else 0.0
     low = first + int(np.argmin(h[first:end + 1])) if end > first else first
     rebound = float(max(0.0, np.nanmax(h[low:]) - final_h))
-    peak = int(np.nanargmax(f))
+    peak = int(np.nanargmax(s["force_peak_n"]))
     cop = np.c_[s["cop_x_m"], s["cop_y_m"]]
     tail = slice(-50, None)
     cop_final = np.nanmean(cop[tail], axis=0) if np.isfinite(cop[tail]).any() else np.full(2, np.nan)
@@ -236,7 +303,7 @@ def scalars(s: dict, weight_n: float, failed: str | None) -> dict:
     energy = s["energy_j"]
     gain = float(np.nanmax(energy) - energy[0])
     return {
-        "peak_force_n": float(f[peak]), "impulse_ns": impulse, "settling_time_s": settle,
+        "peak_force_n": float(s["force_peak_n"][peak]), "impulse_ns": impulse, "settling_time_s": settle,
         "final_height_m": final_h, "final_force_n": float(np.nanmean(f[tail])),
         "final_pitch_deg": _tail_mean_deg(s["pitch_rad"][tail]), "final_roll_deg": _tail_mean_deg(s["roll_rad"][tail]),
         "contacts": float(np.nanmean(s["contacts"][tail])), "cop_x_mm": float(cop_final[0] * 1e3),
