@@ -264,7 +264,7 @@ def _resume_point(run_dir: Path, notice: Callable[[str], None], set_aside: bool)
         skipped.append((step, path))
     raise InputError(f"no intact checkpoint to resume in {run_dir / 'checkpoints'} ({len(found)} checked, "
                      f"all damaged; the reasons are above)", file=str(run_dir),
-                     fix=f"start the run over with --force (it removes the run's files), or give another --out")
+                     fix="start the run over with --force (it removes the run's files), or give another --out")
 
 
 def is_run_folder(folder: Path) -> bool:
@@ -283,10 +283,9 @@ def is_run_folder(folder: Path) -> bool:
 def _remove_run_files(run_dir: Path) -> list[str]:
     """Removes RUN_ENTRIES and their temporaries from run_dir; returns the names removed."""
     removed = []
-    stems = tuple(name.split(".")[0] for name in RUN_ENTRIES)
-    for entry in sorted(run_dir.iterdir()):
-        temporary = entry.name.startswith(".") and entry.name[1:].startswith(stems) and ".tmp" in entry.name \
-            or entry.name.startswith(".policy.old-")
+    stems = tuple(f".{name.split('.')[0]}." for name in RUN_ENTRIES if not name.startswith("."))
+    for entry in sorted(run_dir.iterdir()):  # temporaries: .config.json.tmp, .policy.tmp-PID-x, .terrain.tmp-PID.png
+        temporary = entry.name.startswith(stems) and (".tmp" in entry.name or entry.name.startswith(".policy.old-"))
         if entry.name in RUN_ENTRIES or temporary:
             if entry.is_dir() and not entry.is_symlink():
                 shutil.rmtree(entry)

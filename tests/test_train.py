@@ -338,9 +338,10 @@ def test_force_removes_only_what_footforge_wrote(written_run):
     run, _, _ = written_run
     (run / "notes.txt").write_text("mine")
     (run / ".policy.tmp-1-abc").mkdir()  # a killed run's temporary
+    (run / ".notes.tmp").write_text("mine too")
     messages = []
     train.prepare_run_dir(run, force=True, notice=messages.append)
-    assert sorted(p.name for p in run.iterdir()) == [MARKER, "notes.txt"]
+    assert sorted(p.name for p in run.iterdir()) == [MARKER, ".notes.tmp", "notes.txt"]
     assert "checkpoints" in messages[0] and "notes.txt" not in messages[0]
 
 
