@@ -6,7 +6,9 @@ errors |v_cmd - v| (m/s), yaw-rate tracking error (rad/s), action rate ||a_t - a
 norm over the 12 joints of the change of the policy output), joint velocity rate
 ||qd_t - qd_t-1|| (rad/s per step), joint torques ||tau|| (N m), base height (m). Foot slippage
 (Catalano et al. 2022): the summed horizontal displacement of every foot between two steps in
-which it touches the ground, over the horizontal distance the base travelled.
+which it touches the ground, over the horizontal distance the base travelled. Falls, and among
+them the robots whose simulation diverged (counted apart: a diverged robot's indices would be
+NaN, and it is masked like a fall).
 """
 
 from __future__ import annotations
@@ -51,8 +53,9 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     """Runs `policy_dir`'s policy on `feet` (default: the feet it was trained on) for `seconds`
     (default: SECONDS of its task).
 
-    Returns {"indices": {name: {"mean", "std"}}, "slippage", "falls", "traces": {...}} where the
-    traces (robot 0's foot contacts, the mean base velocity error) feed the plots. Rough-terrain
+    Returns {"indices": {name: {"mean", "std"}}, "slippage", "falls", "diverged", "traces": {...}}
+    where "falls" counts the robots that fell, "diverged" those of them whose simulation diverged
+    (a non-finite state or reward term: the environment's `diverged` metric), and the traces (robot 0's foot contacts, the mean base velocity error) feed the plots. Rough-terrain
     policies walk the terrain they trained on (its seed): robot i starts on level i mod levels of
     column (i // levels) mod columns, so every tile gets robots; "by_terrain" then holds each
     kind's and level's indices and falls.
@@ -82,6 +85,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
         qd = d.qvel[robot.actuated_dof]
         touching = env.foot_contacts(d)
         xy, new_base_xy = d.site_xpos[robot.foot_sites][:, :2], d.qpos[:2]
+        diverged = alive & (m["diverged"] > 0)  # the step that ends a standing robot's walk, if it diverged
         alive = alive & (state.done == 0)
         lin, _, _ = env.base_state(d)
         row = {"lin_vel_x_error": m["error/lin_vel_x_per_step"], "lin_vel_y_error": m["error/lin_vel_y_per_step"],
@@ -90,7 +94,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
                "base_height": m["base_height_m_per_step"], "alive": alive,
                "slip": jp.sum(jp.linalg.norm(xy - feet_xy, axis=1) * (touching & touched)),
                "travel": jp.linalg.norm(new_base_xy - base_xy), "contacts": touching,
-               "base_vx_error": state.info["command"][0] - lin[0]}
+               "base_vx_error": state.info["command"][0] - lin[0], "diverged": diverged}
         return (state, qd, alive, xy, new_base_xy, touching), row
 
     def rollout(key, level, column):
@@ -114,19 +118,21 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
             "num_envs": num_envs, "seconds": seconds, "seed": seed, "policy_dt_s": env_config.policy_dt,
             "push_interval_s": env_config.pushes.interval_s,
             "task": config.task, "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
+            "diverged": int(rows["diverged"].any(axis=1).sum()),
             **({"by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns)} if rough else {}),
             "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": np.nanmean(vx_error, axis=0)}}
 
 
 def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarray) -> dict:
-    """{kind: {level: {"robots", "falls", index: mean over the standing steps}}}."""
+    """{kind: {level: {"robots", "falls", "diverged", index: mean over the standing steps}}}."""
     out: dict = {}
     kinds = np.array(column_kinds)[columns]
     for kind in sorted(set(kinds)):
         for level in sorted(set(levels[kinds == kind])):
             robots = (kinds == kind) & (levels == level)
             alive = rows["alive"][robots]
-            cell = {"robots": int(robots.sum()), "falls": int((~alive[:, -1]).sum())}
+            cell = {"robots": int(robots.sum()), "falls": int((~alive[:, -1]).sum()),
+                    "diverged": int(rows["diverged"][robots].any(axis=1).sum())}
             cell |= {name: float(rows[name][robots][alive].mean()) if alive.any() else float("nan") for name in INDICES}
             out.setdefault(kind, {})[int(level)] = cell
     return out
@@ -199,7 +205,8 @@ def comparison_markdown(results: list[dict]) -> str:
     for r in results:
         cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
         cells += [f"{r['indices'][k]['mean']:.3f} ± {r['indices'][k]['std']:.3f}" for k in INDICES]
-        cells += [f"{r['slippage']:.3f}", f"{r['falls']}/{r['num_envs']}"]
+        diverged = f" ({r['diverged']} diverged)" if r.get("diverged") else ""
+        cells += [f"{r['slippage']:.3f}", f"{r['falls']}/{r['num_envs']}{diverged}"]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

@@ -24,14 +24,29 @@ MARKER = ".footforge-output"
 """File in every output folder footforge writes: a small JSON naming the tool, command and version."""
 
 
-def write_marker(folder: Path, command: str | None = None) -> None:
-    """Writes the marker into `folder` (a folder footforge is writing), so a later run may replace it."""
+TRAINING_RUN = "training run"
+"""The marker's `kind` in a training run folder: written into over many calls (checkpoints,
+--resume), so it is never replaced as a whole unless forced (footforge.train.prepare_run_dir)."""
+
+
+def write_marker(folder: Path, command: str | None = None, *, kind: str | None = None) -> None:
+    """Writes the marker into `folder` (a folder footforge is writing), so a later run may replace
+    it; `kind` (e.g. TRAINING_RUN) is recorded for folders that need more care."""
     from footforge import __version__
 
     if command is None:
         command = " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
     (Path(folder) / MARKER).write_text(json.dumps(
-        {"tool": "footforge", "command": command, "version": __version__}, indent=1) + "\n")
+        {"tool": "footforge", "command": command, "version": __version__} | ({"kind": kind} if kind else {}),
+        indent=1) + "\n")
+
+
+def marker_kind(folder: Path) -> str | None:
+    """The `kind` the marker of `folder` records, or None (no marker, or none recorded)."""
+    try:
+        return json.loads((Path(folder) / MARKER).read_text()).get("kind")
+    except (OSError, ValueError, AttributeError):
+        return None
 
 
 LEGACY_BUILD_REPORT = "build_report.json"
@@ -67,7 +82,8 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
     Refused always: the current folder or one above it (it cannot be replaced by a rename), an
     existing file (footforge writes folders; a file is the user's), a path under a file, and a
     parent folder this process cannot write in (the output is made beside it, then renamed).
-    Refused unless `force`: an existing non-empty folder without footforge's marker.
+    Refused unless `force`: an existing non-empty folder without footforge's marker, and a training
+    run's folder (its marker's kind is TRAINING_RUN).
 
     Raises:
       InputError: one line naming the path and what to change; exit 2.
@@ -90,6 +106,9 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"{flag} {given}: cannot write in {parent} (permission denied); "
                          f"give a {flag} folder in a writable place")
+    if target.is_dir() and not force and marker_kind(target) == TRAINING_RUN:
+        raise InputError(f"{flag} {given}: is a training run folder (checkpoints, metrics), which footforge "
+                         f"does not replace as a whole; give another {flag} folder, e.g. {flag} {given}/evaluation")
     if target.is_dir() and not force and not written_by_footforge(target) and any(target.iterdir()):
         raise InputError(f"{flag} {given}: the folder holds files footforge did not write (no {MARKER}); "
                          f"pass {force_flag} to replace it anyway, or give another {flag} folder")

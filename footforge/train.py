@@ -4,9 +4,28 @@ Also written: `<run>/metrics.jsonl` (every evaluation's metrics: the reward curv
 `<run>/tensorboard/`. Brax's own checkpoints hold the policy, value and normaliser parameters but restart the step
 count on resume; footforge keeps its own: after every epoch the parameters go to
 `<run>/checkpoints/<global step>/` (Brax's format) and `<run>/progress.json` records the global
-step. `--resume` restores the latest checkpoint and trains the remaining steps with a new seed
-(the same seed would replay the same experience). Adam's moments are not in Brax's checkpoints
-and restart: a resumed run continues from the same policy, not the same optimiser state.
+step. `--resume` restores the latest intact checkpoint and trains the remaining steps with a new seed
+(the same seed would replay the same experience).
+
+Optimiser state: Brax 0.14.2's PPO cannot restore it. Its `train` builds the Adam moments (and
+the adaptive-KL learning rate, which lives in the same optax state) with `optimizer.init` inside
+the function, passes only (normaliser, policy, value) parameters to `policy_params_fn` and
+returns only those, and its restore paths (`restore_params`, `restore_checkpoint_path`) set
+parameters alone. Keeping the optimiser state would mean re-implementing Brax's PPO loop, so a
+resumed run continues from the same policy, value and normaliser, with Adam's moments and the
+learning rate restarting from `PPOConfig.learning_rate`.
+
+Checkpoint integrity: every checkpoint gets `footforge_checkpoint.json` (CHECKPOINT_MANIFEST),
+written whole after Brax's and orbax's files are complete, with each file's size and SHA-256.
+`--resume` verifies checkpoints from the newest down and continues from the newest intact one;
+the ones it skips (no manifest, a file truncated, missing or changed, or unreadable by orbax) are
+named on stderr and renamed to `<step>.corrupt` so the resumed run can write that step again.
+Checkpoints of runs from before the manifest are accepted when orbax reads them.
+
+The run folder: footforge marks it as a training run (footforge.outputs.MARKER). Training into a
+folder that already holds a run is refused unless `resume` (continue it) or `force` (start over:
+only the files and folders footforge writes in a run folder, RUN_ENTRIES, are removed; anything
+else in the folder stays). These checks run before any compilation.
 
 `max_wall_s` bounds a call's wall-clock time for machines whose jobs have a time limit: after each
 checkpoint and its evaluation, training stops when the next epoch (estimated by the last one)
@@ -19,10 +38,12 @@ epoch would have fitted: keep epochs (checkpoint_every_steps) short against the 
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
 import math
 import os
 import shutil
+import sys
 import time
 from dataclasses import asdict, dataclass, fields, is_dataclass
 from pathlib import Path
@@ -31,6 +52,7 @@ from typing import Callable
 from footforge.atomic import atomic_directory, atomic_file
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
+from footforge.outputs import MARKER, TRAINING_RUN, check_output_folder, marker_kind, write_marker
 
 
 @dataclass(frozen=True)
@@ -122,29 +144,259 @@ def network_factory(ppo: PPOConfig, privileged: bool = False):
         distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std, **keys)
 
 
-def latest_checkpoint(run_dir: Path) -> tuple[int, Path] | None:
+CHECKPOINT_MANIFEST = "footforge_checkpoint.json"
+"""In every checkpoint folder (and the policy folder copied from one): {"files": {relative path:
+{"bytes", "sha256"}}}, written whole once the checkpoint's files are complete."""
+
+RUN_ENTRIES = ("config.json", "progress.json", "metrics.jsonl", "tensorboard", "checkpoints", "policy",
+               "terrain.png", MARKER)
+"""What footforge writes in a run folder: all that `force` removes (with these names' temporaries)."""
+
+
+def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
+    """(global step, folder) of the run's checkpoints, oldest first (intact or not)."""
     folder = Path(run_dir) / "checkpoints"
-    steps = sorted(int(p.name) for p in folder.iterdir() if p.name.isdigit()) if folder.is_dir() else []
-    return (steps[-1], folder / f"{steps[-1]:012d}") if steps else None
+    found = sorted((int(p.name), p) for p in folder.iterdir() if p.name.isdigit()) if folder.is_dir() else []
+    return found
+
+
+def latest_checkpoint(run_dir: Path) -> tuple[int, Path] | None:
+    """The newest checkpoint, intact or not (latest_intact_checkpoint checks)."""
+    found = checkpoints(run_dir)
+    return found[-1] if found else None
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def write_checkpoint_manifest(folder: Path) -> None:
+    """Records every file under the checkpoint folder `folder` (size and SHA-256) in its manifest."""
+    folder = Path(folder)
+    files = {str(p.relative_to(folder)): {"bytes": p.stat().st_size, "sha256": _sha256(p)}
+             for p in sorted(folder.rglob("*")) if p.is_file() and p.name != CHECKPOINT_MANIFEST}
+    _write_json(folder / CHECKPOINT_MANIFEST, {"files": files})
+
+
+def checkpoint_problem(folder: Path, *, read: bool = True) -> str | None:
+    """Why the checkpoint folder `folder` cannot be trusted, or None if it is intact.
+
+    With a manifest, every file it lists must be there with its size and SHA-256. Without one (a
+    write that did not finish, or a run from before manifests), Brax's network config must be
+    there and, as with `read`, orbax must read the parameters.
+    """
+    folder = Path(folder)
+    manifest = folder / CHECKPOINT_MANIFEST
+    if manifest.is_file():
+        try:
+            files = json.loads(manifest.read_text())["files"]
+        except (OSError, ValueError, KeyError, TypeError):
+            return f"its {CHECKPOINT_MANIFEST} is unreadable"
+        for name, expected in files.items():
+            path = folder / name
+            if not path.is_file():
+                return f"{name} is missing"
+            if path.stat().st_size != expected["bytes"]:
+                return f"{name} has {path.stat().st_size} bytes, {expected['bytes']} were written"
+            if _sha256(path) != expected["sha256"]:
+                return f"{name} changed since it was written (SHA-256 differs)"
+    elif not (folder / "ppo_network_config.json").is_file():
+        return f"no {CHECKPOINT_MANIFEST} and no ppo_network_config.json: its write did not finish"
+    else:
+        read = True
+    if read:
+        try:
+            _load_params(folder)
+        except Exception as e:  # orbax raises many types on damaged files; the reason is reported
+            first = (str(e).strip().splitlines() or [""])[0]
+            return f"orbax cannot read it ({type(e).__name__}: {first[:160]})"
+    return None
+
+
+def _load_params(folder: Path):
+    from brax.training.agents.ppo import checkpoint as brax_checkpoint
+
+    return brax_checkpoint.load(str(folder))
+
+
+def latest_intact_checkpoint(run_dir: Path, *, read: bool = False) -> tuple[int, Path] | None:
+    """The newest checkpoint that passes checkpoint_problem."""
+    for step, path in reversed(checkpoints(run_dir)):
+        if checkpoint_problem(path, read=read) is None:
+            return step, path
+    return None
+
+
+def _resume_point(run_dir: Path, notice: Callable[[str], None], set_aside: bool):
+    """(global step, parameters) of the newest intact checkpoint; the newer ones are reported and,
+    with `set_aside`, renamed to <step>.corrupt (the resumed run writes those steps again).
+
+    Raises:
+      InputError: no checkpoint, or none intact.
+    """
+    found = checkpoints(run_dir)
+    if not found:
+        raise InputError(f"nothing to resume: no checkpoints in {run_dir / 'checkpoints'}", file=str(run_dir),
+                         fix="start without --resume (with --force to start this run over), or give another run")
+    skipped = []
+    for step, path in reversed(found):
+        problem = checkpoint_problem(path, read=False)
+        params = None
+        if problem is None:
+            try:
+                params = _load_params(path)
+            except Exception as e:  # as in checkpoint_problem
+                problem = f"orbax cannot read it ({type(e).__name__})"
+        if problem is None:
+            for _, bad in skipped:
+                if set_aside:
+                    aside = bad.with_name(f"{bad.name}.corrupt")
+                    n = 1
+                    while aside.exists():
+                        aside, n = bad.with_name(f"{bad.name}.corrupt{n}"), n + 1
+                    os.replace(bad, aside)
+            return step, params
+        notice(f"skipping checkpoint {path.name} of {run_dir}: {problem}")
+        skipped.append((step, path))
+    raise InputError(f"no intact checkpoint to resume in {run_dir / 'checkpoints'} ({len(found)} checked, "
+                     f"all damaged; the reasons are above)", file=str(run_dir),
+                     fix="start the run over with --force (it removes the run's files), or give another --out")
+
+
+def is_run_folder(folder: Path) -> bool:
+    """Whether `folder` holds a footforge training run: its marker says so, or (a run from before
+    the marker) its config.json holds an environment and a PPO config."""
+    folder = Path(folder)
+    if marker_kind(folder) == TRAINING_RUN:
+        return True
+    try:
+        saved = json.loads((folder / "config.json").read_text())
+        return isinstance(saved, dict) and {"env", "ppo"} <= set(saved)
+    except (OSError, ValueError):
+        return False
+
+
+def _remove_run_files(run_dir: Path) -> list[str]:
+    """Removes RUN_ENTRIES and their temporaries from run_dir; returns the names removed."""
+    removed = []
+    stems = tuple(f".{name.split('.')[0]}." for name in RUN_ENTRIES if not name.startswith("."))
+    for entry in sorted(run_dir.iterdir()):  # temporaries: .config.json.tmp, .policy.tmp-PID-x, .terrain.tmp-PID.png
+        temporary = entry.name.startswith(stems) and (".tmp" in entry.name or entry.name.startswith(".policy.old-"))
+        if entry.name in RUN_ENTRIES or temporary:
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+            removed.append(entry.name)
+    return removed
+
+
+def prepare_run_dir(run_dir: Path, *, resume: bool = False, force: bool = False, write: bool = True,
+                    notice: Callable[[str], None] | None = None) -> Path:
+    """Checks (and for a new run makes and marks) the run folder; returns its absolute path.
+
+    Fresh runs go into a new or empty folder; a folder holding a run needs `resume` or `force`
+    (which removes RUN_ENTRIES only); a folder with other files needs `force`, and then must not
+    hold any of RUN_ENTRIES. `write=False` checks without changing anything (JAX processes other
+    than the first). Cheap: call it before any compilation.
+
+    Raises:
+      InputError: the folder cannot be used as asked; exit 2.
+    """
+    given = run_dir
+    run_dir = check_output_folder(run_dir, force=True)  # the checks that always apply (a file, the cwd, ...)
+    if resume and force:
+        raise InputError("--resume and --force exclude each other: --resume continues the run, --force starts it over",
+                         fix="pass one of them")
+    if resume:
+        if not (run_dir / "config.json").is_file():
+            raise InputError(f"--out {given}: nothing to resume (no config.json: not a training run)",
+                             file=str(run_dir), fix="start without --resume, or give the folder of an earlier run")
+        return run_dir
+    if run_dir.is_dir() and any(run_dir.iterdir()):
+        if is_run_folder(run_dir):
+            if not force:
+                last = latest_checkpoint(run_dir)
+                state = f"its last checkpoint at step {last[0]:,}" if last else "no checkpoint yet"
+                raise InputError(f"--out {given}: holds a training run ({state})",
+                                 fix="pass --resume to continue it, --force to start it over (removes only the "
+                                     "files footforge wrote there), or give another --out")
+            if write:
+                removed = _remove_run_files(run_dir)
+                if notice and removed:
+                    notice(f"--force: removed the earlier run's {', '.join(removed)} from {run_dir}")
+        else:
+            if not force:
+                raise InputError(f"--out {given}: the folder holds files footforge did not write (no {MARKER})",
+                                 fix="give another --out, or pass --force to train into it beside those files "
+                                     "(they are kept)")
+            clash = [name for name in RUN_ENTRIES if (run_dir / name).exists() or (run_dir / name).is_symlink()]
+            if clash:
+                raise InputError(f"--out {given}: holds {', '.join(clash)}, which footforge did not write and a run "
+                                 f"would overwrite", fix="move them away or give another --out")
+    if write:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        write_marker(run_dir, kind=TRAINING_RUN)
+    return run_dir
+
+
+def load_run_config(run_dir: Path) -> tuple[EnvConfig, "PPOConfig"]:
+    """The environment and PPO configs a run was started with (its config.json).
+
+    Raises:
+      InputError: no readable config.json in run_dir.
+    """
+    path = Path(run_dir) / "config.json"
+    if not Path(run_dir).is_dir():
+        raise InputError(f"{run_dir} does not exist", file=str(run_dir), fix="give the folder of an earlier run")
+    try:
+        saved = json.loads(path.read_text())
+        return from_dict(EnvConfig, saved["env"]), from_dict(PPOConfig, saved["ppo"])
+    except FileNotFoundError:
+        raise InputError("not a training run (no config.json)", file=str(run_dir),
+                         fix="give the folder of an earlier run, or start without --resume") from None
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise InputError(f"unreadable ({type(e).__name__}: {e})", file=str(path),
+                         fix="start the run over with --force, or give another run") from None
+
+
+def config_differences(saved: dict, now: dict, prefix: str = "") -> list[str]:
+    """'field: saved -> now' for every leaf that differs between two asdict()/JSON forms."""
+    out = []
+    for key in sorted(set(saved) | set(now)):
+        a, b = saved.get(key), now.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += config_differences(a, b, f"{prefix}{key}.")
+        elif a != b:
+            out.append(f"{prefix}{key}: {a!r} in the run, {b!r} now")
+    return out
 
 
 class _OutOfTime(Exception):
     """Raised from Brax's progress callback to stop training at a checkpoint (max_wall_s)."""
 
 
-def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False,
-          progress: Callable[[int, int, dict], None] | None = None, max_wall_s: float | None = None) -> dict:
+def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False, force: bool = False,
+          progress: Callable[[int, int, dict, bool], None] | None = None, max_wall_s: float | None = None,
+          notice: Callable[[str], None] | None = None) -> dict:
     """Trains a policy; writes checkpoints, TensorBoard logs and the final policy into run_dir.
 
-    Returns the final metrics. `progress(global_step, total_steps, metrics)` is called after each
-    evaluation and each log of the training episodes' metrics, with the latest value of every
-    metric so far. `max_wall_s`: stop at the last checkpoint that leaves time for no further epoch
-    (see the module's docstring); the returned metrics then hold "stopped_for_time": 1.0.
+    Returns the final metrics. `progress(global_step, total_steps, metrics, evaluation)` is called
+    after each evaluation (`evaluation` True) and each log of the training episodes' metrics, with
+    the latest value of every metric so far. `resume` continues the run in run_dir from its newest
+    intact checkpoint, `force` starts it over (prepare_run_dir); without either, a run_dir that
+    holds a run is refused. `notice(text)` reports what was skipped or removed (default: stderr).
+    `max_wall_s`: stop at the last checkpoint that leaves time for no further epoch (see the
+    module's docstring); the returned metrics then hold "stopped_for_time": 1.0.
 
     Raises:
-      InputError: bad hyperparameters, or --resume without a checkpoint / with other configs.
+      InputError: bad hyperparameters; a run folder that needs --resume or --force; --resume
+        without an intact checkpoint or with other configs.
     """
-    from brax.training.agents.ppo import checkpoint as brax_checkpoint
     from brax.training.agents.ppo import train as ppo_train
     from tensorboardX import SummaryWriter
 
@@ -156,6 +408,9 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
 
     from footforge import jax_compat
 
+    if notice is None:
+        def notice(text: str) -> None:
+            print(text, file=sys.stderr, flush=True)
     jax_compat.install()  # Brax 0.14.2's PPO on JAX >= 0.10
     ppo.check()
     if max_wall_s is not None and max_wall_s <= 0:
@@ -167,30 +422,30 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         raise InputError(f"num_envs ({ppo.num_envs}) must be a multiple of the number of JAX devices "
                          f"({jax.device_count()}): Brax splits the robots evenly over them",
                          fix=f"e.g. --num-envs {ppo.num_envs - ppo.num_envs % jax.device_count() or jax.device_count()}")
-    run_dir = Path(run_dir).resolve()
+    # On several machines only process 0 writes (Brax saves and evaluates there alone).
+    primary = jax.process_index() == 0
+    # Only process 0 checks the folder: the others may look before or after it wrote its marker.
+    run_dir = prepare_run_dir(run_dir, resume=resume, force=force, notice=notice) if primary else \
+        Path(os.path.abspath(run_dir))
     state_file = run_dir / "progress.json"
     offset, restore, resumes = 0, None, 0
     if resume:
-        found = latest_checkpoint(run_dir)
-        if found is None:
-            raise InputError(f"nothing to resume in {run_dir}", file=str(run_dir),
-                             fix="start without --resume, or point --out at an earlier run")
-        saved = json.loads((run_dir / "config.json").read_text())
-        now = json.loads(json.dumps({"env": to_dict(env_config), "ppo": to_dict(ppo)}))  # tuples as lists
-        if saved["env"] != now["env"] or saved["ppo"] | {"num_timesteps": 0} != now["ppo"] | {"num_timesteps": 0}:
-            raise InputError("the run was started with other settings", file=str(run_dir / "config.json"),
-                             fix="resume with the same options as the original run")
-        offset, path = found
-        restore = brax_checkpoint.load(str(path))
+        saved_env, saved_ppo = load_run_config(run_dir)
+        saved = json.loads(json.dumps({"env": to_dict(saved_env), "ppo": to_dict(saved_ppo) | {"num_timesteps": 0}}))
+        now = json.loads(json.dumps({"env": to_dict(env_config), "ppo": to_dict(ppo) | {"num_timesteps": 0}}))
+        differences = config_differences(saved, now)  # tuples as lists: compared as JSON
+        if differences:
+            raise InputError(f"the run was started with other settings: {'; '.join(differences)}",
+                             file=str(run_dir / "config.json"),
+                             fix="resume with the run's own settings (the pipelines read them from config.json), "
+                                 "or start a new run with another --out")
+        offset, restore = _resume_point(run_dir, notice, set_aside=primary)
         resumes = json.loads(state_file.read_text()).get("resumes", 0) + 1 if state_file.exists() else 1
-    # On several machines only process 0 writes (Brax saves and evaluates there alone).
-    primary = jax.process_index() == 0
-    run_dir.mkdir(parents=True, exist_ok=True)
     if primary:
         _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)})
     remaining = ppo.num_timesteps - offset
     if remaining <= 0:
-        return json.loads(state_file.read_text()).get("metrics", {})
+        return json.loads(state_file.read_text()).get("metrics", {}) if state_file.exists() else {}
 
     env = from_config(env_config)  # Brax evaluates on the same environment
     if primary and env_config.task == "rough":  # the terrain this run walks
@@ -208,10 +463,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         global_step = offset + step
         if step == 0:
             return
-        brax_checkpoint.save(str(run_dir / "checkpoints"), global_step, params,
-                             brax_checkpoint.network_config(env.observation_size, env.action_size,
-                                                            ppo.normalize_observations,
-                                                            network_factory(ppo, env_config.privileged_critic)))
+        save_checkpoint(run_dir, global_step, params, env.observation_size, env.action_size, ppo,
+                        env_config.privileged_critic)
         _write_json(state_file, {"global_step": global_step, "resumes": resumes, "metrics": last,
                                  "wall_s": time.time() - t0, "num_timesteps": ppo.num_timesteps})
 
@@ -230,7 +483,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         with open(run_dir / "metrics.jsonl", "a") as f:  # one line per evaluation or training-episodes log
             f.write(json.dumps({"global_step": global_step, "wall_s": time.time() - t0} | now) + "\n")
         if progress:
-            progress(global_step, ppo.num_timesteps, last)
+            progress(global_step, ppo.num_timesteps, last, "eval/walltime" in metrics)
         # An evaluation follows each checkpoint (step 0 has none): stop here if one more epoch,
         # timed as the last one (training, checkpoint, evaluation), would overrun the budget.
         if max_wall_s is not None and step > 0 and "eval/walltime" in metrics and offset + step < ppo.num_timesteps:
@@ -246,7 +499,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         clock["stopped"] = True
     if writer:
         writer.close()
-    final = latest_checkpoint(run_dir)
+    final = latest_intact_checkpoint(run_dir)
     if final is not None and primary:  # the policy: the last checkpoint (the final parameters) and the configs
         with atomic_directory(run_dir / "policy") as tmp:
             shutil.copytree(final[1], tmp, dirs_exist_ok=True)
@@ -257,6 +510,20 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         if primary and state_file.exists():
             _write_json(state_file, json.loads(state_file.read_text()) | {"metrics": last, "stopped": "wall-time budget"})
     return last
+
+
+def save_checkpoint(run_dir: Path, global_step: int, params, observation_size, action_size: int, ppo: PPOConfig,
+                    privileged: bool = False) -> Path:
+    """Writes <run_dir>/checkpoints/<global_step>/ as training does: Brax's checkpoint of
+    (normaliser, policy, value) parameters, then its manifest (CHECKPOINT_MANIFEST)."""
+    from brax.training.agents.ppo import checkpoint as brax_checkpoint
+
+    brax_checkpoint.save(str(Path(run_dir) / "checkpoints"), global_step, params,
+                         brax_checkpoint.network_config(observation_size, action_size, ppo.normalize_observations,
+                                                        network_factory(ppo, privileged)))
+    folder = Path(run_dir) / "checkpoints" / f"{global_step:012d}"
+    write_checkpoint_manifest(folder)
+    return folder
 
 
 def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
@@ -310,6 +577,7 @@ def initial_policy(env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observa
         for item in (tmp / f"{0:012d}").iterdir():
             item.rename(tmp / item.name)
         (tmp / f"{0:012d}").rmdir()
+        write_checkpoint_manifest(tmp)
         _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo), "global_step": 0})
     return out_dir
 
@@ -332,6 +600,13 @@ def load_policy_config(policy_dir: Path) -> EnvConfig:
 
 def _policy_meta(policy_dir: Path) -> dict:
     meta_file = policy_dir / "footforge.json"
+    if not policy_dir.exists():
+        raise InputError(f"{policy_dir} does not exist", file=str(policy_dir),
+                         fix="pass the policy/ folder of a train_flat.py or train_rough.py run (a run writes it "
+                             "when it ends, or stops at its time budget)")
+    if not policy_dir.is_dir():
+        raise InputError(f"{policy_dir} is a file, not a policy folder", file=str(policy_dir),
+                         fix="pass the policy/ folder of a train_flat.py or train_rough.py run")
     if not meta_file.is_file():
         raise InputError(f"{policy_dir} is not a footforge policy (no footforge.json)", file=str(policy_dir),
                          fix="pass the policy/ folder of a train_flat.py or train_rough.py run")
@@ -358,6 +633,11 @@ def load_policy(policy_dir: Path, *, deterministic: bool = True):
     policy_dir = Path(policy_dir).resolve()
     meta = _policy_meta(policy_dir)
     env_config, ppo = from_dict(EnvConfig, meta["env"]), from_dict(PPOConfig, meta["ppo"])
+    if (policy_dir / CHECKPOINT_MANIFEST).is_file():  # policies from before manifests have none
+        problem = checkpoint_problem(policy_dir, read=False)
+        if problem:
+            raise InputError(f"the policy is damaged: {problem}", file=str(policy_dir),
+                             fix="use the run's newest intact checkpoints/<step>/ (the same files), or train again")
     params = brax_checkpoint.load(str(policy_dir))
     cfg = json.loads((policy_dir / "ppo_network_config.json").read_text())
     networks = network_factory(ppo, env_config.privileged_critic)(

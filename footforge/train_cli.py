@@ -3,21 +3,30 @@
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
+import sys
+import time
+from dataclasses import fields, replace
 from pathlib import Path
+
+from footforge.errors import InputError
 
 
 def main(task: str, description: str, argv: list[str] | None = None) -> int:
     from footforge.envs import FEET, TASKS
 
     p = argparse.ArgumentParser(description=description)
-    p.add_argument("--feet", choices=FEET, default="aof")
-    p.add_argument("--policy", choices=TASKS[task], default="B")
+    p.add_argument("--feet", choices=FEET, help="foot variant (default aof)")
+    p.add_argument("--policy", choices=TASKS[task], help="policy type (default B)")
     p.add_argument("--num-envs", type=int, help="parallel robots (default 2048)")
-    p.add_argument("--timesteps", type=int, help="environment steps in total (default 1e8)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--timesteps", type=int, help="environment steps in total (default 1e8; with --resume it may "
+                                                 "extend the run)")
+    p.add_argument("--seed", type=int, help="(default 0)")
     p.add_argument("--out", type=Path, required=True, help="run folder")
-    p.add_argument("--resume", action="store_true", help="continue from the run folder's last checkpoint")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the run in --out from its newest intact checkpoint, with the run's own settings "
+                        "(its config.json): other options may be left out, and any given must match them")
+    p.add_argument("--force", action="store_true",
+                   help="start over in an --out that holds a run: removes only what footforge wrote there")
     p.add_argument("--max-minutes", type=float,
                    help="wall-clock budget: stop at the last checkpoint that leaves no time for another epoch "
                         "(for time-limited jobs; --resume continues)")
@@ -26,7 +35,10 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     p.add_argument("--minibatches", type=int, help="minibatches per iteration (default 4)")
     p.add_argument("--checkpoint-every", type=int, help="environment steps between checkpoints (default 5e6)")
     p.add_argument("--eval-envs", type=int, help="robots per evaluation (default 128)")
-    p.add_argument("--build-dir", type=Path, help="footforge build output for the feet (default build/<feet>)")
+    p.add_argument("--build-root", type=Path,
+                   help="folder holding one footforge build per feet, <root>/<feet>/ (default build/), as in "
+                        "the evaluation pipelines")
+    p.add_argument("--build-dir", type=Path, help=argparse.SUPPRESS)  # deprecated: the feet's build itself
     p.add_argument("--coordinator", metavar="HOST:PORT",
                    help="several machines: the address of process 0 (with --num-processes and --process-id; "
                         "under SLURM or Open MPI jax finds all three itself, pass --coordinator auto)")
@@ -39,44 +51,37 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
 
     from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from footforge import envs, train
+    from footforge import train
     from footforge.errors import FootforgeError
 
     console = Console()
-    if args.coordinator:  # before any other use of jax: Brax's PPO then trains over every device of every process
-        import jax
-
-        jax.distributed.initialize(**({} if args.coordinator == "auto" else {
-            "coordinator_address": args.coordinator, "num_processes": args.num_processes,
-            "process_id": args.process_id}))
+    name = f"train_{task}"
     try:
-        env_config = envs.default_config(task, args.feet, args.policy)
+        if args.build_dir and args.build_root:
+            raise InputError("--build-dir is the old spelling of --build-root's <root>/<feet>: give one of them",
+                             fix="give --build-root")
         if args.build_dir:
-            env_config = replace(env_config, build_dir=str(args.build_dir))
-        if task == "rough":
-            env_config = replace(env_config, terrain=_override(env_config.terrain, args.terrain))
-        overrides = {k: v for k, v in {
-            "num_envs": args.num_envs, "num_timesteps": args.timesteps, "unroll_length": args.unroll_length,
-            "batch_size": args.batch_size, "num_minibatches": args.minibatches,
-            "checkpoint_every_steps": args.checkpoint_every, "num_eval_envs": args.eval_envs}.items() if v is not None}
-        ppo = train.default_ppo(task, seed=args.seed, **overrides)
-        with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f}/{task.total:,.0f} steps"),
-                      TimeElapsedColumn(), TimeRemainingColumn(), console=console) as progress:
-            bar = progress.add_task("compiling and training", total=ppo.num_timesteps)
+            print(f"{name}: note: --build-dir is deprecated; use --build-root (the folder holding <feet>/, "
+                  f"e.g. --build-root {args.build_dir.parent})", file=sys.stderr)
+        if args.resume and args.force:
+            raise InputError("--resume and --force exclude each other: --resume continues the run in --out, "
+                             "--force starts it over", fix="pass one of them")
+        env_config, ppo = _resumed_configs(task, args) if args.resume else _new_configs(task, args)
+        if not args.coordinator:  # the run folder now, before JAX compiles (train() checks again, and writes);
+            # on several machines only process 0 checks it, in train(), as the others start before or after it
+            train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
+        if args.coordinator:  # before any other use of jax: Brax's PPO then trains over every device of every process
+            import jax
 
-            def report(step, total, metrics):
-                reward = metrics.get("eval/episode_reward", float("nan"))
-                err = metrics.get("eval/episode_error/lin_vel_x_per_step", float("nan"))
-                text = f"return {reward:7.2f}  vx error {err:5.3f} m/s"
-                if task == "rough":
-                    text += f"  terrain level {metrics.get('episode/terrain/level_per_step', float('nan')):4.2f}"
-                progress.update(bar, completed=min(step, total), description=text)
-            metrics = train.train(env_config, ppo, args.out, resume=args.resume, progress=report,
+            jax.distributed.initialize(**({} if args.coordinator == "auto" else {
+                "coordinator_address": args.coordinator, "num_processes": args.num_processes,
+                "process_id": args.process_id}))
+        with _Reporter(console, task, ppo.num_timesteps) as report:
+            metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
                                   max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None)
     except FootforgeError as e:
-        console.print(f"train_{task}: error: {e}", markup=False, soft_wrap=True)
+        print(f"{name}: error: {e}", file=sys.stderr)
         return e.exit_code
     if metrics.get("stopped_for_time"):
         console.print(f"stopped at the wall-time budget ({args.max_minutes:g} min) after a checkpoint; "
@@ -86,12 +91,116 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     return 0
 
 
+# The options that set a saved setting: flag, attribute of args, (config, field) it sets.
+_SETTINGS = (("--feet", "feet", ("env", "feet")), ("--policy", "policy", ("env", "policy")),
+             ("--seed", "seed", ("ppo", "seed")), ("--num-envs", "num_envs", ("ppo", "num_envs")),
+             ("--unroll-length", "unroll_length", ("ppo", "unroll_length")),
+             ("--batch-size", "batch_size", ("ppo", "batch_size")),
+             ("--minibatches", "minibatches", ("ppo", "num_minibatches")),
+             ("--checkpoint-every", "checkpoint_every", ("ppo", "checkpoint_every_steps")),
+             ("--eval-envs", "eval_envs", ("ppo", "num_eval_envs")))
+
+
+def _new_configs(task: str, args):
+    from footforge import envs, train
+
+    env_config = envs.default_config(task, args.feet or "aof", args.policy or "B")
+    if args.build_root or args.build_dir:
+        env_config = replace(env_config, build_dir=str(args.build_dir or args.build_root / env_config.feet))
+    if task == "rough":
+        env_config = replace(env_config, terrain=_override(env_config.terrain, args.terrain))
+    overrides = {field: getattr(args, attr) for _, attr, (section, field) in _SETTINGS
+                 if section == "ppo" and getattr(args, attr) is not None}
+    if args.timesteps is not None:
+        overrides["num_timesteps"] = args.timesteps
+    return env_config, train.default_ppo(task, **overrides)
+
+
+def _resumed_configs(task: str, args):
+    """The run's saved configs (--timesteps may change the total); every other option given must
+    equal the saved setting, or the error names it."""
+    from footforge import train
+    from footforge.envs.anymal import build_dir
+
+    env_config, ppo = train.load_run_config(args.out)
+    if env_config.task != task:
+        raise InputError(f"--out {args.out}: is a {env_config.task}-terrain run",
+                         fix=f"resume it with pipelines/train_{env_config.task}.py")
+    saved = {"env": env_config, "ppo": ppo}
+    for flag, attr, (section, field) in _SETTINGS:
+        given, value = getattr(args, attr), getattr(saved[section], field)
+        if given is not None and given != value:
+            raise InputError(f"--resume: {flag} {given} differs from the run's {value} (its config.json)",
+                             file=str(args.out), fix=f"leave out {flag} to continue the run with its own, "
+                                                     "or start a new run with another --out")
+    if args.build_root or args.build_dir:
+        flag, given = ("--build-dir", args.build_dir) if args.build_dir else ("--build-root", args.build_root)
+        wanted = args.build_dir or args.build_root / env_config.feet
+        if Path(wanted).resolve() != build_dir(env_config).resolve():
+            raise InputError(f"--resume: {flag} {given} differs from the run's build {build_dir(env_config)} "
+                             f"(its config.json)", file=str(args.out),
+                             fix=f"leave out {flag} to continue the run with its own build")
+    if task == "rough" and args.terrain:
+        wanted = _override(env_config.terrain, args.terrain)
+        for f in fields(wanted):
+            if getattr(wanted, f.name) != getattr(env_config.terrain, f.name):
+                raise InputError(f"--resume: --terrain {f.name}={getattr(wanted, f.name)} differs from the run's "
+                                 f"{getattr(env_config.terrain, f.name)} (its config.json)", file=str(args.out),
+                                 fix="leave out --terrain to continue the run with its own terrain")
+    if args.timesteps is not None:
+        ppo = replace(ppo, num_timesteps=args.timesteps)
+    return env_config, ppo
+
+
+class _Reporter:
+    """Training progress: a rich progress bar on a terminal; otherwise (a batch job's log) one
+    plain line per evaluation, flushed, since rich draws nothing until the end there."""
+
+    def __init__(self, console, task: str, total: int):
+        self.console, self.task, self.total = console, task, total
+        self.progress = None
+        self.t0 = time.time()
+
+    def __enter__(self):
+        if self.console.is_terminal:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+            self.progress = Progress(TextColumn("{task.description}"), BarColumn(),
+                                     TextColumn("{task.completed:,.0f}/{task.total:,.0f} steps"),
+                                     TimeElapsedColumn(), TimeRemainingColumn(), console=self.console)
+            self.progress.__enter__()
+            self.bar = self.progress.add_task("compiling and training", total=self.total)
+        else:
+            self._line(f"compiling and training: {self.total:,} steps")
+        return self
+
+    def __exit__(self, *exc):
+        if self.progress is not None:
+            self.progress.__exit__(*exc)
+        return False
+
+    def _line(self, text: str) -> None:
+        print(text, file=self.console.file, flush=True)
+
+    def __call__(self, step: int, total: int, metrics: dict, evaluation: bool = True) -> None:
+        reward = metrics.get("eval/episode_reward", float("nan"))
+        err = metrics.get("eval/episode_error/lin_vel_x_per_step", float("nan"))
+        text = f"return {reward:7.2f}  vx error {err:5.3f} m/s"
+        if self.task == "rough":
+            text += f"  terrain level {metrics.get('episode/terrain/level_per_step', float('nan')):4.2f}"
+        diverged = metrics.get("eval/episode_diverged", 0.0)
+        if diverged:
+            text += f"  diverged {diverged:g}"
+        if self.progress is not None:
+            self.progress.update(self.bar, completed=min(step, total), description=text)
+        elif evaluation:
+            elapsed = int(time.time() - self.t0)
+            self._line(f"step {step:,}/{total:,} ({100 * step / total:.0f}%)  {text}  "
+                       f"elapsed {elapsed // 3600}:{elapsed // 60 % 60:02d}:{elapsed % 60:02d}")
+
+
 def _override(config, assignments: list[str]):
     """`config` with FIELD=VALUE assignments applied, each value read as its field's type."""
-    from dataclasses import fields
-
-    from footforge.errors import InputError
-
     known = {f.name: getattr(config, f.name) for f in fields(config)}
     changes = {}
     for text in assignments:

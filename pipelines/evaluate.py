@@ -61,6 +61,8 @@ def _run(args) -> int:
 
     try:
         check_output_folder(args.out, force=args.force)  # before minutes of evaluation
+        for policy in args.policy:  # each one a policy folder, before the first one's minutes
+            load_policy_config(policy)
         if args.video:
             from footforge.render import check_renderer, render_frames, write_gif, write_strip
 
@@ -72,6 +74,9 @@ def _run(args) -> int:
                 build_dir = str(args.build_root / feet) if args.build_root else None
                 results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
                                         seed=args.seed, build_dir=build_dir))
+                if results[-1]["diverged"]:
+                    print(f"evaluate: warning: {policy} on {feet}: the simulation of {results[-1]['diverged']} of "
+                          f"{args.num_envs} robots diverged (counted among the falls)", file=sys.stderr)
                 if args.video:
                     i = len(results) - 1
                     kinds = [None] + (["stairs_up", "stepping_stones"] if results[i]["task"] == "rough" else [])

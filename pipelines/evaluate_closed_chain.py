@@ -51,10 +51,13 @@ def _run(args) -> int:
     from footforge.closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
     from footforge.errors import FootforgeError
     from footforge.outputs import check_output_folder
+    from footforge.train import load_policy_config
 
     console = Console()
     try:
         check_output_folder(args.out, force=args.force)  # before minutes of simulation
+        for policy in args.policy:  # each one a policy folder, before the first one's minutes
+            load_policy_config(policy)
         results = []
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       console=console, transient=True) as progress:

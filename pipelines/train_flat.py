@@ -2,6 +2,7 @@
 
     python pipelines/train_flat.py --feet aof --policy B --out runs/flat_aof_B
     python pipelines/train_flat.py --feet aof --policy B --out runs/flat_aof_B --resume   # after a kill
+    # --resume reads the run's settings (config.json); an --out holding a run needs --resume or --force
     python pipelines/train_flat.py --feet ball --num-envs 64 --timesteps 200000 --unroll-length 16 \\
         --batch-size 16 --minibatches 4 --checkpoint-every 50000 --out runs/cpu_smoke     # a CPU run
 

@@ -2,6 +2,7 @@
 
     python pipelines/train_rough.py --feet aof --policy PH --out runs/rough_aof_PH
     python pipelines/train_rough.py --feet aof --policy PH --out runs/rough_aof_PH --resume   # after a kill
+    # --resume reads the run's settings (config.json); an --out holding a run needs --resume or --force
     python pipelines/train_rough.py --feet ball --policy P --num-envs 64 --timesteps 200000 \\
         --unroll-length 16 --batch-size 16 --minibatches 4 --checkpoint-every 50000 --out runs/cpu_smoke
 

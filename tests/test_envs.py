@@ -310,3 +310,53 @@ def test_step_returns_the_types_it_takes(rollouts):
         for state in states[1:]:
             assert _signature(state) == _signature(states[0]), feet
         assert step._cache_size() == 1, feet
+
+
+def test_a_non_finite_reward_term_or_state_ends_the_episode_as_diverged(rollouts):
+    """The total reward is clipped at zero, which turns -inf or NaN into 0: finiteness is checked
+    before the clip. A non-finite reward term (here joint_acc, through the previous joint
+    velocities) or state ends the robot's episode as a fall, with the `diverged` metric at 1 and
+    neither NaN rewards nor NaN observations."""
+    env, states, step = rollouts["ball"]
+    state = states[1]
+    assert float(step(state, jp.zeros(12)).metrics["diverged"]) == 0.0
+    data = state.pipeline_state
+    poisoned = {"inf term": state.replace(info=state.info | {"last_joint_vel": jp.full(12, jp.inf, jp.float32)}),
+                "NaN term": state.replace(info=state.info | {"last_joint_vel": jp.full(12, jp.nan, jp.float32)}),
+                "NaN state": state.replace(pipeline_state=data.replace(qvel=data.qvel.at[6].set(jp.nan)))}
+    for name, bad in poisoned.items():
+        after = step(bad, jp.zeros(12))
+        assert float(after.metrics["diverged"]) == 1.0, name
+        assert float(after.done) == 1.0 and float(after.info["time_out"]) == 0.0, name  # ended, as a fall
+        assert float(after.reward) == pytest.approx(env.config.rewards.fall), name
+        assert float(after.metrics["reward/joint_acc"]) == 0.0, name
+        assert bool(jp.isfinite(after.obs).all()) and bool(jp.isfinite(after.pipeline_state.qvel).all()), name
+
+
+def test_evaluation_reports_robots_whose_simulation_diverged(built, monkeypatch):
+    """footforge.evaluate counts the diverged robots (among the falls) and comparison.md shows them."""
+    from footforge import evaluate as evaluation
+
+    config = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]),
+                     pushes=replace(envs.default_config("flat", "ball", "B").pushes, enabled=False))
+
+    class Diverging(LocomotionEnv):
+        """Robot 0's joint_acc term becomes NaN at its third step (its state stays finite)."""
+
+        def step(self, state, action):
+            poison = jp.where((state.info["step"] == 2) & (state.info["robot"] == 0), jp.nan, 0.0)
+            info = state.info | {"last_joint_vel": state.info["last_joint_vel"] + poison}
+            return super().step(state.replace(info=info), action)
+
+        def reset(self, rng):
+            state = super().reset(rng)
+            return state.replace(info=state.info | {"robot": (rng[-1] % 2).astype(jp.int32)})
+
+    env = Diverging(config)
+    monkeypatch.setattr(evaluation, "_policy_and_env", lambda *args: (
+        lambda obs, key: (jp.zeros(12), {}), config, "ball", 0.1, env))
+    keys = jax.random.split(jax.random.PRNGKey(0), 4)  # evaluate's keys: which robots are "robot 0"
+    zero = int(sum(int(jax.random.split(k)[0][-1] % 2 == 0) for k in keys))
+    result = evaluation.evaluate("policy", num_envs=4, seed=0)
+    assert 0 < zero < 4 and result["diverged"] == zero and result["falls"] >= zero
+    assert f"({zero} diverged)" in evaluation.comparison_markdown([result])

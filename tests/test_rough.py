@@ -229,7 +229,7 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     cmd = [sys.executable, str(REPO / "pipelines/train_rough.py"), "--feet", "ball", "--policy", "P",
            "--terrain", "num_levels=2", "--terrain", "tile_size_m=4", "--terrain", "border_m=1",
            "--terrain", "platform_m=1.5",
-           "--build-dir", str(built["ball"][0]), "--out", str(out), "--num-envs", "4", "--unroll-length", "4",
+           "--build-root", str(built["ball"][0].parent), "--out", str(out), "--num-envs", "4", "--unroll-length", "4",
            "--batch-size", "4", "--minibatches", "1", "--eval-envs", "2", "--checkpoint-every", "16",
            "--timesteps", "32"]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True)
@@ -240,12 +240,14 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     assert any("eval/episode_reward" in line for line in lines)
     config = json.loads((out / "config.json").read_text())
     assert config["env"]["task"] == "rough" and config["ppo"]["policy_hidden_layers"] == [512, 256, 128]
-    # Three robots do not split over two devices: a clear error.
+    # Three robots do not split over two devices: a clear error (in a new run folder: the run's
+    # own is refused without --resume or --force).
+    cmd[cmd.index("--out") + 1] = str(tmp_path / "other")
     bad = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--num-envs", "3", "--batch-size", "3"], env=env,
                          capture_output=True, text=True)
-    assert bad.returncode == 2 and "multiple of the number of JAX devices" in bad.stdout + bad.stderr
+    assert bad.returncode == 2 and "multiple of the number of JAX devices" in bad.stderr
     typo = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--terrain", "levels=3"], capture_output=True, text=True)
-    assert typo.returncode == 2 and "FIELD one of num_levels" in typo.stdout + typo.stderr
+    assert typo.returncode == 2 and "FIELD one of num_levels" in typo.stderr
 
 
 def test_rough_evaluation_output_is_complete(built, tmp_path):

@@ -77,7 +77,7 @@ def test_tiny_ppo_run_increases_the_return(built, tmp_path):
 
 
 def _train(out, build_dir, timesteps, *extra):
-    return [sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--build-dir", str(build_dir),
+    return [sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--build-root", str(build_dir.parent),
             "--timesteps", str(timesteps), "--out", str(out), *TINY, *extra]
 
 
@@ -110,10 +110,10 @@ def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
     progress = json.loads((out / "progress.json").read_text())
     assert progress["resumes"] == 1 and killed_at < progress["global_step"] < 2 * (killed_at + 64)
     assert (out / "tensorboard").is_dir() and len(list((out / "tensorboard").iterdir())) >= 2
-    # Resuming with other options (here another seed) is refused.
+    # Resuming with other options (here another seed) is refused, naming the option.
     other = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume", "--seed", "3"),
                            capture_output=True, text=True)
-    assert other.returncode == 2 and "other settings" in other.stdout + other.stderr
+    assert other.returncode == 2 and "--seed 3 differs from the run's 0" in other.stderr
 
 
 @pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
@@ -195,7 +195,276 @@ def test_time_budget_stops_at_a_checkpoint(built, tmp_path):
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert "wall-time budget" in done.stdout
+    assert "step 32/100,000" in done.stdout  # the plain progress line of a log (stdout is no terminal)
     progress = json.loads((out / "progress.json").read_text())
     assert progress["stopped"] == "wall-time budget" and progress["global_step"] == 32
     assert json.loads((out / "policy/footforge.json").read_text())["global_step"] == 32
     assert latest_checkpoint(out)[0] == 32
+
+
+# --- run folders, checkpoints that fail verification, the command line's messages ---
+
+def _params(seed: int, ppo: PPOConfig):
+    """(normaliser, policy, value) parameters of a 48-input network, as Brax's PPO passes them."""
+    from brax.training.acme import running_statistics, specs
+
+    from footforge import train
+
+    nets = train.network_factory(ppo)(observation_size=48, action_size=12,
+                                      preprocess_observations_fn=running_statistics.normalize)
+    k_policy, k_value = jax.random.split(jax.random.PRNGKey(seed))
+    return (running_statistics.init_state(specs.Array((48,), jp.dtype("float32"))),
+            nets.policy_network.init(k_policy), nets.value_network.init(k_value))
+
+
+def _kernel(params):
+    return np.asarray(params[1]["params"]["MLP_0"]["hidden_0"]["kernel"])
+
+
+SMALL_PPO = dict(num_envs=8, unroll_length=4, batch_size=8, num_minibatches=1, num_eval_envs=4,
+                 checkpoint_every_steps=32, num_timesteps=96, policy_hidden_layers=(8,), value_hidden_layers=(8,))
+
+
+@pytest.fixture
+def written_run(built, tmp_path):
+    """A run folder as train() leaves it after two epochs (steps 32 and 64), its checkpoints
+    written by train.save_checkpoint (what train's Brax callback calls) from parameters of seeds
+    32 and 64: (run folder, env config, PPO config)."""
+    from dataclasses import replace
+
+    from footforge import train
+
+    cfg = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]))
+    ppo = PPOConfig(**SMALL_PPO)
+    run = train.prepare_run_dir(tmp_path / "run")
+    (run / "config.json").write_text(json.dumps({"env": to_dict(cfg), "ppo": to_dict(ppo)}))
+    (run / "metrics.jsonl").write_text('{"global_step": 0}\n')
+    (run / "tensorboard").mkdir()
+    (run / "tensorboard" / "events.out.tfevents.1").write_bytes(b"x")
+    for step in (32, 64):
+        train.save_checkpoint(run, step, _params(step, ppo), 48, 12, ppo)
+    (run / "progress.json").write_text(json.dumps({"global_step": 64, "resumes": 0, "metrics": {}}))
+    return run, cfg, ppo
+
+
+def _truncate_data(checkpoint):
+    """Cuts the largest of orbax's data files in half (a write cut short, a full disk)."""
+    data = max((p for p in checkpoint.rglob("*") if p.is_file() and "/d/" in str(p)), key=lambda p: p.stat().st_size)
+    data.write_bytes(data.read_bytes()[: data.stat().st_size // 2])
+
+
+def _fake_ppo(calls):
+    """Stands in for Brax's PPO in train(): records what it was given and runs one epoch's
+    callbacks (a checkpoint and an evaluation) with the restored parameters."""
+    def run(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save, *rest):
+        calls.append({"remaining": remaining, "restore": restore, "resumes": resumes})
+        save(remaining, None, restore)
+        log(remaining, {"eval/episode_reward": 1.0, "eval/walltime": 0.1})
+    return run
+
+
+def test_checkpoints_carry_a_manifest_that_catches_damage(written_run):
+    from footforge import train
+
+    run, _, _ = written_run
+    (_, good), (_, newest) = train.checkpoints(run)
+    assert (newest / train.CHECKPOINT_MANIFEST).is_file()
+    assert train.checkpoint_problem(good) is None and train.checkpoint_problem(newest) is None
+    _truncate_data(newest)
+    assert "bytes" in train.checkpoint_problem(newest, read=False)
+    assert train.latest_intact_checkpoint(run) == (32, good)
+    (good / "_METADATA").write_text("")
+    assert "_METADATA has 0 bytes" in train.checkpoint_problem(good, read=False)
+    assert train.latest_intact_checkpoint(run) is None
+    assert train.latest_checkpoint(run) == (64, newest)  # the newest, intact or not
+
+
+@pytest.mark.parametrize("damage", ["truncated data", "empty _METADATA"])
+def test_resume_skips_a_damaged_checkpoint_and_says_so(written_run, monkeypatch, capsys, damage):
+    from footforge import train
+
+    run, cfg, ppo = written_run
+    newest = train.latest_checkpoint(run)[1]
+    if damage == "truncated data":
+        _truncate_data(newest)
+    else:
+        (newest / "_METADATA").write_text("")
+    calls = []
+    monkeypatch.setattr(train, "_run_ppo", _fake_ppo(calls))
+    train.train(cfg, ppo, run, resume=True)
+    err = capsys.readouterr().err
+    assert f"skipping checkpoint {newest.name}" in err and str(run) in err
+    # Resumed from step 32 (the intact one): 64 steps remain, with checkpoint 32's parameters.
+    assert calls[0]["remaining"] == 96 - 32 and calls[0]["resumes"] == 1
+    np.testing.assert_array_equal(_kernel(calls[0]["restore"]), _kernel(_params(32, ppo)))
+    assert (run / "checkpoints" / f"{newest.name}.corrupt").is_dir()  # kept aside, not deleted
+    assert [s for s, _ in train.checkpoints(run)] == [32, 96]
+    assert json.loads((run / "policy" / "footforge.json").read_text())["global_step"] == 96
+    assert train.checkpoint_problem(run / "policy", read=False) is None
+
+
+def test_resume_with_every_checkpoint_damaged_is_an_input_error(written_run, capsys):
+    from footforge import train
+    from footforge.train_cli import main
+
+    run, _, _ = written_run
+    for _, folder in train.checkpoints(run):
+        _truncate_data(folder)
+    assert main("flat", "", ["--out", str(run), "--resume"]) == 2
+    out = capsys.readouterr()
+    assert "no intact checkpoint to resume in" in out.err and str(run) in out.err and "--force" in out.err
+    assert out.err.count("skipping checkpoint") == 2 and "error" not in out.out
+    assert not list((run / "checkpoints").glob("*.corrupt"))  # nothing renamed when nothing resumes
+
+
+def test_an_existing_run_is_refused_without_resume_or_force(written_run, capsys):
+    from footforge.train_cli import main
+
+    run, _, _ = written_run
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    assert main("flat", "", ["--feet", "ball", "--out", str(run), *TINY]) == 2
+    out = capsys.readouterr()
+    assert "holds a training run (its last checkpoint at step 64)" in out.err and "--resume" in out.err
+    assert out.out == ""
+    assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before  # untouched
+    assert main("flat", "", ["--out", str(run), "--resume", "--force"]) == 2
+    assert "exclude each other" in capsys.readouterr().err
+
+
+def test_force_removes_only_what_footforge_wrote(written_run):
+    from footforge import train
+    from footforge.outputs import MARKER
+
+    run, _, _ = written_run
+    (run / "notes.txt").write_text("mine")
+    (run / ".policy.tmp-1-abc").mkdir()  # a killed run's temporary
+    (run / ".notes.tmp").write_text("mine too")
+    messages = []
+    train.prepare_run_dir(run, force=True, notice=messages.append)
+    assert sorted(p.name for p in run.iterdir()) == [MARKER, ".notes.tmp", "notes.txt"]
+    assert "checkpoints" in messages[0] and "notes.txt" not in messages[0]
+
+
+def test_a_folder_of_the_user_is_refused_and_never_emptied(tmp_path):
+    from footforge import train
+
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "config.json").write_text('{"mine": true}')
+    with pytest.raises(InputError, match="footforge did not write"):
+        train.prepare_run_dir(mine)
+    with pytest.raises(InputError, match="holds config.json, which footforge did not write"):
+        train.prepare_run_dir(mine, force=True)
+    assert (mine / "config.json").read_text() == '{"mine": true}'
+    (mine / "config.json").unlink()
+    (mine / "thesis.tex").write_text("x")
+    train.prepare_run_dir(mine, force=True)  # beside the user's files, which stay
+    assert (mine / "thesis.tex").read_text() == "x" and train.is_run_folder(mine)
+
+
+def test_an_evaluation_does_not_replace_a_run_folder(written_run):
+    from footforge.outputs import check_output_folder
+
+    run, _, _ = written_run
+    with pytest.raises(InputError, match="is a training run folder"):
+        check_output_folder(run)
+
+
+def _capture_train(monkeypatch):
+    from footforge import train
+
+    seen = {}
+
+    def fake(env_config, ppo, run_dir, **kwargs):
+        seen.update(env=env_config, ppo=ppo, kwargs=kwargs)
+        return {"eval/episode_reward": 0.0}
+    monkeypatch.setattr(train, "train", fake)
+    return seen
+
+
+def test_resume_reads_the_run_s_settings_and_names_a_differing_flag(written_run, monkeypatch, capsys):
+    from footforge.train_cli import main
+
+    run, cfg, ppo = written_run
+    seen = _capture_train(monkeypatch)
+    assert main("flat", "", ["--out", str(run), "--resume", "--timesteps", "160"]) == 0
+    assert seen["env"] == cfg and seen["ppo"] == replace_ppo(ppo, num_timesteps=160)
+    assert seen["kwargs"]["resume"] is True
+    capsys.readouterr()
+    assert main("flat", "", ["--out", str(run), "--resume", "--num-envs", "8", "--seed", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "--seed 3 differs from the run's 0" in err and "--num-envs" not in err
+    assert main("flat", "", ["--out", str(run), "--resume", "--build-root", str(run)]) == 2
+    assert "--build-root" in capsys.readouterr().err
+    assert main("rough", "", ["--out", str(run), "--resume"]) == 2
+    assert "train_flat.py" in capsys.readouterr().err
+
+
+def replace_ppo(ppo, **changes):
+    from dataclasses import replace
+
+    return replace(ppo, **changes)
+
+
+def test_build_root_names_the_builds_everywhere_and_build_dir_still_works(built, monkeypatch, capsys, tmp_path):
+    from footforge.train_cli import main
+
+    seen = _capture_train(monkeypatch)
+    root = built["ball"][0].parent
+    assert main("flat", "", ["--feet", "ball", "--build-root", str(root), "--out", str(tmp_path / "a")]) == 0
+    assert seen["env"].build_dir == str(root / "ball")
+    assert main("flat", "", ["--feet", "ball", "--build-dir", str(root / "ball"), "--out", str(tmp_path / "b")]) == 0
+    assert seen["env"].build_dir == str(root / "ball")
+    assert "--build-dir is deprecated; use --build-root" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main("flat", "", ["--help"])
+    assert "--build-root" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main("flat", "", ["--help"])
+    assert "--build-dir" not in capsys.readouterr().out  # hidden
+
+
+def test_a_missing_policy_folder_is_said_not_to_exist(tmp_path, capsys):
+    import importlib.util
+
+    missing = tmp_path / "runs" / "flat_aof_B" / "policy"
+    with pytest.raises(InputError, match="does not exist"):
+        load_policy(missing)
+    spec = importlib.util.spec_from_file_location("pipeline_evaluate", REPO / "pipelines" / "evaluate.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--policy", str(missing), "--out", str(tmp_path / "eval")]) == 2
+    out = capsys.readouterr()
+    assert f"{missing} does not exist" in out.err and "footforge.json" not in out.err and out.out == ""
+
+
+def test_progress_is_printed_as_plain_lines_when_not_a_terminal():
+    import io
+
+    from rich.console import Console
+
+    from footforge.train_cli import _Reporter
+
+    log = io.StringIO()
+    metrics = {"eval/episode_reward": 12.5, "eval/episode_error/lin_vel_x_per_step": 0.25}
+    with _Reporter(Console(file=log), "flat", 1000) as report:  # a file: not a terminal
+        report(0, 1000, metrics, True)
+        report(250, 1000, metrics, False)  # a training-episodes log: no line
+        report(500, 1000, metrics | {"eval/episode_diverged": 0.25}, True)
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 3 and lines[0].startswith("compiling and training")
+    assert lines[1].startswith("step 0/1,000 (0%)  return   12.50  vx error 0.250 m/s")
+    assert lines[2].startswith("step 500/1,000 (50%)") and "diverged 0.25" in lines[2]
+    terminal = io.StringIO()
+    with _Reporter(Console(file=terminal, force_terminal=True), "flat", 1000) as report:
+        report(500, 1000, metrics, True)
+    assert "step 500/1,000" not in terminal.getvalue()  # the bar instead
+
+
+def test_training_errors_go_to_stderr(written_run):
+    """The pipeline as a batch job runs it: the error on stderr, exit 2, nothing on stdout."""
+    run, _, _ = written_run
+    done = subprocess.run([sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--out", str(run)],
+                          capture_output=True, text=True)
+    assert done.returncode == 2 and done.stdout == ""
+    assert "train_flat: error:" in done.stderr and "holds a training run" in done.stderr

@@ -200,10 +200,12 @@ class LocomotionEnv(Env):
         weighted = {t: terms[t] * getattr(scales, t) * cfg.policy_dt for t in rewards.TERMS}
         reward = sum(weighted.values())
         # A robot whose simulation diverged ends its episode as a fall with zero metrics; its
-        # NaNs must reach neither the returns nor the policy's inputs. Finiteness is checked
-        # before the clip, which would turn -inf or NaN into 0.
+        # NaNs must reach neither the returns nor the policy's inputs. Finiteness (of the state
+        # and of every reward term, raw and weighted) is checked before the clip, which would
+        # turn -inf or NaN into 0 and hide the divergence; the `diverged` metric reports it.
         finite = (jp.isfinite(data.qpos).all() & jp.isfinite(data.qvel).all() & jp.isfinite(reward)
-                  & jp.isfinite(data.actuator_force).all())
+                  & jp.isfinite(data.actuator_force).all()
+                  & jp.all(jp.isfinite(jp.stack([terms[t] for t in rewards.TERMS]))))
         if scales.clip_total_at_zero:
             reward = jp.maximum(reward, 0.0)
         reward = jp.where(finite, reward, 0.0)

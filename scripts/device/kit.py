@@ -100,6 +100,8 @@ def run_job(args, extra: list[str]) -> int:
                "--out", str(run)]
         if (run / "checkpoints").is_dir() and any(p.name.isdigit() for p in (run / "checkpoints").iterdir()):
             cmd.append("--resume")
+        elif run.is_dir():  # a run killed before its first checkpoint: training refuses it without --force
+            cmd.append("--force")
         reserve = 45.0  # packing the results, and the slack of the estimate of one epoch
         train_s = deadline - time.time() - reserve
         if train_s < 60:
