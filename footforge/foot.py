@@ -99,6 +99,9 @@ def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, 
 
 def _new_root(name: str, sidecar: Sidecar, contact_solref) -> mjcf.RootElement:
     root = mjcf.RootElement(model=name)
+    # MJCF's default unit for angles is the degree: a foot compiled on its own (compile_model)
+    # would otherwise read the joint ranges in radians as degrees (30 deg became 0.5 deg).
+    root.compiler.angle = "radian"
     add_default_classes(root, friction=sidecar.friction, contact_solref=contact_solref)
     return root
 
