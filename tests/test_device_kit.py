@@ -10,6 +10,8 @@ import tarfile
 import pytest
 from conftest import REPO
 
+from footforge.train import write_checkpoint_manifest
+
 sys.path.insert(0, str(REPO / "scripts/device"))
 import kit  # noqa: E402
 
@@ -31,6 +33,8 @@ def test_results_tarball_keeps_the_latest_checkpoint_and_unpacks(tmp_path):
     for step in (32, 64):
         (run / "checkpoints" / f"{step:012d}").mkdir(parents=True)
         (run / "checkpoints" / f"{step:012d}" / "params").write_text(str(step))
+        write_checkpoint_manifest(run / "checkpoints" / f"{step:012d}")
+    (run / "checkpoints" / "000000000016.corrupt").mkdir()
     (run / "policy").mkdir()
     (run / "progress.json").write_text(json.dumps({"global_step": 64, "num_timesteps": 64}))
     results = tmp_path / "results"
@@ -39,7 +43,15 @@ def test_results_tarball_keeps_the_latest_checkpoint_and_unpacks(tmp_path):
     with tarfile.open(results / name) as tar:
         names = set(tar.getnames())
     assert "flat_ball_B/checkpoints/000000000064/params" in names
-    assert not any("000000000032" in n for n in names)
+    assert not any("000000000032" in n or ".corrupt" in n for n in names)
+    # the newest damaged after its write: the pack falls back to the newest intact one
+    (run / "checkpoints" / "000000000064" / "params").write_text("6")
+    with tarfile.open(results / kit.pack(run, results)) as tar:
+        names = set(tar.getnames())
+    assert "flat_ball_B/checkpoints/000000000032/params" in names
+    assert not any("000000000064" in n for n in names)
+    (run / "checkpoints" / "000000000064" / "params").write_text("64")
+    kit.pack(run, results)
     fresh = tmp_path / "fresh"
     fresh.mkdir()
     kit.unpack(results / name, fresh)

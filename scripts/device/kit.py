@@ -229,11 +229,19 @@ def run_state(run: Path) -> dict:
 
 
 def pack(run: Path, results: Path) -> str:
-    """results/RUN.tar.gz: the run folder with its latest checkpoint only; TensorBoard left out
-    when the whole would pass 16 MiB (metrics.jsonl holds the same curves)."""
-    checkpoints = sorted((p for p in (run / "checkpoints").iterdir() if p.name.isdigit()),
-                         key=lambda p: int(p.name)) if (run / "checkpoints").is_dir() else []
-    old = {str(p) for p in checkpoints[:-1]}
+    """results/RUN.tar.gz: the run folder with its newest intact checkpoint only (the manifest
+    check of footforge.train; others, and those set aside as *.corrupt, are left out); TensorBoard
+    left out when the whole would pass 16 MiB (metrics.jsonl holds the same curves)."""
+    from footforge.train import checkpoint_problem, checkpoints as run_checkpoints
+
+    found = [path for _, path in run_checkpoints(run)]
+    intact = [p for p in found if checkpoint_problem(p, read=False) is None]
+    if found and not intact:
+        print(f"run: warning: no intact checkpoint in {run.name}; packing the newest, {found[-1].name}",
+              file=sys.stderr)
+    keep = (intact or found)[-1:]
+    folder = run / "checkpoints"
+    old = {str(p) for p in folder.iterdir() if p not in keep} if folder.is_dir() else set()
     target = results / f"{run.name}.tar.gz"
     for skip_tb in (False, True):
         def keep(info: tarfile.TarInfo):
