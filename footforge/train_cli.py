@@ -8,7 +8,7 @@ import time
 from dataclasses import fields, replace
 from pathlib import Path
 
-from footforge.errors import InputError
+from footforge.errors import EXIT_INPUT_ERROR, InputError
 
 
 def main(task: str, description: str, argv: list[str] | None = None) -> int:
@@ -54,35 +54,43 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
 
     from footforge import train
     from footforge.errors import FootforgeError
+    from footforge.processes import sigterm_as_interrupt
 
     console = Console()
     name = f"train_{task}"
-    try:
-        if args.build_dir and args.build_root:
-            raise InputError("--build-dir is the old spelling of --build-root's <root>/<feet>: give one of them",
-                             fix="give --build-root")
-        if args.build_dir:
-            print(f"{name}: note: --build-dir is deprecated; use --build-root (the folder holding <feet>/, "
-                  f"e.g. --build-root {args.build_dir.parent})", file=sys.stderr)
-        if args.resume and args.force:
-            raise InputError("--resume and --force exclude each other: --resume continues the run in --out, "
-                             "--force starts it over", fix="pass one of them")
-        env_config, ppo = _resumed_configs(task, args) if args.resume else _new_configs(task, args)
-        if not args.coordinator:  # the run folder now, before JAX compiles (train() checks again, and writes);
-            # on several machines only process 0 checks it, in train(), as the others start before or after it
-            train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
-        if args.coordinator:  # before any other use of jax: Brax's PPO then trains over every device of every process
-            import jax
 
-            jax.distributed.initialize(**({} if args.coordinator == "auto" else {
-                "coordinator_address": args.coordinator, "num_processes": args.num_processes,
-                "process_id": args.process_id}))
-        with _Reporter(console, task, ppo.num_timesteps) as report:
-            metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
-                                  max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None)
+    try:
+        with sigterm_as_interrupt():  # a terminated run (a batch scheduler's kill) ends as an interrupted one
+            if args.build_dir and args.build_root:
+                raise InputError("--build-dir is the old spelling of --build-root's <root>/<feet>: give one of them",
+                                 fix="give --build-root")
+            if args.build_dir:
+                print(f"{name}: note: --build-dir is deprecated; use --build-root (the folder holding <feet>/, "
+                      f"e.g. --build-root {args.build_dir.parent})", file=sys.stderr)
+            if args.resume and args.force:
+                raise InputError("--resume and --force exclude each other: --resume continues the run in --out, "
+                                 "--force starts it over", fix="pass one of them")
+            env_config, ppo = _resumed_configs(task, args) if args.resume else _new_configs(task, args)
+            if not args.coordinator:  # the run folder now, before JAX compiles (train() checks again, and writes);
+                # on several machines only process 0 checks it, in train(), as the others start before or after it
+                train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
+            if args.coordinator:  # before any other use of jax: Brax's PPO then trains over every device of every process
+                import jax
+
+                jax.distributed.initialize(**({} if args.coordinator == "auto" else {
+                    "coordinator_address": args.coordinator, "num_processes": args.num_processes,
+                    "process_id": args.process_id}))
+            with _Reporter(console, task, ppo.num_timesteps) as report:
+                metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
+                                      max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None)
     except FootforgeError as e:
         print(f"{name}: error: {e}", file=sys.stderr)
         return e.exit_code
+    except KeyboardInterrupt:
+        kept = train.latest_intact_checkpoint(args.out) if args.out.is_dir() else None
+        print(f"{name}: interrupted; " + (f"{args.out} keeps its checkpoints up to step {kept[0]:,}: continue "
+                                          f"with --resume" if kept else "no checkpoint was written"), file=sys.stderr)
+        return EXIT_INPUT_ERROR
     if metrics.get("stopped_for_time"):
         console.print(f"stopped at the wall-time budget ({args.max_minutes:g} min) after a checkpoint; "
                       f"--resume continues")

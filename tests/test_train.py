@@ -468,3 +468,23 @@ def test_training_errors_go_to_stderr(written_run):
                           capture_output=True, text=True)
     assert done.returncode == 2 and done.stdout == ""
     assert "train_flat: error:" in done.stderr and "holds a training run" in done.stderr
+
+
+def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypatch, capsys):
+    """SIGTERM (a batch scheduler's kill) during training: no traceback, exit 2, and stderr says
+    what the run folder keeps and how to continue."""
+    from footforge import train as train_lib
+    from footforge import train_cli
+
+    def terminated(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler interrupts this
+        raise AssertionError("SIGTERM did not interrupt training")
+
+    monkeypatch.setattr(train_lib, "train", terminated)
+    before = signal.getsignal(signal.SIGTERM)
+    code = train_cli.main("flat", "test", ["--feet", "ball", "--out", str(tmp_path / "run")])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "train_flat: interrupted; no checkpoint was written" in captured.err
+    assert signal.getsignal(signal.SIGTERM) is before  # the handler is the pipeline's only while it trains
