@@ -348,20 +348,53 @@ def _observation_size(saved):
     return int(saved["shape"][0]) if isinstance(saved, dict) else int(saved)
 
 
-def load_policy(policy_dir: Path, *, deterministic: bool = True):
-    """(policy function obs, key -> (action, extras), EnvConfig, PPOConfig) of a saved policy."""
-    import jax
-    from brax.training.acme import running_statistics
+@dataclass(frozen=True)
+class SavedPolicy:
+    """What a policy folder holds, read but not yet made a function (footforge.export_onnx reads
+    the parameters directly)."""
+
+    params: tuple
+    """Brax's (normaliser state, policy parameters, value parameters)."""
+    env: EnvConfig
+    ppo: PPOConfig
+    network_config: dict
+    """Brax's ppo_network_config.json: observation_size, action_size, network_factory_kwargs."""
+    global_step: int
+    """Environment steps the policy was trained for (0: freshly initialised)."""
+
+
+def load_policy_parameters(policy_dir: Path) -> SavedPolicy:
+    """The parameters and configurations of a saved policy.
+
+    Raises:
+      InputError: the folder is not a footforge policy, or its checkpoint cannot be read.
+    """
     from brax.training.agents.ppo import checkpoint as brax_checkpoint
-    from brax.training.agents.ppo import networks as ppo_networks
 
     policy_dir = Path(policy_dir).resolve()
     meta = _policy_meta(policy_dir)
     env_config, ppo = from_dict(EnvConfig, meta["env"]), from_dict(PPOConfig, meta["ppo"])
-    params = brax_checkpoint.load(str(policy_dir))
-    cfg = json.loads((policy_dir / "ppo_network_config.json").read_text())
+    config_file = policy_dir / "ppo_network_config.json"
+    try:
+        cfg = json.loads(config_file.read_text())
+        params = brax_checkpoint.load(str(policy_dir))
+    except (OSError, ValueError, KeyError) as e:  # orbax's errors for a missing or damaged checkpoint
+        reason = (str(e).splitlines() or [type(e).__name__])[0]
+        raise InputError(f"the policy's checkpoint cannot be read: {reason}", file=str(policy_dir),
+                         fix="pass a complete policy/ folder written by training") from None
+    return SavedPolicy(tuple(params), env_config, ppo, cfg, int(meta.get("global_step", 0)))
+
+
+def load_policy(policy_dir: Path, *, deterministic: bool = True):
+    """(policy function obs, key -> (action, extras), EnvConfig, PPOConfig) of a saved policy."""
+    import jax
+    from brax.training.acme import running_statistics
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    saved = load_policy_parameters(policy_dir)
+    env_config, ppo, cfg = saved.env, saved.ppo, saved.network_config
     networks = network_factory(ppo, env_config.privileged_critic)(
         observation_size=_observation_size(cfg["observation_size"]), action_size=cfg["action_size"],
         preprocess_observations_fn=running_statistics.normalize if ppo.normalize_observations else (lambda x, y: x))
     make = ppo_networks.make_inference_fn(networks)
-    return jax.jit(make(tuple(params), deterministic=deterministic)), env_config, ppo
+    return jax.jit(make(saved.params, deterministic=deterministic)), env_config, ppo
