@@ -4,8 +4,10 @@ Also written: `<run>/metrics.jsonl` (every evaluation's metrics: the reward curv
 `<run>/tensorboard/`. Brax's own checkpoints hold the policy, value and normaliser parameters but restart the step
 count on resume; footforge keeps its own: after every epoch the parameters go to
 `<run>/checkpoints/<global step>/` (Brax's format) and `<run>/progress.json` records the global
-step. `--resume` restores the latest checkpoint and trains the remaining steps with a new seed
-(the same seed would replay the same experience). Adam's moments are not in Brax's checkpoints
+step, the training wall time over every call (`wall_s_total`, to the last checkpoint) and the
+machine (`machine()`); the policy's footforge.json repeats the last two for its card. `--resume`
+restores the latest checkpoint and trains the remaining steps with a new seed (the same seed
+would replay the same experience). Adam's moments are not in Brax's checkpoints
 and restart: a resumed run continues from the same policy, not the same optimiser state.
 
 `max_wall_s` bounds a call's wall-clock time for machines whose jobs have a time limit: after each
@@ -169,7 +171,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                          fix=f"e.g. --num-envs {ppo.num_envs - ppo.num_envs % jax.device_count() or jax.device_count()}")
     run_dir = Path(run_dir).resolve()
     state_file = run_dir / "progress.json"
-    offset, restore, resumes = 0, None, 0
+    offset, restore, resumes, wall_s_before = 0, None, 0, 0.0
     if resume:
         found = latest_checkpoint(run_dir)
         if found is None:
@@ -182,7 +184,11 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                              fix="resume with the same options as the original run")
         offset, path = found
         restore = brax_checkpoint.load(str(path))
-        resumes = json.loads(state_file.read_text()).get("resumes", 0) + 1 if state_file.exists() else 1
+        previous = json.loads(state_file.read_text()) if state_file.exists() else {}
+        resumes = previous.get("resumes", 0) + 1
+        # Training time of the earlier calls, up to their last checkpoint (a killed call's time
+        # after it is lost with its work).
+        wall_s_before = previous.get("wall_s_total", previous.get("wall_s", 0.0))
     # On several machines only process 0 writes (Brax saves and evaluates there alone).
     primary = jax.process_index() == 0
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -202,6 +208,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
     last: dict = {}
     t0 = time.time()
+    this_machine = machine()
     clock = {"last_eval": t0, "stopped": False}
 
     def save(step: int, make_policy, params) -> None:
@@ -213,7 +220,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                                                             ppo.normalize_observations,
                                                             network_factory(ppo, env_config.privileged_critic)))
         _write_json(state_file, {"global_step": global_step, "resumes": resumes, "metrics": last,
-                                 "wall_s": time.time() - t0, "num_timesteps": ppo.num_timesteps})
+                                 "wall_s": time.time() - t0, "wall_s_total": wall_s_before + time.time() - t0,
+                                 "num_timesteps": ppo.num_timesteps, "machine": this_machine})
 
     def log(step: int, metrics: dict) -> None:
         if not primary:
@@ -250,13 +258,28 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     if final is not None and primary:  # the policy: the last checkpoint (the final parameters) and the configs
         with atomic_directory(run_dir / "policy") as tmp:
             shutil.copytree(final[1], tmp, dirs_exist_ok=True)
+            recorded = json.loads(state_file.read_text()) if state_file.exists() else {}
             _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
-                                                 "global_step": final[0]})
+                                                 "global_step": final[0], "wall_s": recorded.get("wall_s_total"),
+                                                 "machine": this_machine})
     if clock["stopped"]:
         last["stopped_for_time"] = 1.0
         if primary and state_file.exists():
             _write_json(state_file, json.loads(state_file.read_text()) | {"metrics": last, "stopped": "wall-time budget"})
     return last
+
+
+def machine() -> dict:
+    """What trains, for the policy card: JAX's backend and devices (over every process), the
+    processes, this machine's CPU cores and operating system."""
+    import platform
+
+    import jax
+
+    devices = jax.devices()
+    return {"backend": jax.default_backend(), "devices": len(devices), "device_kind": devices[0].device_kind,
+            "processes": jax.process_count(), "cpu_cores": os.cpu_count(), "platform": platform.platform(),
+            "jax": jax.__version__}
 
 
 def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
@@ -328,6 +351,16 @@ def load_policy_config(policy_dir: Path) -> EnvConfig:
       InputError: the folder is not a footforge policy.
     """
     return from_dict(EnvConfig, _policy_meta(Path(policy_dir).resolve())["env"])
+
+
+def policy_meta(policy_dir: Path) -> dict:
+    """A policy folder's footforge.json: "env" and "ppo" (the configurations as dicts),
+    "global_step", and from training runs "wall_s" and "machine" (absent in older ones).
+
+    Raises:
+      InputError: the folder is not a footforge policy.
+    """
+    return _policy_meta(Path(policy_dir).resolve())
 
 
 def _policy_meta(policy_dir: Path) -> dict:
