@@ -1,4 +1,4 @@
-"""The `footforge` command line: a thin layer over footforge.build and footforge.check.
+"""The `footforge` command line: a thin layer over footforge.build, footforge.check and footforge.export_onnx.
 
 Exit codes: 0 success, 1 check failures, 2 usage or input errors. Errors print as messages
 that name the file, the element and the fix; `--verbose` adds the traceback.
@@ -99,6 +99,10 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR")
     c.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE")
     c.add_argument("--sidecar", type=Path, help="also check that the sidecar's closures close")
+
+    e = sub.add_parser("export", help="write a trained policy as ONNX (normaliser inside, metadata for deployment)")
+    e.add_argument("policy_dir", type=Path, metavar="POLICY_DIR", help="the policy/ folder of a training run")
+    e.add_argument("--out", type=Path, metavar="FILE.onnx", help="output file (default POLICY_DIR/policy.onnx)")
     return p
 
 
@@ -253,6 +257,14 @@ def _run_check(args, console) -> int:
     return EXIT_CHECK_FAILED if result.failed else EXIT_OK
 
 
+def _run_export(args, console) -> int:
+    from footforge.export_onnx import export
+
+    out = export(args.policy_dir, args.out)
+    console.print(f"policy written to {out}", markup=False, highlight=False, soft_wrap=True)
+    return EXIT_OK
+
+
 def main(argv: list[str] | None = None) -> int:
     from footforge.processes import sigterm_as_interrupt
 
@@ -269,7 +281,8 @@ def _main(argv: list[str] | None) -> int:
         return int(e.code or 0)
     console, errors = Console(), Console(stderr=True)
     try:
-        run = {"build": _run_build, "validate": _run_validate, "check": _run_check}[args.command]
+        run = {"build": _run_build, "validate": _run_validate, "check": _run_check,
+               "export": _run_export}[args.command]
         return run(args, console)
     except FootforgeError as e:
         if args.verbose:

@@ -23,6 +23,9 @@ from footforge.errors import InputError
 
 INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
            "base_height")
+INDEX_UNITS = {"lin_vel_x_error": "m/s", "lin_vel_y_error": "m/s", "yaw_rate_error": "rad/s", "action_rate": "-",
+               "joint_vel_rate": "rad/s per step", "torques": "N m", "base_height": "m"}
+"""Unit of each index (action_rate: policy outputs, unitless)."""
 SECONDS = {"flat": 60.0, "rough": 17.5}
 """The paper's evaluation length per task, s."""
 

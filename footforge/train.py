@@ -4,7 +4,9 @@ Also written: `<run>/metrics.jsonl` (every evaluation's metrics: the reward curv
 `<run>/tensorboard/`. Brax's own checkpoints hold the policy, value and normaliser parameters but restart the step
 count on resume; footforge keeps its own: after every epoch the parameters go to
 `<run>/checkpoints/<global step>/` (Brax's format) and `<run>/progress.json` records the global
-step. `--resume` restores the latest intact checkpoint and trains the remaining steps with a new seed
+step, the training wall time over every call (`wall_s_total`, to the last checkpoint) and the
+machine (`machine()`); the policy's footforge.json repeats the last two for its card. `--resume`
+restores the latest intact checkpoint and trains the remaining steps with a new seed
 (the same seed would replay the same experience).
 
 Optimiser state: Brax 0.14.2's PPO cannot restore it. Its `train` builds the Adam moments (and
@@ -428,7 +430,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     run_dir = prepare_run_dir(run_dir, resume=resume, force=force, notice=notice) if primary else \
         Path(os.path.abspath(run_dir))
     state_file = run_dir / "progress.json"
-    offset, restore, resumes = 0, None, 0
+    offset, restore, resumes, wall_s_before = 0, None, 0, 0.0
     if resume:
         saved_env, saved_ppo = load_run_config(run_dir)
         saved = json.loads(json.dumps({"env": to_dict(saved_env), "ppo": to_dict(saved_ppo) | {"num_timesteps": 0}}))
@@ -440,7 +442,11 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                              fix="resume with the run's own settings (the pipelines read them from config.json), "
                                  "or start a new run with another --out")
         offset, restore = _resume_point(run_dir, notice, set_aside=primary)
-        resumes = json.loads(state_file.read_text()).get("resumes", 0) + 1 if state_file.exists() else 1
+        previous = json.loads(state_file.read_text()) if state_file.exists() else {}
+        resumes = previous.get("resumes", 0) + 1
+        # Training time of the earlier calls, up to their last checkpoint (a killed call's time
+        # after it is lost with its work).
+        wall_s_before = previous.get("wall_s_total", previous.get("wall_s", 0.0))
     if primary:
         _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)})
     remaining = ppo.num_timesteps - offset
@@ -457,6 +463,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
     last: dict = {}
     t0 = time.time()
+    this_machine = machine()
     clock = {"last_eval": t0, "stopped": False}
 
     def save(step: int, make_policy, params) -> None:
@@ -466,7 +473,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         save_checkpoint(run_dir, global_step, params, env.observation_size, env.action_size, ppo,
                         env_config.privileged_critic)
         _write_json(state_file, {"global_step": global_step, "resumes": resumes, "metrics": last,
-                                 "wall_s": time.time() - t0, "num_timesteps": ppo.num_timesteps})
+                                 "wall_s": time.time() - t0, "wall_s_total": wall_s_before + time.time() - t0,
+                                 "num_timesteps": ppo.num_timesteps, "machine": this_machine})
 
     def log(step: int, metrics: dict) -> None:
         if not primary:
@@ -503,8 +511,10 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     if final is not None and primary:  # the policy: the last checkpoint (the final parameters) and the configs
         with atomic_directory(run_dir / "policy") as tmp:
             shutil.copytree(final[1], tmp, dirs_exist_ok=True)
+            recorded = json.loads(state_file.read_text()) if state_file.exists() else {}
             _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
-                                                 "global_step": final[0]})
+                                                 "global_step": final[0], "wall_s": recorded.get("wall_s_total"),
+                                                 "machine": this_machine})
     if clock["stopped"]:
         last["stopped_for_time"] = 1.0
         if primary and state_file.exists():
@@ -524,6 +534,19 @@ def save_checkpoint(run_dir: Path, global_step: int, params, observation_size, a
     folder = Path(run_dir) / "checkpoints" / f"{global_step:012d}"
     write_checkpoint_manifest(folder)
     return folder
+
+
+def machine() -> dict:
+    """What trains, for the policy card: JAX's backend and devices (over every process), the
+    processes, this machine's CPU cores and operating system."""
+    import platform
+
+    import jax
+
+    devices = jax.devices()
+    return {"backend": jax.default_backend(), "devices": len(devices), "device_kind": devices[0].device_kind,
+            "processes": jax.process_count(), "cpu_cores": os.cpu_count(), "platform": platform.platform(),
+            "jax": jax.__version__}
 
 
 def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
@@ -598,6 +621,16 @@ def load_policy_config(policy_dir: Path) -> EnvConfig:
     return from_dict(EnvConfig, _policy_meta(Path(policy_dir).resolve())["env"])
 
 
+def policy_meta(policy_dir: Path) -> dict:
+    """A policy folder's footforge.json: "env" and "ppo" (the configurations as dicts),
+    "global_step", and from training runs "wall_s" and "machine" (absent in older ones).
+
+    Raises:
+      InputError: the folder is not a footforge policy.
+    """
+    return _policy_meta(Path(policy_dir).resolve())
+
+
 def _policy_meta(policy_dir: Path) -> dict:
     meta_file = policy_dir / "footforge.json"
     if not policy_dir.exists():
@@ -623,12 +656,28 @@ def _observation_size(saved):
     return int(saved["shape"][0]) if isinstance(saved, dict) else int(saved)
 
 
-def load_policy(policy_dir: Path, *, deterministic: bool = True):
-    """(policy function obs, key -> (action, extras), EnvConfig, PPOConfig) of a saved policy."""
-    import jax
-    from brax.training.acme import running_statistics
+@dataclass(frozen=True)
+class SavedPolicy:
+    """What a policy folder holds, read but not yet made a function (footforge.export_onnx reads
+    the parameters directly)."""
+
+    params: tuple
+    """Brax's (normaliser state, policy parameters, value parameters)."""
+    env: EnvConfig
+    ppo: PPOConfig
+    network_config: dict
+    """Brax's ppo_network_config.json: observation_size, action_size, network_factory_kwargs."""
+    global_step: int
+    """Environment steps the policy was trained for (0: freshly initialised)."""
+
+
+def load_policy_parameters(policy_dir: Path) -> SavedPolicy:
+    """The parameters and configurations of a saved policy.
+
+    Raises:
+      InputError: the folder is not a footforge policy, or its checkpoint cannot be read.
+    """
     from brax.training.agents.ppo import checkpoint as brax_checkpoint
-    from brax.training.agents.ppo import networks as ppo_networks
 
     policy_dir = Path(policy_dir).resolve()
     meta = _policy_meta(policy_dir)
@@ -638,10 +687,27 @@ def load_policy(policy_dir: Path, *, deterministic: bool = True):
         if problem:
             raise InputError(f"the policy is damaged: {problem}", file=str(policy_dir),
                              fix="use the run's newest intact checkpoints/<step>/ (the same files), or train again")
-    params = brax_checkpoint.load(str(policy_dir))
-    cfg = json.loads((policy_dir / "ppo_network_config.json").read_text())
+    config_file = policy_dir / "ppo_network_config.json"
+    try:
+        cfg = json.loads(config_file.read_text())
+        params = brax_checkpoint.load(str(policy_dir))
+    except (OSError, ValueError, KeyError) as e:  # orbax's errors for a missing or damaged checkpoint
+        reason = (str(e).splitlines() or [type(e).__name__])[0]
+        raise InputError(f"the policy's checkpoint cannot be read: {reason}", file=str(policy_dir),
+                         fix="pass a complete policy/ folder written by training") from None
+    return SavedPolicy(tuple(params), env_config, ppo, cfg, int(meta.get("global_step", 0)))
+
+
+def load_policy(policy_dir: Path, *, deterministic: bool = True):
+    """(policy function obs, key -> (action, extras), EnvConfig, PPOConfig) of a saved policy."""
+    import jax
+    from brax.training.acme import running_statistics
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    saved = load_policy_parameters(policy_dir)
+    env_config, ppo, cfg = saved.env, saved.ppo, saved.network_config
     networks = network_factory(ppo, env_config.privileged_critic)(
         observation_size=_observation_size(cfg["observation_size"]), action_size=cfg["action_size"],
         preprocess_observations_fn=running_statistics.normalize if ppo.normalize_observations else (lambda x, y: x))
     make = ppo_networks.make_inference_fn(networks)
-    return jax.jit(make(tuple(params), deterministic=deterministic)), env_config, ppo
+    return jax.jit(make(saved.params, deterministic=deterministic)), env_config, ppo

@@ -5,6 +5,8 @@
     python pipelines/evaluate.py --policy runs/rough_ball_P/policy --feet ball aff aof  # Figure 9's zero-shot
 
 Writes <out>/metrics.json, comparison.md (one row per policy and feet, like the paper's Figure 8),
+policy_card.md (one page per policy: its training, its indices, links to its plots; with several
+policies policy_card_<k>.md, k the policy's place in --policy),
 comparison.png, contacts_<i>.png (feet contact schedule) and push_response_<i>.png; with
 --video SECONDS also video_<i>.gif (one robot, 25 fps) and strip_<i>.png (six of its frames),
 which need an OpenGL backend: MUJOCO_GL=egl or osmesa.
@@ -57,6 +59,7 @@ def _run(args) -> int:
     from footforge.errors import FootforgeError
     from footforge.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
     from footforge.outputs import check_output_folder
+    from footforge.policy_card import card_name, policy_card
     from footforge.train import load_policy_config
 
     try:
@@ -67,7 +70,7 @@ def _run(args) -> int:
             from footforge.render import check_renderer, render_frames, write_gif, write_strip
 
             check_renderer()  # before minutes of evaluation
-        results, recordings = [], []
+        results, recordings, cards = [], [], []
         for policy in args.policy:
             for feet in args.feet or [None]:
                 feet = feet or load_policy_config(policy).feet
@@ -92,6 +95,11 @@ def _run(args) -> int:
                 write_strip(frames, tmp / f"strip_{suffix}.png")
                 files += [f"video_{suffix}.gif", f"strip_{suffix}.png"]
             (tmp / "comparison.md").write_text(comparison_markdown(results) + "\n" + terrain_markdown(results))
+            for k, policy in enumerate(args.policy):  # one card per policy, linking its own plots
+                card = card_name(k, len(args.policy))
+                (tmp / card).write_text(policy_card(policy, [(i, r) for i, r in enumerate(results)
+                                                             if r["policy"] == str(policy)], files))
+                cards.append(card)
             (tmp / "metrics.json").write_text(json.dumps(
                 [{k: v for k, v in r.items() if k != "traces"} for r in results], indent=2))
     except FootforgeError as e:
@@ -101,7 +109,7 @@ def _run(args) -> int:
         print("evaluate: interrupted; no output was written", file=sys.stderr)
         return 2
     print((args.out / "comparison.md").read_text())
-    print(f"written to {args.out}: metrics.json, comparison.md, " + ", ".join(files))
+    print(f"written to {args.out}: metrics.json, comparison.md, " + ", ".join(cards + files))
     return 0
 
 

@@ -254,6 +254,7 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
     """A perceptive ball-foot policy (freshly initialised) evaluated over every tile of a small
     terrain: indices per kind and level, and the Figure 9 table (zero-shot on other feet is the
     flat evaluation's test: the same code)."""
+    from footforge.evaluate import INDICES
     from footforge.train import default_ppo, initial_policy
 
     config = replace(envs.default_config("rough", "ball", "P"), terrain=SMALL)
@@ -274,6 +275,11 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
         assert sorted(levels) == [str(level) for level in range(SMALL.num_levels)]
     table = (report / "comparison.md").read_text()
     assert "stepping_stones: vx error / falls" in table and "| P | ball | ball |" in table
+    card = (report / "policy_card.md").read_text()  # this evaluation's indices, its plots linked
+    assert "freshly initialised" in card and "[contacts_0.png](contacts_0.png)" in card
+    for name in INDICES:
+        index = result["indices"][name]
+        assert f"| {name} (" in card and f"{index['mean']:.4g} ± {index['std']:.4g}" in card, name
 
 
 def test_shank_tubes_collide_with_the_terrain_as_capsules(built):

@@ -141,8 +141,13 @@ def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path
     for name in INDICES:
         assert np.isfinite(metrics[0]["indices"][name]["mean"]), name
     assert np.isfinite(metrics[0]["slippage"]) or metrics[0]["falls"] == 2
-    for name in ("comparison.md", "comparison.png", "contacts_0.png", "push_response_0.png"):
+    for name in ("comparison.md", "comparison.png", "contacts_0.png", "push_response_0.png", "policy_card.md"):
         assert (report / name).is_file()
+    card = (report / "policy_card.md").read_text()  # the run's training, this evaluation's indices
+    assert "on aff feet (zero-shot)" in card and "| machine | 1 x " in card and "over 2 calls" in card
+    for name in INDICES:
+        index = metrics[0]["indices"][name]
+        assert f"{index['mean']:.4g} ± {index['std']:.4g}" in card, name
 
 
 @pytest.mark.slow

@@ -37,3 +37,22 @@ def layout(config: EnvConfig, n_passive: int) -> list[tuple[str, int]]:
 
 def size(config: EnvConfig, n_passive: int) -> int:
     return sum(w for _, w in layout(config, n_passive))
+
+
+def scale(config: EnvConfig, name: str) -> float | tuple[float, ...]:
+    """The factor the environment multiplies slice `name` by before it enters the observation (a
+    tuple for the command: vx, vy, yaw rate). The height scan is also offset and clipped first:
+    see LAYOUT."""
+    o = config.observations
+    return {"base_lin_vel": o.lin_vel_scale, "base_ang_vel": o.ang_vel_scale, "projected_gravity": 1.0,
+            "command": tuple(o.command_scale), "joint_pos": o.joint_pos_scale, "joint_vel": o.joint_vel_scale,
+            "last_action": 1.0, "height_scan": o.height_scale, "foot_joint_pos": o.foot_joint_pos_scale,
+            "foot_joint_vel": o.foot_joint_vel_scale}[name]
+
+
+def passive_joints_of(config: EnvConfig, observation_size: int) -> int:
+    """The number of passive foot joints a policy of `config` reads, from its observation width
+    (haptic policies read each one's angle and velocity; the others none)."""
+    if not config.haptic:
+        return 0
+    return (observation_size - size(config, 0)) // 2

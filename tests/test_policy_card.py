@@ -1,0 +1,61 @@
+"""The policy card: training summary from the policy and run folders, the evaluation's indices,
+plots linked by relative path. No simulation here: the evaluation tests (tests/test_rough.py,
+and the slow one in tests/test_train.py) check the card that pipelines/evaluate.py writes."""
+
+import json
+import re
+
+from footforge import envs
+from footforge.evaluate import INDICES
+from footforge.policy_card import card_name, policy_card
+from footforge.train import PPOConfig, to_dict
+
+
+def _result(policy, feet, offset, trained_on="aof"):
+    return {"policy": str(policy), "trained_on": trained_on, "feet": feet, "policy_type": "B", "num_envs": 8,
+            "seconds": 2.0, "seed": 0, "task": "flat", "slippage": 0.125 + offset, "falls": 1,
+            "indices": {name: {"mean": 0.1 * k + offset, "std": 0.01 * k} for k, name in enumerate(INDICES, 1)}}
+
+
+def test_card_of_a_trained_run(tmp_path):
+    run = tmp_path / "flat_aof_B"
+    policy = run / "policy"
+    policy.mkdir(parents=True)
+    env, ppo = envs.default_config("flat", "aof", "B"), PPOConfig(num_timesteps=1_000_000)
+    machine = {"backend": "gpu", "devices": 1, "device_kind": "NVIDIA H100", "processes": 1, "cpu_cores": 16,
+               "platform": "Linux-6.1", "jax": "0.9.2"}
+    (policy / "footforge.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo), "global_step": 983_040,
+                                                       "wall_s": 7384.0, "machine": machine}))
+    (run / "progress.json").write_text(json.dumps({"global_step": 983_040, "resumes": 1, "stopped": "wall-time budget",
+                                                   "metrics": {"eval/episode_reward": 12.5,
+                                                               "eval/avg_episode_length": 1000.0}}))
+    files = ["comparison.png", "contacts_0.png", "push_response_0.png", "contacts_1.png", "push_response_1.png",
+             "video_1.gif", "strip_1.png", "video_10.gif"]
+    results = [_result(policy, "aof", 0.0), _result(policy, "aff", 0.5)]
+    card = policy_card(policy, list(enumerate(results)), files)
+
+    assert card.startswith("# Policy card: flat_aof_B\n")
+    assert "983,040 of 1,000,000" in card and "2 h 3 min, over 2 calls" in card
+    assert "1 x NVIDIA H100 (gpu, 1 process), 16 CPU cores" in card and "wall-time budget" in card
+    assert "return 12.500" in card and "policy 256-128-64" in card and "velocity actions x 13.5 rad/s" in card
+    assert "50 Hz control" in card and "randomised: friction" in card
+    for name in INDICES:
+        row = next(line for line in card.splitlines() if line.startswith(f"| {name} ("))
+        cells = row.split(" | ")[1:]
+        assert cells[0].startswith(f"{results[0]['indices'][name]['mean']:.4g} ± ")
+        assert cells[1].startswith(f"{results[1]['indices'][name]['mean']:.4g} ± ")
+    assert "on aff feet (zero-shot)" in card and "| falls | 1/8 | 1/8 |" in card
+    links = re.findall(r"\]\(([^)]+)\)", card)
+    assert links == ["comparison.png", "contacts_0.png", "push_response_0.png", "contacts_1.png",
+                     "push_response_1.png", "video_1.gif", "strip_1.png"]  # not video_10: another result's
+
+
+def test_card_of_an_untrained_policy_says_what_was_not_recorded(tmp_path):
+    policy = tmp_path / "policy"
+    policy.mkdir()
+    env, ppo = envs.default_config("flat", "ball", "B"), PPOConfig()
+    (policy / "footforge.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo), "global_step": 0}))
+    card = policy_card(policy, [(0, _result(policy, "ball", 0.0, trained_on="ball"))], ["comparison.png"])
+    assert "freshly initialised" in card and "| wall time | not recorded |" in card
+    assert "| machine | not recorded |" in card and "zero-shot" not in card
+    assert card_name(0, 1) == "policy_card.md" and card_name(2, 3) == "policy_card_2.md"
