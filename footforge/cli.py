@@ -37,6 +37,51 @@ def _versions() -> str:
     return parts[0] + " (" + ", ".join(parts[1:]) + ")"
 
 
+def _add_description_options(p: argparse.ArgumentParser, params_help: str | None = None) -> None:
+    """The foot description and its derivation, the same for build and validate (a foot that builds
+    with some flags validates with the same flags)."""
+    p.add_argument("--description", type=Path, help="foot xacro/URDF (default: the project's SoftFoot-Q)")
+    p.add_argument("--sidecar", type=Path, help="foot sidecar YAML (default: <stem>.sidecar.yaml beside it)")
+    p.add_argument("--params", type=Path, help=params_help or "variant parameter file (default: the SoftFoot-Q's)")
+    p.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR",
+                   help="folder searched for ROS packages ($(find pkg), package://); repeatable")
+    p.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE",
+                   help="xacro argument for the foot description; repeatable")
+    p.add_argument("--repair", action="store_true",
+                   help="repair repairable description defects (reported in build_report.json)")
+    p.add_argument("--max-hull-vertices", type=int, default=64, help="vertex cap per convex hull (default 64)")
+    p.add_argument("--coacd-timeout", type=float, default=120.0, help="seconds before CoACD is stopped, per mesh")
+    p.add_argument("--face-budget", type=int, default=DEFAULT_FACE_BUDGET,
+                   help=f"simplify collision meshes above this many faces before CoACD (default {DEFAULT_FACE_BUDGET}; 0: never)")
+    p.add_argument("--cache-dir", type=Path, help="CoACD cache folder (default ~/.cache/footforge/coacd)")
+
+
+def _description_options(args) -> dict:
+    """BuildOptions fields from _add_description_options' flags, checked before any work.
+
+    Raises:
+      InputError: a hull vertex cap below 4, a non-positive CoACD timeout, a negative face budget.
+    """
+    from footforge.collision import DecompositionConfig
+    from footforge.description import parse_args
+    from footforge.errors import InputError
+
+    if args.max_hull_vertices < 4:
+        raise InputError(f"--max-hull-vertices {args.max_hull_vertices} is below 4",
+                         fix="a convex hull needs at least 4 vertices; the default is 64")
+    if args.coacd_timeout <= 0:
+        raise InputError("--coacd-timeout must be positive", fix="give seconds, e.g. 120")
+    if args.face_budget < 0:
+        raise InputError(f"--face-budget {args.face_budget} is negative",
+                         fix=f"give a face count (default {DEFAULT_FACE_BUDGET}), or 0 to keep every face")
+
+    return dict(foot_description=args.description, sidecar=args.sidecar, params=args.params,
+                package_paths=tuple(args.package_path), foot_args=parse_args(args.arg), repair=args.repair,
+                cache_dir=args.cache_dir,
+                decomposition=DecompositionConfig(max_hull_vertices=args.max_hull_vertices,
+                                                  timeout_s=args.coacd_timeout, face_budget=args.face_budget))
+
+
 def _parser() -> argparse.ArgumentParser:
     from footforge.build import VARIANTS
 
@@ -50,21 +95,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="full: 34-joint closed chain; aof: split sole, 4 passive DOF; aff: flat sole, "
                         "2 passive DOF; ball: ANYmal C's standard foot")
     b.add_argument("--foot-only", action="store_true", help="write the foot alone (foot.xml) and its rig")
-    b.add_argument("--description", type=Path, help="foot xacro/URDF (default: the project's SoftFoot-Q)")
-    b.add_argument("--sidecar", type=Path, help="foot sidecar YAML (default: <stem>.sidecar.yaml beside it)")
+    _add_description_options(b)
     b.add_argument("--robot", type=Path, help="robot xacro/URDF with a foot:=ball|none argument (default: ANYmal C)")
-    b.add_argument("--params", type=Path, help="variant parameter file (default: the SoftFoot-Q's)")
-    b.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR",
-                   help="folder searched for ROS packages ($(find pkg), package://); repeatable")
-    b.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE",
-                   help="xacro argument for the foot description; repeatable")
-    b.add_argument("--repair", action="store_true",
-                   help="repair repairable description defects (reported in build_report.json)")
-    b.add_argument("--max-hull-vertices", type=int, default=64, help="vertex cap per convex hull (default 64)")
-    b.add_argument("--coacd-timeout", type=float, default=120.0, help="seconds before CoACD is stopped, per mesh")
-    b.add_argument("--face-budget", type=int, default=DEFAULT_FACE_BUDGET,
-                   help=f"simplify collision meshes above this many faces before CoACD (default {DEFAULT_FACE_BUDGET}; 0: never)")
-    b.add_argument("--cache-dir", type=Path, help="CoACD cache folder (default ~/.cache/footforge/coacd)")
     b.add_argument("--format", default="mjcf,usd", metavar="FORMATS",
                    help="comma-separated outputs: mjcf (MuJoCo XML), usd (robot.usda/.usd for Isaac Sim); "
                         "default mjcf,usd")
@@ -85,11 +117,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="override a fidelity threshold (force_nrmse, peak_force_rel, final_height_mm, "
                         "orientation_deg, cop_mm, slip_mm); repeatable")
     v.add_argument("--seed", type=int, default=0, help="offset for the random scenarios' seeds")
-    v.add_argument("--description", type=Path, help="foot xacro/URDF (default: the project's SoftFoot-Q)")
-    v.add_argument("--sidecar", type=Path)
-    v.add_argument("--params", type=Path, help="variant parameter file (read, and written by --calibrate)")
-    v.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR")
-    v.add_argument("--cache-dir", type=Path, help="CoACD cache folder")
+    _add_description_options(v, params_help="variant parameter file (default: the SoftFoot-Q's; read, and "
+                                            "written by --calibrate)")
     v.add_argument("--out", type=Path, default=Path("validation"),
                    help="report folder (default validation/); replaced only if footforge wrote it, see --force")
     v.add_argument("--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)")
@@ -110,26 +139,11 @@ def _run_build(args, console) -> int:
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
     from footforge.build import BuildOptions, build
-    from footforge.collision import DecompositionConfig
-    from footforge.description import parse_args
-    from footforge.errors import InputError
 
-    if args.max_hull_vertices < 4:
-        raise InputError(f"--max-hull-vertices {args.max_hull_vertices} is below 4",
-                         fix="a convex hull needs at least 4 vertices; the default is 64")
-    if args.coacd_timeout <= 0:
-        raise InputError("--coacd-timeout must be positive", fix="give seconds, e.g. 120")
-    if args.face_budget < 0:
-        raise InputError(f"--face-budget {args.face_budget} is negative",
-                         fix=f"give a face count (default {DEFAULT_FACE_BUDGET}), or 0 to keep every face")
     options = BuildOptions(
         variant=args.variant, out_dir=args.out or Path("build") / args.variant, foot_only=args.foot_only,
-        foot_description=args.description, sidecar=args.sidecar, robot_description=args.robot,
-        package_paths=tuple(args.package_path), foot_args=parse_args(args.arg), params=args.params,
-        repair=args.repair, cache_dir=args.cache_dir, force=args.force,
-        formats=tuple(f.strip() for f in args.format.split(",") if f.strip()),
-        decomposition=DecompositionConfig(max_hull_vertices=args.max_hull_vertices, timeout_s=args.coacd_timeout,
-                                          face_budget=args.face_budget))
+        robot_description=args.robot, force=args.force,
+        formats=tuple(f.strip() for f in args.format.split(",") if f.strip()), **_description_options(args))
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(),
                   console=console, transient=True) as progress:
         task = progress.add_task("building", total=None)
@@ -195,8 +209,7 @@ def _run_validate(args, console) -> int:
         variants=parse_variants(args.variant), scenarios=tuple(args.scenarios), calibrate=args.calibrate,
         calibration_evaluations=args.evaluations, jobs=args.jobs,
         thresholds=Thresholds.with_overrides(args.threshold), seed=args.seed,
-        build=BuildOptions(variant="full", out_dir=args.out, foot_description=args.description, sidecar=args.sidecar,
-                           params=args.params, package_paths=tuple(args.package_path), cache_dir=args.cache_dir))
+        build=BuildOptions(variant="full", out_dir=args.out, **_description_options(args)))
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=console, transient=True) as progress:
         def tracker(description: str, total: int):

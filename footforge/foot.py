@@ -314,6 +314,14 @@ def _joint_range(parsed: ParsedURDF, joint_id: int) -> tuple[float, float]:
     return float(parsed.model.lowerPositionLimit[idx]), float(parsed.model.upperPositionLimit[idx])
 
 
+def sole_bodies(foot: FootModel) -> list[str]:
+    """Names of the bodies whose bottoms form the sole: the closed chain's links (the bodies of its
+    `chain` joint family, whatever the description calls them), or a derived foot's sole plates."""
+    if foot.variant == "full":
+        return [j.parent.name for j in foot.mjcf.find_all("joint") if j.dclass == "chain"]
+    return [b.name for b in foot.mjcf.find_all("body") if b.name.startswith("sole")]  # footforge's own names
+
+
 def compile_model(root: mjcf.RootElement) -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(root.to_xml_string(), assets=root.get_assets())
 

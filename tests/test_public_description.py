@@ -244,3 +244,26 @@ def test_check_with_the_public_sidecar_closes_the_loops(capsys, public_pkg):
     assert code == 0, text
     gaps = [float(line.split("gap ")[1].split(" m")[0]) for line in text.splitlines() if "gap" in line]
     assert len(gaps) == 3 and max(gaps) < 1e-9, text
+
+
+def test_public_description_validates_with_the_build_flags(capsys, tmp_path, public_pkg):
+    """`footforge validate` takes the description flags `build` takes (before: --repair, --arg,
+    --face-budget, --coacd-timeout were unknown to validate, so the public foot could be built but
+    not validated)."""
+    import json
+
+    out = tmp_path / "report"
+    code, text = run(capsys, "validate", "--variant", "aof", "--scenarios", "flat_2cm", "--jobs", "1",
+                     "--description", robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+                     "--package-path", public_pkg, "--repair", "--face-budget", "1000",
+                     "--cache-dir", tmp_path / "c", "--out", out)
+    report = json.loads((out / "report.json").read_text())
+    assert code == (0 if report["passed"] else 1), text
+    assert report["inputs"]["foot_description"]["path"].endswith("floating_softfoot.urdf.xacro")
+    assert report["runs"]["full"]["flat_2cm"]["scalars"]["final_force_n"] > 0  # the public chain landed
+
+
+def test_validate_checks_the_description_flags_first(capsys, tmp_path):
+    code, text = run(capsys, "validate", "--face-budget", "-1", "--out", tmp_path / "o")
+    assert code == 2 and "--face-budget" in text
+    assert not (tmp_path / "o").exists()

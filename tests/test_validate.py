@@ -286,7 +286,6 @@ def test_closed_chain_reference_pose_is_at_rest():
     from footforge import foot as foot_lib
     from footforge.build import Stages
     from footforge.validate.runner import Session
-    from footforge.validate.simulate import SOLE_BODY_PREFIXES
 
     full = Session(ValidateOptions(variants=()), Stages(None)).feet["full"]
     model = foot_lib.compile_model(full.mjcf)
@@ -297,7 +296,7 @@ def test_closed_chain_reference_pose_is_at_rest():
     for joint, q in full.reference_qpos.items():
         data.qpos[model.jnt_qposadr[model.joint(joint).id]] = q
     mujoco.mj_forward(model, data)
-    sole = [model.body(b).name for b in range(model.nbody) if model.body(b).name.startswith(SOLE_BODY_PREFIXES)]
+    sole = foot_lib.sole_bodies(full)
     assert len(sole) >= 10  # the chain links
     start = foot_lib.collision_points(model, data, sole)
     for _ in range(int(round(1.0 / model.opt.timestep))):

@@ -10,7 +10,7 @@ from footforge import foot as foot_lib
 from footforge.params import VariantParams
 from footforge.robot import build_rig
 from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
-from footforge.validate.simulate import SOLE_BODY_PREFIXES, RigCase
+from footforge.validate.simulate import RigCase
 
 
 
@@ -33,7 +33,7 @@ def sole_extent(full: foot_lib.FootModel) -> SoleExtent:
     for joint, q in full.reference_qpos.items():
         data.qpos[model.jnt_qposadr[model.joint(joint).id]] = q
     mujoco.mj_kinematics(model, data)
-    sole = [model.body(b).name for b in range(model.nbody) if model.body(b).name.startswith(SOLE_BODY_PREFIXES)]
+    sole = foot_lib.sole_bodies(full)
     pts = foot_lib.collision_points(model, data, sole)
     centre = data.xpos[model.body(full.root_body).id]
     return SoleExtent(half_length_m=float(np.abs(pts[:, 0] - centre[0]).max()),
@@ -45,4 +45,5 @@ def rig_case(foot: foot_lib.FootModel | None, variant: str, scenario: Scenario, 
     rig = build_rig(foot, C.BALL_FOOT_RADIUS_M, variant=variant, params=params, friction=friction,
                     mount_quat=mount_quat(scenario))
     add_obstacle(rig.mjcf, scenario, sole)
-    return RigCase(scenario, variant, rig.mjcf.to_xml_string(), rig.mjcf.get_assets())
+    return RigCase(scenario, variant, rig.mjcf.to_xml_string(), rig.mjcf.get_assets(),
+                   sole_bodies=tuple(foot_lib.sole_bodies(foot)) if foot is not None else ())

@@ -25,9 +25,6 @@ PEAK_WINDOW_S = 0.002
 step at a time. It is the physics step of the coarsest variants, so that every variant's peak is
 an average over the same duration (a single 0.25 ms step of the closed chain, when a light link
 strikes, can be several times its 2 ms average); it does not depend on the recording interval."""
-SOLE_BODY_PREFIXES = ("chain_", "sole")
-"""Bodies (after the `foot/` prefix) whose bottoms form the sole: the closed chain's links, the
-derived feet's sole bodies."""
 SETTLE_BAND_M = 0.0005
 """Settling: the mount stays within this of its final height."""
 
@@ -40,6 +37,9 @@ class RigCase:
     variant: str
     xml: str
     assets: dict
+    sole_bodies: tuple[str, ...] = ()
+    """Foot bodies whose bottoms form the sole (footforge.foot.sole_bodies), without the rig's
+    `foot/` prefix; none for the ball."""
     patch: dict | None = None
     """Calibration trial values applied to the compiled model: {"joints": {name: {"stiffness":
     N m/rad, "damping": N m s/rad}}, "sole_lift_delta_m": m added to the sole boxes' height}."""
@@ -67,17 +67,15 @@ def _foot_mask(model: mujoco.MjModel) -> np.ndarray:
     return model.body_rootid == model.body_rootid[model.body("carriage").id]
 
 
-def _sole_points(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+def _sole_points(model: mujoco.MjModel, data: mujoco.MjData, sole_bodies) -> tuple[np.ndarray, np.ndarray]:
     """Material points on the bottom of each sole body (within 1 mm of its lowest collision
     point along the foot mount's z axis, at the reference pose), as (body ids (N,), points in
     the body frames (N, 3)). Measured in the mount frame, so a tilted leg selects the same points."""
     mount = model.site("mount").id
     R_mount, p_mount = data.site_xmat[mount].reshape(3, 3), data.site_xpos[mount]
     bodies, local = [], []
-    for b in range(model.nbody):
-        name = model.body(b).name
-        if not name.startswith("foot/") or not name[5:].startswith(SOLE_BODY_PREFIXES):
-            continue
+    for name in (f"foot/{n}" for n in sole_bodies):
+        b = model.body(name).id
         pts = collision_points(model, data, [name])
         if not len(pts):
             continue
@@ -182,7 +180,7 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     mujoco.mj_resetDataKeyframe(model, data, model.key("reference").id)
     mujoco.mj_forward(model, data)
     foot_mask = _foot_mask(model)
-    sole_bodies, sole_local = _sole_points(model, data)
+    sole_bodies, sole_local = _sole_points(model, data, case.sole_bodies)
     slider = model.joint("slider")
     _place(model, data, int(slider.qposadr[0]), foot_mask, scenario.drop_height_m)
     connect = [e for e in range(model.neq) if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT
