@@ -64,12 +64,12 @@ def _run(args) -> int:
 
     try:
         check_output_folder(args.out, force=args.force)  # before minutes of evaluation
-        for policy in args.policy:  # each one a policy folder, before the first one's minutes
-            load_policy_config(policy)
         if args.video:
             from footforge.render import check_renderer, render_frames, write_gif, write_strip
 
             check_renderer()  # before minutes of evaluation
+        for policy in args.policy:  # each one a policy folder, before the first one's minutes
+            load_policy_config(policy)
         results, recordings, cards = [], [], []
         for policy in args.policy:
             for feet in args.feet or [None]:
