@@ -438,6 +438,9 @@ def test_a_missing_policy_folder_is_said_not_to_exist(tmp_path, capsys):
     spec = importlib.util.spec_from_file_location("pipeline_evaluate", REPO / "pipelines" / "evaluate.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
+    from mujoco import mjx  # noqa: F401  (its first import prints about the optional warp backend)
+
+    capsys.readouterr()
     assert module.main(["--policy", str(missing), "--out", str(tmp_path / "eval")]) == 2
     out = capsys.readouterr()
     assert f"{missing} does not exist" in out.err and "footforge.json" not in out.err and out.out == ""
