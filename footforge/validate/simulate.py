@@ -101,8 +101,9 @@ def _sole_orientation(world: np.ndarray) -> tuple[float, float]:
 
 
 def _ground_contacts(model, data, foot_mask):
-    """World positions (N, 3), world forces on the foot (N, 3) and penetrations (N,) of the
-    foot-ground contacts."""
+    """World positions (N, 3), world forces on the foot (N, 3), penetrations (N,) and geom pairs
+    (N, 2) of the foot-ground contacts. After mj_step, `data.contact` and the constraint forces are
+    those computed at the start of that step: the forces that moved the state to the current one."""
     ncon = data.ncon
     geoms = data.contact.geom[:ncon].reshape(-1, 2)
     on_foot = foot_mask[model.geom_bodyid[geoms]]
@@ -114,28 +115,7 @@ def _ground_contacts(model, data, foot_mask):
         f_world = data.contact.frame[i].reshape(3, 3).T @ force[:3]  # on geom2, along the normal 1 -> 2
         forces[n] = -f_world if on_foot[i, 0] else f_world
     return (data.contact.pos[chosen].reshape(-1, 3), forces,
-            np.maximum(0.0, -data.contact.dist[chosen]).reshape(-1))
-
-
-def _ground_force_z(model, data, foot_mask, obstacle: int) -> tuple[float, float]:
-    """Vertical force (N) the ground exerts on the foot in the step MuJoCo last took, in all and
-    through the obstacle geom (id `obstacle`, -1 if none): after mj_step, `data.contact` and the
-    constraint forces are those computed at the start of that step, i.e. the forces that moved the
-    state to the current one."""
-    ncon = data.ncon
-    if not ncon:
-        return 0.0, 0.0
-    geoms = data.contact.geom[:ncon].reshape(-1, 2)
-    on_foot = foot_mask[model.geom_bodyid[geoms]]
-    total, through_obstacle, force = 0.0, 0.0, np.zeros(6)
-    for i in np.flatnonzero(on_foot[:, 0] != on_foot[:, 1]):
-        mujoco.mj_contactForce(model, data, i, force)
-        f_z = data.contact.frame[i].reshape(3, 3)[:, 2] @ force[:3]  # world z of the force on geom2
-        f_z = -f_z if on_foot[i, 0] else f_z
-        total += f_z
-        if obstacle in geoms[i]:
-            through_obstacle += f_z
-    return float(total), float(through_obstacle)
+            np.maximum(0.0, -data.contact.dist[chosen]).reshape(-1), geoms[chosen])
 
 
 def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
@@ -209,10 +189,12 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     slider_dof = int(slider.dofadr[0])
     touched, compressing, compression_impulse = False, True, 0.0
     window = collections.deque(maxlen=max(1, int(round(PEAK_WINDOW_S / model.opt.timestep))))
+    # The foot-ground contacts of the current state: from the placing forward pass, then after
+    # every step those of the step just taken (read once, for the force sums and the records).
+    pos, force, penetration, pairs = _ground_contacts(model, data, foot_mask)
     for k in range(steps + 1):
         if k % every == 0:
             i = k // every
-            pos, force, penetration = _ground_contacts(model, data, foot_mask)
             series["time_s"][i] = data.time
             if i == 0:  # released: the force of the placing forward pass (zero: the foot hangs above the ground)
                 series["force_z_n"][i] = series["force_peak_n"][i] = force[:, 2].sum()
@@ -247,8 +229,9 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
         t0 = time.perf_counter()
         mujoco.mj_step(model, data)
         wall += time.perf_counter() - t0
-        f_z, f_obstacle = _ground_force_z(model, data, foot_mask, obstacle)
-        obstacle_impulse += f_obstacle * model.opt.timestep
+        pos, force, penetration, pairs = _ground_contacts(model, data, foot_mask)
+        f_z = float(force[:, 2].sum())
+        obstacle_impulse += float(force[(pairs == obstacle).any(axis=1), 2].sum()) * model.opt.timestep
         impulse += f_z * model.opt.timestep
         touched |= f_z > 0.0
         if touched and compressing:
