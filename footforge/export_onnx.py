@@ -59,13 +59,14 @@ def export(policy_dir: Path, out: Path | None = None) -> Path:
     import onnx
 
     from footforge.atomic import atomic_file
+    from footforge.outputs import check_output_file
 
     policy_dir = Path(policy_dir)
     if not policy_dir.is_dir():
         raise InputError("no such folder", file=str(policy_dir),
                          fix="pass the policy/ folder of a train_flat.py or train_rough.py run")
     out = Path(out) if out is not None else policy_dir / DEFAULT_FILE
-    _check_writable(out)
+    check_output_file(out)
     model = build_model(policy_dir)
     try:
         with atomic_file(out) as tmp:
@@ -74,21 +75,6 @@ def export(policy_dir: Path, out: Path | None = None) -> Path:
         raise InputError(f"cannot be written: {e.strerror or e}", file=str(out),
                          fix="choose a writable --out path") from None
     return out
-
-
-def _check_writable(out: Path) -> None:
-    """Refuses an output path that cannot be written before the (slow) checkpoint load."""
-    import os
-
-    if out.is_dir():
-        raise InputError("is a folder", file=str(out), fix="give a file name, e.g. policy.onnx")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        why = "is not a folder" if parent.exists() else "does not exist"
-        raise InputError(f"its folder {parent} {why}", file=str(out),
-                         fix="create the folder first or choose another --out")
-    if not os.access(parent, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK)):
-        raise InputError("not writable", file=str(out), fix="choose a writable --out path")
 
 
 def build_model(policy_dir: Path):

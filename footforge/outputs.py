@@ -113,3 +113,22 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
         raise InputError(f"{flag} {given}: the folder holds files footforge did not write (no {MARKER}); "
                          f"pass {force_flag} to replace it anyway, or give another {flag} folder")
     return target
+
+
+def check_output_file(out: Path) -> None:
+    """Refuses an output file path that cannot be written (a folder, a missing or non-folder
+    parent, no permission); call it before the slow work. The file itself is written whole by
+    footforge.atomic.atomic_file.
+
+    Raises:
+      InputError: naming the path and what to change; exit 2.
+    """
+    if out.is_dir():
+        raise InputError("is a folder", file=str(out), fix="give a file name, e.g. policy.onnx")
+    parent = out.parent  # Path("x").parent is Path(".")
+    if not parent.is_dir():
+        why = "is not a folder" if parent.exists() else "does not exist"
+        raise InputError(f"its folder {parent} {why}", file=str(out),
+                         fix="create the folder first or choose another --out")
+    if not os.access(parent, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK)):
+        raise InputError("not writable", file=str(out), fix="choose a writable --out path")
