@@ -71,4 +71,15 @@ for i in "${!pids[@]}"; do
     (( code == 0 )) || failed=1
 done
 tar -czf "$results/campaign.tar.gz" -C "$work" . && echo "campaign: $(du -h "$results/campaign.tar.gz" | cut -f1) in $results/campaign.tar.gz"
+# The compilation cache (run.sh's JAX_COMPILATION_CACHE_DIR) for the next job, when it fits one result file.
+cache="${JAX_COMPILATION_CACHE_DIR:-$(cd "$here/../.." && pwd)/.kit-cache/jax}"
+if [[ -d "$cache" ]]; then
+    tar -czf "$results/jax_cache.tar.gz" -C "$(dirname "$cache")" "$(basename "$cache")"
+    if (( $(stat -c %s "$results/jax_cache.tar.gz") > 16 * 1024 * 1024 )); then
+        echo "campaign: the compilation cache is over 16 MiB ($(du -sh "$cache" | cut -f1)); not bundled"
+        rm -f "$results/jax_cache.tar.gz"
+    else
+        echo "campaign: $(du -h "$results/jax_cache.tar.gz" | cut -f1) in $results/jax_cache.tar.gz (unpack into .kit-cache/ and carry it)"
+    fi
+fi
 exit $failed

@@ -49,6 +49,10 @@ export PYTHONPATH="$site:$repo${PYTHONPATH:+:$PYTHONPATH}"
 export JAX_DEFAULT_MATMUL_PRECISION="${JAX_DEFAULT_MATMUL_PRECISION:-highest}"
 case " ${XLA_FLAGS:-} " in *xla_gpu_triton_gemm_any*) ;; *) export XLA_FLAGS="${XLA_FLAGS:+$XLA_FLAGS }--xla_gpu_triton_gemm_any=True" ;; esac
 export MUJOCO_GL="${MUJOCO_GL:-disable}" PYTHONUNBUFFERED=1
+# JAX's persistent compilation cache: a job that compiles what an earlier job compiled (a resumed
+# training, the same bench) loads it instead. campaign.sh bundles it as jax_cache.tar.gz; unpack
+# that into .kit-cache/ and carry the folder to the next job.
+export JAX_COMPILATION_CACHE_DIR="${JAX_COMPILATION_CACHE_DIR:-$repo/.kit-cache/jax}"
 
 cd "$repo"
 exec "$python" "$here/kit.py" "$@"
