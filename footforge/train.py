@@ -384,7 +384,7 @@ class _OutOfTime(Exception):
 
 def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False, force: bool = False,
           progress: Callable[[int, int, dict, bool], None] | None = None, max_wall_s: float | None = None,
-          notice: Callable[[str], None] | None = None) -> dict:
+          notice: Callable[[str], None] | None = None, evaluate: bool = True) -> dict:
     """Trains a policy; writes checkpoints, TensorBoard logs and the final policy into run_dir.
 
     Returns the final metrics. `progress(global_step, total_steps, metrics, evaluation)` is called
@@ -394,6 +394,13 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     holds a run is refused. `notice(text)` reports what was skipped or removed (default: stderr).
     `max_wall_s`: stop at the last checkpoint that leaves time for no further epoch (see the
     module's docstring); the returned metrics then hold "stopped_for_time": 1.0.
+    `evaluate`: Brax's deterministic evaluation (num_eval_envs robots, one whole episode) at the
+    start and at each checkpoint. Its policy steps run one after another, so on a GPU one
+    evaluation takes as long as about 20 PPO iterations of the paper's settings (measured on an
+    H100, benchmarks/RESULTS.md); time-limited jobs may turn it off. The learning curve then comes
+    from the training episodes (episode/...: the stochastic policy), and pipelines/evaluate.py
+    evaluates the policy afterwards. A run-time choice, not a setting of the run: it changes
+    nothing that is learned, and a resumed run may choose again.
 
     Raises:
       InputError: bad hyperparameters; a run folder that needs --resume or --force; --resume
@@ -490,11 +497,14 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         last.update(now)
         with open(run_dir / "metrics.jsonl", "a") as f:  # one line per evaluation or training-episodes log
             f.write(json.dumps({"global_step": global_step, "wall_s": time.time() - t0} | now) + "\n")
+        # The end of an epoch (its checkpoint written, its evaluation run if any) is the call that
+        # carries Brax's training/sps; the initial evaluation and the training-episode logs do not.
+        epoch_end = "training/sps" in metrics
         if progress:
-            progress(global_step, ppo.num_timesteps, last, "eval/walltime" in metrics)
-        # An evaluation follows each checkpoint (step 0 has none): stop here if one more epoch,
-        # timed as the last one (training, checkpoint, evaluation), would overrun the budget.
-        if max_wall_s is not None and step > 0 and "eval/walltime" in metrics and offset + step < ppo.num_timesteps:
+            progress(global_step, ppo.num_timesteps, last, epoch_end or "eval/walltime" in metrics)
+        # Stop here if one more epoch, timed as the last one (training, checkpoint, evaluation),
+        # would overrun the budget.
+        if max_wall_s is not None and step > 0 and epoch_end and offset + step < ppo.num_timesteps:
             now_t = time.time()
             epoch_s, clock["last_eval"] = now_t - clock["last_eval"], now_t
             if now_t + epoch_s > t0 + max_wall_s:
@@ -502,7 +512,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
 
     try:
         _run_ppo(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save,
-                 wrap_for_training, randomizer)
+                 wrap_for_training, randomizer, evaluate)
     except _OutOfTime:
         clock["stopped"] = True
     if writer:
@@ -550,7 +560,7 @@ def machine() -> dict:
 
 
 def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
-             resumes: int, log, save, wrap_for_training, randomizer) -> None:
+             resumes: int, log, save, wrap_for_training, randomizer, evaluate: bool = True) -> None:
     ppo_train.train(
         environment=env, num_timesteps=remaining, episode_length=env_config.episode_steps,
         num_envs=ppo.num_envs, unroll_length=ppo.unroll_length, batch_size=ppo.batch_size,
@@ -561,7 +571,7 @@ def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: i
         normalize_observations=ppo.normalize_observations, bootstrap_on_timeout=True,
         learning_rate_schedule="ADAPTIVE_KL" if ppo.adaptive_kl else None, desired_kl=ppo.adaptive_kl or 0.01,
         network_factory=network_factory(ppo, env_config.privileged_critic), seed=ppo.seed + 1000 * resumes,
-        num_evals=epochs + 1,
+        num_evals=epochs + 1, run_evals=evaluate,
         num_eval_envs=ppo.num_eval_envs, progress_fn=log, policy_params_fn=save,
         restore_params=tuple(restore) if restore is not None else None, wrap_env_fn=wrap_for_training,
         randomization_fn=randomizer(env),  # EnvConfig.randomization: one draw per robot for the run

@@ -35,6 +35,10 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     p.add_argument("--minibatches", type=int, help="minibatches per iteration (default 4)")
     p.add_argument("--checkpoint-every", type=int, help="environment steps between checkpoints (default 5e6)")
     p.add_argument("--eval-envs", type=int, help="robots per evaluation (default 128)")
+    p.add_argument("--no-evaluations", action="store_true",
+                   help="skip the deterministic evaluation at the start and at each checkpoint (on a GPU one "
+                        "costs as much time as about 20 PPO iterations); the curve then comes from the training "
+                        "episodes, and pipelines/evaluate.py evaluates the policy afterwards")
     p.add_argument("--build-root", type=Path,
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/), as in "
                         "the evaluation pipelines")
@@ -82,7 +86,8 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                     "process_id": args.process_id}))
             with _Reporter(console, task, ppo.num_timesteps) as report:
                 metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
-                                      max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None)
+                                      max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None,
+                                      evaluate=not args.no_evaluations)
     except FootforgeError as e:
         print(f"{name}: error: {e}", file=sys.stderr)
         return e.exit_code
@@ -94,8 +99,11 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     if metrics.get("stopped_for_time"):
         console.print(f"stopped at the wall-time budget ({args.max_minutes:g} min) after a checkpoint; "
                       f"--resume continues")
-    console.print(f"policy written to {args.out / 'policy'}; final evaluation return "
-                  f"{metrics.get('eval/episode_reward', float('nan')):.2f}")
+    if "eval/episode_reward" in metrics:
+        console.print(f"policy written to {args.out / 'policy'}; final evaluation return "
+                      f"{metrics['eval/episode_reward']:.2f}")
+    else:
+        console.print(f"policy written to {args.out / 'policy'} (not evaluated: pipelines/evaluate.py does)")
     return 0
 
 
@@ -191,9 +199,13 @@ class _Reporter:
         print(text, file=self.console.file, flush=True)
 
     def __call__(self, step: int, total: int, metrics: dict, evaluation: bool = True) -> None:
-        reward = metrics.get("eval/episode_reward", float("nan"))
-        err = metrics.get("eval/episode_error/lin_vel_x_per_step", float("nan"))
-        text = f"return {reward:7.2f}  vx error {err:5.3f} m/s"
+        if "eval/episode_reward" in metrics:
+            reward = metrics["eval/episode_reward"]
+            err = metrics.get("eval/episode_error/lin_vel_x_per_step", float("nan"))
+            text = f"return {reward:7.2f}  vx error {err:5.3f} m/s"
+        else:  # no evaluations (--no-evaluations): the training episodes' figures
+            err = metrics.get("episode/error/lin_vel_x_per_step", float("nan"))
+            text = f"training episodes: length {metrics.get('episode/length', float('nan')):5.0f}  vx error {err:5.3f} m/s"
         if self.task == "rough":
             text += f"  terrain level {metrics.get('episode/terrain/level_per_step', float('nan')):4.2f}"
         diverged = metrics.get("eval/episode_diverged", 0.0)

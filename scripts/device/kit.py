@@ -109,7 +109,8 @@ def run_job(args, extra: list[str]) -> int:
         cmd += ["--max-minutes", f"{train_s / 60:.3f}"] + extra
         code = call(cmd, log, timeout=deadline - time.time() - 10)
         summary |= {"run": run.name, "returncode": code} | run_state(run)
-        if code == 0 and (run / "policy").is_dir():
+        # Packed also when the job was killed at its limit: its checkpoints let the next job resume.
+        if (run / "policy").is_dir() or summary["global_step"]:
             summary["tarball"] = pack(run, results)
     elif args.job == "evaluate":
         if not args.names:
