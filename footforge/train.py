@@ -30,11 +30,12 @@ only the files and folders footforge writes in a run folder, RUN_ENTRIES, are re
 else in the folder stays). These checks run before any compilation.
 
 `max_wall_s` bounds a call's wall-clock time for machines whose jobs have a time limit: after each
-checkpoint and its evaluation, training stops when the next epoch (estimated by the last one)
-would end past the budget; the policy folder then holds the last checkpoint and
-`progress.json` says `"stopped": "wall-time budget"`; `--resume` continues. The first epoch's
-time includes the compilation, so a call may stop after its first checkpoint although another
-epoch would have fitted: keep epochs (checkpoint_every_steps) short against the budget.
+checkpoint and its evaluation, training stops when the next epoch would end past the budget; the
+policy folder then holds the last checkpoint and `progress.json` says `"stopped": "wall-time
+budget"`; `--resume` continues. The next epoch is estimated by the last one, except after the
+first, whose time holds the compilation (minutes for the adaptive feet): that one is estimated
+from the throughput of the training-episode logs (Brax's episode/sps, the first log left out for
+the same reason) plus the evaluation's time (next_epoch_seconds).
 """
 
 from __future__ import annotations
@@ -471,7 +472,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     last: dict = {}
     t0 = time.time()
     this_machine = machine()
-    clock = {"last_eval": t0, "stopped": False}
+    clock = {"last_eval": t0, "stopped": False, "epochs": 0, "sps_logs": 0, "sps": None}
 
     def save(step: int, make_policy, params) -> None:
         global_step = offset + step
@@ -500,13 +501,20 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         # The end of an epoch (its checkpoint written, its evaluation run if any) is the call that
         # carries Brax's training/sps; the initial evaluation and the training-episode logs do not.
         epoch_end = "training/sps" in metrics
+        if "episode/sps" in metrics:
+            clock["sps_logs"] += 1
+            if clock["sps_logs"] > 1:  # the first log's interval holds the compilation
+                clock["sps"] = float(metrics["episode/sps"])
         if progress:
             progress(global_step, ppo.num_timesteps, last, epoch_end or "eval/walltime" in metrics)
         # Stop here if one more epoch, timed as the last one (training, checkpoint, evaluation),
         # would overrun the budget.
         if max_wall_s is not None and step > 0 and epoch_end and offset + step < ppo.num_timesteps:
             now_t = time.time()
-            epoch_s, clock["last_eval"] = now_t - clock["last_eval"], now_t
+            epoch_s = next_epoch_seconds(now_t - clock["last_eval"], clock["epochs"] == 0, clock["sps"],
+                                         ppo.checkpoint_every_steps, float(metrics.get("eval/epoch_eval_time", 0.0)))
+            clock["last_eval"] = now_t
+            clock["epochs"] += 1
             if now_t + epoch_s > t0 + max_wall_s:
                 raise _OutOfTime()
 
@@ -530,6 +538,17 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         if primary and state_file.exists():
             _write_json(state_file, json.loads(state_file.read_text()) | {"metrics": last, "stopped": "wall-time budget"})
     return last
+
+
+def next_epoch_seconds(last_epoch_s: float, first: bool, steps_per_s: float | None, steps_per_epoch: int,
+                       evaluation_s: float = 0.0) -> float:
+    """The wall time the next epoch will take (for the max_wall_s stop): the last epoch's, except
+    after the first epoch, whose time holds the compilation; that one is estimated as its steps at
+    the measured training throughput plus an evaluation, when a throughput was measured, and never
+    above the observed time."""
+    if first and steps_per_s:
+        return min(last_epoch_s, steps_per_epoch / steps_per_s + evaluation_s)
+    return last_epoch_s
 
 
 def save_checkpoint(run_dir: Path, global_step: int, params, observation_size, action_size: int, ppo: PPOConfig,

@@ -72,3 +72,15 @@ def test_cpu_dry_run_of_the_gpu_kit(tmp_path):
                           text=True, env=env, timeout=3600)
     last = json.loads(done.stdout.strip().splitlines()[-1])
     assert done.returncode == 0 and last["dryrun"] == "ok", done.stdout[-4000:] + done.stderr[-2000:]
+
+
+def test_campaign_takes_a_spec_that_begins_with_an_option_and_refuses_an_unknown_option(tmp_path):
+    """A SPEC may begin with run.sh's --resume (the campaign of 2026-11-24 was refused so); a
+    misspelt campaign option is still a usage error."""
+    campaign = str(REPO / "scripts/device/campaign.sh")
+    common = ["--kit", str(tmp_path / "none"), "--results", str(tmp_path / "out")]
+    done = subprocess.run([campaign, *common, "--resume x.tar.gz train-flat ball B"], capture_output=True, text=True)
+    assert "unknown option" not in done.stderr
+    assert done.returncode == 1 and "the kit did not install" in done.stderr  # it went on to the kit
+    done = subprocess.run([campaign, "--minute", "5", "train-flat ball B"], capture_output=True, text=True)
+    assert done.returncode == 2 and "unknown option --minute" in done.stderr

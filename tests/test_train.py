@@ -192,11 +192,14 @@ def test_initial_policy_of_a_privileged_critic_loads_and_acts(tmp_path):
 
 
 @pytest.mark.slow  # a real training stopped by its budget: about 3 minutes on 2 cores
-def test_time_budget_stops_at_a_checkpoint(built, tmp_path):
+@pytest.mark.parametrize("evaluations", [True, pytest.param(False, marks=pytest.mark.slow)])
+def test_time_budget_stops_at_a_checkpoint(built, tmp_path, evaluations):
     """--max-minutes: a run whose first epoch (compilation included) outlasts the budget stops
-    after that epoch's checkpoint and evaluation, with its policy written and the stop recorded."""
+    after that epoch's checkpoint (and evaluation, unless --no-evaluations), with its policy
+    written and the stop recorded."""
     out = tmp_path / "run"
-    done = subprocess.run(_train(out, built["ball"][0], 100_000, "--max-minutes", "0.05"),
+    done = subprocess.run(_train(out, built["ball"][0], 100_000, "--max-minutes", "0.05",
+                                 *([] if evaluations else ["--no-evaluations"])),
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert "wall-time budget" in done.stdout
@@ -205,6 +208,8 @@ def test_time_budget_stops_at_a_checkpoint(built, tmp_path):
     assert progress["stopped"] == "wall-time budget" and progress["global_step"] == 32
     assert json.loads((out / "policy/footforge.json").read_text())["global_step"] == 32
     assert latest_checkpoint(out)[0] == 32
+    logged = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    assert any("eval/episode_reward" in m for m in logged) == evaluations
 
 
 # --- run folders, checkpoints that fail verification, the command line's messages ---
@@ -496,3 +501,16 @@ def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypa
     assert code == 2
     assert "train_flat: interrupted; no checkpoint was written" in captured.err
     assert signal.getsignal(signal.SIGTERM) is before  # the handler is the pipeline's only while it trains
+
+
+def test_the_first_epoch_is_estimated_from_the_throughput_not_its_compilation():
+    """--max-minutes: after the first epoch (compilation included) the next is estimated from the
+    measured steps/s plus an evaluation; later epochs by the last one's time. The H100 campaign's
+    AFF job stopped at 4.8 of 8.5 minutes when its 4.8-minute first epoch was the estimate."""
+    from footforge.train import next_epoch_seconds
+
+    # 4 M steps at 46,000 steps/s: 87 s, plus a 75 s evaluation; the first epoch took 290 s.
+    assert next_epoch_seconds(290.0, True, 46_000.0, 4_000_000, 75.0) == pytest.approx(4e6 / 46e3 + 75.0)
+    assert next_epoch_seconds(290.0, True, None, 4_000_000) == 290.0  # no throughput measured
+    assert next_epoch_seconds(90.0, False, 46_000.0, 4_000_000) == 90.0  # a later epoch: its own time
+    assert next_epoch_seconds(10.0, True, 1_000.0, 4_000_000) == 10.0  # never above what was observed

@@ -25,6 +25,7 @@ while [[ $# -gt 0 && "$1" == --* ]]; do
         --results) results="$2"; shift 2 ;;
         --minutes) minutes="$2"; shift 2 ;;
         --kit) kit_args=(--kit "$2"); shift 2 ;;
+        *" "*) break ;;  # a SPEC that begins with one of run.sh's options ("--resume X train-flat ...")
         *) echo "campaign: error: unknown option $1" >&2; exit 2 ;;
     esac
 done
