@@ -315,15 +315,17 @@ def test_step_returns_the_types_it_takes(rollouts):
 def test_a_non_finite_reward_term_or_state_ends_the_episode_as_diverged(rollouts):
     """The total reward is clipped at zero, which turns -inf or NaN into 0: finiteness is checked
     before the clip. A non-finite reward term (here joint_acc, through the previous joint
-    velocities) or state ends the robot's episode as a fall, with the `diverged` metric at 1 and
-    neither NaN rewards nor NaN observations."""
+    velocities) or state, or a speed past EnvConfig.diverged_speed, ends the robot's episode as a
+    fall, with the `diverged` metric at 1 and neither NaN rewards nor NaN observations."""
     env, states, step = rollouts["ball"]
     state = states[1]
     assert float(step(state, jp.zeros(12)).metrics["diverged"]) == 0.0
     data = state.pipeline_state
     poisoned = {"inf term": state.replace(info=state.info | {"last_joint_vel": jp.full(12, jp.inf, jp.float32)}),
                 "NaN term": state.replace(info=state.info | {"last_joint_vel": jp.full(12, jp.nan, jp.float32)}),
-                "NaN state": state.replace(pipeline_state=data.replace(qvel=data.qvel.at[6].set(jp.nan)))}
+                "NaN state": state.replace(pipeline_state=data.replace(qvel=data.qvel.at[6].set(jp.nan))),
+                # blown up but finite, as AOF's physics did in the H100 campaign (EnvConfig.diverged_speed)
+                "huge speed": state.replace(pipeline_state=data.replace(qvel=data.qvel.at[0].set(1e8)))}
     for name, bad in poisoned.items():
         after = step(bad, jp.zeros(12))
         assert float(after.metrics["diverged"]) == 1.0, name

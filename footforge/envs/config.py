@@ -189,6 +189,12 @@ class EnvConfig:
     """Physics steps per policy step (50 Hz)."""
     episode_length_s: float = 20.0
     """Time-outs end an episode as a truncation (PPO bootstraps them)."""
+    diverged_speed: float = 1000.0
+    """Generalised velocity (m/s for the base's translation, rad/s otherwise) above which a
+    robot's physics counts as diverged, as a NaN does: its episode ends as a fall with zero
+    metrics. Far above anything a walking or falling ANYmal does; in the H100 campaign
+    (benchmarks/RESULTS.md, 2026-11-24) AOF training episodes logged finite velocities of up to
+    1e14 m/s that a NaN check alone let through into the returns and metrics."""
     action: Literal["velocity", "position"] = "velocity"
     """How the 12 policy outputs a (clipped to +-action_clip) become the PD targets (rad), kept
     within the joint ranges:

@@ -203,7 +203,8 @@ class LocomotionEnv(Env):
         # NaNs must reach neither the returns nor the policy's inputs. Finiteness (of the state
         # and of every reward term, raw and weighted) is checked before the clip, which would
         # turn -inf or NaN into 0 and hide the divergence; the `diverged` metric reports it.
-        finite = (jp.isfinite(data.qpos).all() & jp.isfinite(data.qvel).all() & jp.isfinite(reward)
+        # Physics that blew up without reaching inf (EnvConfig.diverged_speed) counts the same.
+        finite = (jp.isfinite(data.qpos).all() & (jp.abs(data.qvel) < cfg.diverged_speed).all() & jp.isfinite(reward)
                   & jp.isfinite(data.actuator_force).all()
                   & jp.all(jp.isfinite(jp.stack([terms[t] for t in rewards.TERMS]))))
         if scales.clip_total_at_zero:
