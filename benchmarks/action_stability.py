@@ -1,10 +1,6 @@
-"""Does the training physics survive a policy's actions? CPU MuJoCo on the MJX environment's own
-model (footforge.envs.anymal.load_robot: its timestep, contact and solver settings), robots driven
-by an untrained policy's actions: each policy step a ~ N(0, 1) clipped to +-1 (PPO's initial
-Gaussian, EnvConfig.init_noise_std 1), turned into PD targets by the flat task's velocity model
-(target += 13.5 a dt, within the joint ranges). A robot diverges when a generalised velocity passes
-EnvConfig.diverged_speed or turns non-finite (the environment's own test). One JSON line: per
-setting, the robots that diverged and when.
+"""Does the training physics survive a policy's actions? An untrained policy's random actions on
+flat ground (footforge.envs.stability: CPU MuJoCo on the MJX environment's own model) for each
+feet and physics step; one JSON line: per setting, the robots that diverged and when.
 
 `--sim mjx` runs the MJX environment itself instead (jitted, vmapped over the robots; its own
 divergence check and restarts): the `diverged` count is then the episodes that ended diverged.
@@ -17,39 +13,15 @@ import argparse
 import json
 from dataclasses import replace
 
-import mujoco
 import numpy as np
 
 from footforge import envs
-from footforge.envs.anymal import load_robot
+from footforge.envs.stability import divergence_times
 
 
 def run(feet: str, robots: int, seconds: float, sim_dt: float, decimation: int, seed: int) -> dict:
     config = replace(envs.default_config("flat", feet, "B"), sim_dt=sim_dt, decimation=decimation)
-    robot = load_robot(config)
-    model = robot.model
-    model.opt.timestep = sim_dt
-    policy_dt = sim_dt * decimation
-    rng = np.random.default_rng(seed)
-    steps = int(round(seconds / policy_dt))
-    diverged_at = []
-    for _ in range(robots):
-        data = mujoco.MjData(model)
-        data.qpos[:] = robot.stand_qpos
-        target = robot.default_q.copy()
-        data.ctrl[robot.actuator_ids] = target
-        mujoco.mj_forward(model, data)
-        when = None
-        for k in range(steps):
-            a = np.clip(rng.normal(size=12), -config.action_clip, config.action_clip)
-            target = np.clip(target + config.action_scale * a * policy_dt, robot.q_limits[:, 0], robot.q_limits[:, 1])
-            data.ctrl[robot.actuator_ids] = target
-            mujoco.mj_step(model, data, nstep=decimation)
-            if not np.all(np.abs(data.qvel) < config.diverged_speed):
-                when = round((k + 1) * policy_dt, 3)
-                break
-        diverged_at.append(when)
-    hit = [t for t in diverged_at if t is not None]
+    hit = [t for t in divergence_times(config, robots, seconds, seed) if t is not None]
     return {"diverged": len(hit), "robots": robots, "times_s": hit}
 
 

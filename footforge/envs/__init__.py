@@ -32,16 +32,29 @@ def default_config(task: str, feet: str, policy: str) -> EnvConfig:
         raise InputError(f"policy type '{policy}' is not available for the {task} task",
                          fix=f"use one of {', '.join(TASKS[task])}")
     check_feet_and_policy(feet, policy)
+    physics = _physics_step(feet)
     if task == "flat":
         # The flat baseline's published scales where it has them (the rest: the rough baseline's).
         # Its reset puts the joints at the defaults (only their velocities are drawn).
         flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
         return EnvConfig(task="flat", feet=feet, policy=policy, action="velocity", rewards=flat_rewards,
-                         reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)))
+                         reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)), **physics)
     # The rough baseline: position targets default + 0.5 a, planar commands in [-1, 1] m/s with
     # slow ones zeroed.
     commands = CommandConfig(lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-1.0, 1.0), zero_below=0.25)
-    return EnvConfig(task="rough", feet=feet, policy=policy, action="position", action_scale=0.5, commands=commands)
+    return EnvConfig(task="rough", feet=feet, policy=policy, action="position", action_scale=0.5, commands=commands,
+                     **physics)
+
+
+def _physics_step(feet: str) -> dict:
+    """EnvConfig's sim_dt and decimation for the feet: the baselines' 5 ms x 4 for ball feet; 2.5 ms
+    x 8 for the adaptive feet (the same 50 Hz policy). Their light passive links (AOF's sole
+    halves, the ankle links) make the 5 ms step diverge under a policy's actions: an untrained
+    policy's actions on flat ground (benchmarks/action_stability.py, 32 robots, 10 s) diverged 30
+    AOF episodes in MJX (19 of 32 robots; CPU MuJoCo: 23 of 32) at 5 ms and none at 2.5 ms, and
+    in the H100 campaign 29-37% of AOF and up to 3% of AFF training episodes diverged at 5 ms
+    (benchmarks/RESULTS.md, 2026-11-24). The price: twice the physics steps per policy step."""
+    return {} if feet == "ball" else {"sim_dt": 0.0025, "decimation": 8}
 
 
 def from_config(config):

@@ -1,0 +1,50 @@
+"""Whether the training physics survives a policy's actions, on the CPU.
+
+CPU MuJoCo steps the MJX environment's own model (load_robot: its timestep, contact and solver
+settings) under an untrained policy's actions: each policy step a ~ N(0, 1) clipped to
++-EnvConfig.action_clip (PPO's initial Gaussian), turned into PD targets by the flat task's
+velocity model (target += action_scale a policy_dt, within the joint ranges). A robot diverges
+when a generalised velocity passes EnvConfig.diverged_speed or turns non-finite, the environment's
+own criterion. A proxy for MJX, which runs the same model in float32 (benchmarks/action_stability.py
+--sim mjx measures both; on AOF they agreed, benchmarks/RESULTS.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+
+from footforge.envs.anymal import load_robot
+from footforge.envs.config import EnvConfig
+
+
+def divergence_times(config: EnvConfig, robots: int, seconds: float, seed: int = 0) -> list[float | None]:
+    """Per robot, the time (s) at which its physics diverged, or None if it lasted `seconds`.
+    Robots start from the build's stand keyframe at the default targets and are never reset
+    (a fallen robot keeps being driven)."""
+    config = replace(config, action="velocity")
+    robot = load_robot(config)
+    model = robot.model
+    rng = np.random.default_rng(seed)
+    steps = int(round(seconds / config.policy_dt))
+    lo, hi = robot.q_limits[:, 0], robot.q_limits[:, 1]
+    times: list[float | None] = []
+    for _ in range(robots):
+        data = mujoco.MjData(model)
+        data.qpos[:] = robot.stand_qpos
+        target = robot.default_q.copy()
+        data.ctrl[robot.actuator_ids] = target
+        mujoco.mj_forward(model, data)
+        when = None
+        for k in range(steps):
+            action = np.clip(rng.normal(size=len(target)), -config.action_clip, config.action_clip)
+            target = np.clip(target + config.action_scale * action * config.policy_dt, lo, hi)
+            data.ctrl[robot.actuator_ids] = target
+            mujoco.mj_step(model, data, nstep=config.decimation)
+            if not np.all(np.abs(data.qvel) < config.diverged_speed):  # NaN compares False too
+                when = round((k + 1) * config.policy_dt, 4)
+                break
+        times.append(when)
+    return times
