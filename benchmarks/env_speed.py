@@ -26,8 +26,14 @@ def main() -> None:
     p.add_argument("--tasks", nargs="+", default=["flat", "rough"], choices=list(envs.TASKS))
     p.add_argument("--policies", nargs="+", default=["B", "PH"],
                    help="policy types where the task has them (PH on ball feet falls back to P)")
+    p.add_argument("--no-compile-cache", action="store_true",
+                   help="measure cold compilation: without JAX's persistent cache (footforge/compile_cache.py)")
     args = p.parse_args()
-    figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__}
+    from footforge import compile_cache
+
+    cache = compile_cache.enable(not args.no_compile_cache)
+    figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,
+               "compile_cache": str(cache) if cache else None}
     for task in args.tasks:
         for feet in args.feet:
             policies = []

@@ -35,6 +35,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     p.add_argument("--minibatches", type=int, help="minibatches per iteration (default 4)")
     p.add_argument("--checkpoint-every", type=int, help="environment steps between checkpoints (default 5e6)")
     p.add_argument("--eval-envs", type=int, help="robots per evaluation (default 128)")
+    p.add_argument("--no-compile-cache", action="store_true",
+                   help="compile without JAX's persistent cache (footforge/compile_cache.py: on by default, in "
+                        "~/.cache/footforge/jax or $FOOTFORGE_COMPILE_CACHE)")
     p.add_argument("--no-evaluations", action="store_true",
                    help="skip the deterministic evaluation at the start and at each checkpoint (on a GPU one "
                         "costs as much time as about 20 PPO iterations); the curve then comes from the training "
@@ -84,6 +87,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                 jax.distributed.initialize(**({} if args.coordinator == "auto" else {
                     "coordinator_address": args.coordinator, "num_processes": args.num_processes,
                     "process_id": args.process_id}))
+            from footforge import compile_cache
+
+            compile_cache.enable(not args.no_compile_cache)
             with _Reporter(console, task, ppo.num_timesteps) as report:
                 metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
                                       max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None,

@@ -43,6 +43,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="output folder (default evaluation/); replaced only if footforge wrote it, see --force")
     p.add_argument("--force", action="store_true",
                    help="replace --out even if footforge did not write it (it may hold your files)")
+    p.add_argument("--no-compile-cache", action="store_true",
+                   help="compile without JAX's persistent cache (on by default: footforge/compile_cache.py)")
     args = p.parse_args(argv)
 
     from footforge.processes import sigterm_as_interrupt
@@ -50,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.num_envs < 1 or (args.seconds is not None and args.seconds <= 0) or (args.video is not None and args.video <= 0):
         print("evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
         return 2
+    from footforge import compile_cache
+
+    compile_cache.enable(not args.no_compile_cache)
     with sigterm_as_interrupt():  # a terminated run cleans up as an interrupted one
         return _run(args)
 

@@ -1,9 +1,18 @@
+import atexit
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
 
 os.environ.setdefault("MUJOCO_GL", "disable")
+# The suite's compiled programs go to a compilation cache of its own (footforge/compile_cache.py),
+# shared by its processes (the command-line tests compile the same tiny trainings several times)
+# and removed afterwards: a user's cache is neither read nor filled.
+_COMPILE_CACHE = tempfile.mkdtemp(prefix="footforge-test-jax-cache-")
+os.environ["FOOTFORGE_COMPILE_CACHE"] = _COMPILE_CACHE
+atexit.register(shutil.rmtree, _COMPILE_CACHE, ignore_errors=True)
 
 REPO = Path(__file__).resolve().parents[1]
 FOOT_XACRO = REPO / "descriptions/softfoot_q/urdf/softfoot_q.urdf.xacro"
