@@ -19,19 +19,19 @@ from footforge import envs
 from footforge.envs.stability import divergence_times
 
 
-def run(feet: str, robots: int, seconds: float, sim_dt: float, decimation: int, seed: int) -> dict:
-    config = replace(envs.default_config("flat", feet, "B"), sim_dt=sim_dt, decimation=decimation)
+def run(feet: str, robots: int, seconds: float, sim_dt: float, decimation: int, seed: int, **physics) -> dict:
+    config = replace(envs.default_config("flat", feet, "B"), sim_dt=sim_dt, decimation=decimation, **physics)
     hit = [t for t in divergence_times(config, robots, seconds, seed) if t is not None]
     return {"diverged": len(hit), "robots": robots, "times_s": hit}
 
 
-def run_mjx(feet: str, robots: int, seconds: float, sim_dt: float, decimation: int, seed: int) -> dict:
+def run_mjx(feet: str, robots: int, seconds: float, sim_dt: float, decimation: int, seed: int, **physics) -> dict:
     import time
 
     import jax
     import jax.numpy as jp
 
-    env = envs.make("flat", feet, "B", sim_dt=sim_dt, decimation=decimation)
+    env = envs.make("flat", feet, "B", sim_dt=sim_dt, decimation=decimation, **physics)
     steps = int(round(seconds / env.config.policy_dt))
     reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
 
@@ -59,12 +59,18 @@ def main() -> None:
     p.add_argument("--sim-dt", type=float, nargs="+", default=[0.005])
     p.add_argument("--decimation", type=int, nargs="+", default=[4], help="one per --sim-dt")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--contact-model", choices=("fast", "build"), default="fast", help="EnvConfig.contact_model")
+    p.add_argument("--iterations", type=int, nargs=2, metavar=("NEWTON", "LINESEARCH"),
+                   help="EnvConfig.solver_iterations and solver_ls_iterations (default: the config's)")
     args = p.parse_args()
+    physics = {"contact_model": args.contact_model}
+    if args.iterations:
+        physics |= {"solver_iterations": args.iterations[0], "solver_ls_iterations": args.iterations[1]}
     figures = {}
     for feet in args.feet:
         for dt, dec in zip(args.sim_dt, args.decimation):
             figures[f"{feet}_dt{dt * 1000:g}ms"] = (run_mjx if args.sim == "mjx" else run)(
-                feet, args.robots, args.seconds, dt, dec, args.seed)
+                feet, args.robots, args.seconds, dt, dec, args.seed, **physics)
     print(json.dumps(figures))
 
 
