@@ -85,7 +85,7 @@ def test_malformed_xacro(capsys, tmp_path, foot_copy):
     path.write_text(path.read_text().replace("</robot>", "</robt>"))
     code, text = run(capsys, "build", "--variant", "aff", "--description", foot_copy / "urdf/softfoot_q.urdf.xacro",
                      "--package-path", tmp_path, "--out", tmp_path / "out")
-    assert code == 2 and "malformed" in text.lower() or "xacro failed" in text
+    assert code == 2 and ("malformed" in text.lower() or "xacro failed" in text), text
     assert "Traceback" not in text
 
 
