@@ -74,8 +74,6 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
       InputError: a haptic policy, non-positive seconds or robots, or a policy step that is not a
         whole number of the closed chain's physics steps.
     """
-    from footforge.envs.locomotion import LocomotionEnv
-    from footforge.envs.rough import RoughEnv
     from footforge.train import load_policy
 
     policy, config, _ = load_policy(policy_dir)
@@ -85,16 +83,9 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
                          fix="evaluate blind (B) or perceptive (P) policies on the closed chain")
     if seconds <= 0 or num_robots < 1:
         raise InputError(f"seconds ({seconds}) and robots ({num_robots}) must be positive", fix="e.g. 10 s, 4 robots")
-    # The environment whose maths the CPU runner evaluates: flat ground, or the rough task on the
-    # tiles (its terrain height under the base and under the height scan).
-    if terrain_tiles:
-        env = RoughEnv(replace(config, task="rough", terrain=terrain_tiles, build_dir=_build_dir(config.feet, build_root)))
-        terrain = env.terrain
-    else:
-        terrain, env = None, None
-    trained = _load(config, config.feet, build_root, terrain)
-    env = env or LocomotionEnv(replace(config, task="flat", build_dir=_build_dir(config.feet, build_root)), robot=trained)
-    full = _load(config, FULL, build_root, terrain, own_physics=True)
+    env, trained = policy_environment(config, build_root, terrain_tiles)
+    terrain = getattr(env, "terrain", None)
+    full = cpu_robot(config, FULL, build_root, terrain, own_physics=True)
     steps = int(round(seconds / config.policy_dt))
     result = {"policy": str(policy_dir), "policy_type": config.policy, "trained_on": config.feet, "seconds": seconds,
               "num_robots": num_robots, "seed": seed, "policy_dt_s": config.policy_dt,
@@ -109,12 +100,28 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
     return result
 
 
+def policy_environment(config, build_root: Path | None = None, terrain_tiles: TerrainConfig | None = None):
+    """(env, robot): the environment whose maths the CPU runner evaluates for a policy trained
+    with `config` (flat ground: LocomotionEnv; on `terrain_tiles`: RoughEnv, its terrain height
+    under the base and under the height scan; env.terrain is then the Terrain), and the policy's
+    own feet as a CPU robot (cpu_robot) on that ground."""
+    from footforge.envs.locomotion import LocomotionEnv
+    from footforge.envs.rough import RoughEnv
+
+    if terrain_tiles:
+        env = RoughEnv(replace(config, task="rough", terrain=terrain_tiles, build_dir=_build_dir(config.feet, build_root)))
+        return env, cpu_robot(config, config.feet, build_root, env.terrain)
+    robot = cpu_robot(config, config.feet, build_root, None)
+    return LocomotionEnv(replace(config, task="flat", build_dir=_build_dir(config.feet, build_root)), robot=robot), robot
+
+
 def _build_dir(feet: str, build_root: Path | None) -> str | None:
     """<build_root>/<feet>, or None: the environments' default, build/<feet>, built on first use."""
     return str(Path(build_root) / feet) if build_root else None
 
 
-def _load(config, feet: str, build_root: Path | None, terrain: Terrain | None, *, own_physics: bool = False) -> Robot:
+def cpu_robot(config, feet: str, build_root: Path | None, terrain: Terrain | None, *,
+              own_physics: bool = False) -> Robot:
     """`feet`'s robot for the CPU: the environment's index tables, on `terrain` if given (its
     base and thighs colliding with the heightfield for real: MuJoCo on the CPU can, so falls are
     real contacts); physics at the environment's step and solver, or (own_physics) at the build's."""
@@ -140,12 +147,7 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     control = Controller(env, robot, policy)
     datas = [mujoco.MjData(model) for _ in range(num_robots)]
     for i, d in enumerate(datas):
-        d.qpos[:] = robot.stand_qpos  # at rest under the default targets, as the environment starts
-        if terrain is not None:
-            d.qpos[:2] = _spawn(terrain, i)
-            d.qpos[2] += terrain.height_at(*d.qpos[:2])
-        d.ctrl[robot.actuator_ids] = robot.default_q
-        mujoco.mj_forward(model, d)
+        place_at_start(robot, d, terrain, i)
     info, obs = control.start(_stack(datas, "qpos"), _stack(datas, "qvel"), seed)
     equality = _EqualityResiduals(model) if model.neq else None
     alive, ok = np.ones(num_robots, bool), np.ones(num_robots, bool)
@@ -174,10 +176,8 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
                     for k, value in zip(worst, equality(d)):
                         worst[k][i, t] = np.fmax(worst[k][i, t], value)
                         totals[k] += (value, 1)
-            # MuJoCo resets a simulation whose accelerations blow up (a BADQACC warning): diverged too.
-            ok[i] = (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()
-                     and d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0)
-        fallen = control.touching(*_contacts(datas)) | ~ok
+            ok[i] = not diverged(d)
+        fallen = control.touching(*padded_contacts(datas)) | ~ok
         info, obs, row = control.settle(_stack(datas, "qpos"), _stack(datas, "qvel"), info, keys, action,
                                         _stack(datas, "actuator_force"))
         fall_step[alive & fallen] = t
@@ -212,6 +212,26 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
             "closure": closure, "traces": traces}
 
 
+def place_at_start(robot: Robot, data: mujoco.MjData, terrain: Terrain | None = None, i: int = 0) -> None:
+    """Puts robot i where the runner starts it: standing at rest under the default PD targets, as
+    the environment starts, at the origin or (on `terrain`) on the centre of a tile of its
+    hardest level, column i modulo the columns."""
+    mujoco.mj_resetData(robot.model, data)
+    data.qpos[:] = robot.stand_qpos
+    if terrain is not None:
+        data.qpos[:2] = _spawn(terrain, i)
+        data.qpos[2] += terrain.height_at(*data.qpos[:2])
+    data.ctrl[robot.actuator_ids] = robot.default_q
+    mujoco.mj_forward(robot.model, data)
+
+
+def diverged(data: mujoco.MjData) -> bool:
+    """Whether a simulation diverged: a non-finite state, or MuJoCo reset it because its
+    accelerations blew up (a BADQACC warning, counted since the data was made or reset)."""
+    return not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()
+                and data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0)
+
+
 def _spawn(terrain: Terrain, i: int) -> np.ndarray:
     """Robot i on the centre of a tile of the hardest level, one column (kind) after the other."""
     c = terrain.config
@@ -222,7 +242,7 @@ def _stack(datas, field: str) -> np.ndarray:
     return np.stack([getattr(d, field) for d in datas])
 
 
-def _contacts(datas) -> tuple[np.ndarray, np.ndarray]:
+def padded_contacts(datas) -> tuple[np.ndarray, np.ndarray]:
     """Every robot's contacts (geom pairs, signed distances) padded to one power-of-two length,
     so that the jitted contact check compiles for a few sizes only. Padding pairs have a
     positive distance: no contact."""
@@ -256,8 +276,9 @@ class Controller:
     start: env.reset's command and observation for given states; act: the policy's action and
     env.step's PD targets and push; touching: the environment's termination contacts, from
     MuJoCo's; settle: env.step after its physics (commands, tracking errors, next observation).
-    The random keys are split as
-    env.reset and env.step split them. `env` gives the observation, command, base-velocity and
+    The random keys are split as env.reset and env.step split them. start and settle take an
+    optional command per robot (vx m/s, vy m/s, yaw rate rad/s; footforge's play) that replaces
+    the environment's drawn, heading-steered one where it is not NaN. `env` gives the observation, command, base-velocity and
     base-height functions; they read the robot only through its index tables, so they are bound
     here to `robot`, whose MJX model is never needed.
     """
@@ -273,14 +294,14 @@ class Controller:
         config, r = env.config, robot
         category, floor = jp.asarray(r.geom_category), r.floor_geom
 
-        def start(qpos, qvel, rng):
+        def start(qpos, qvel, rng, fixed):
             state = _State(qpos, qvel)
             rng, key_cmd, _, _ = jax.random.split(rng, 4)  # as env.reset (the others: spawn, joint state)
             command, heading = env._sample_command(key_cmd)
             info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(12),
                     "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32),
                     "target": jp.asarray(r.default_q)}  # the PD targets start at the defaults
-            info["command"] = env._heading_command(info, state)
+            info["command"] = jp.where(jp.isnan(fixed), env._heading_command(info, state), fixed)
             rng, key_obs = jax.random.split(rng)
             info["rng"] = rng
             return info, env._observe(state, info, key_obs)
@@ -303,9 +324,10 @@ class Controller:
             base, knees = ground_contacts(category, floor, geoms, dists)
             return base | (knees >= config.terminate_on_knees)
 
-        def settle(qpos, qvel, info, keys, action, actuator_force):
+        def settle(qpos, qvel, info, keys, action, actuator_force, fixed):
             state, (key_cmd, key_obs) = _State(qpos, qvel), keys
             info = info | env.next_command(info, state, info["step"], *env._sample_command(key_cmd))
+            info["command"] = jp.where(jp.isnan(fixed), info["command"], fixed)
             lin, ang, _ = env.base_state(state)
             qd, command = qvel[r.actuated_dof], info["command"]
             row = {"lin_vel_x_error": jp.abs(command[0] - lin[0]), "lin_vel_y_error": jp.abs(command[1] - lin[1]),
@@ -313,7 +335,7 @@ class Controller:
                    "action_rate": jp.linalg.norm(action - info["last_action"]),
                    "joint_vel_rate": jp.linalg.norm(qd - info["last_joint_vel"]),
                    "torques": jp.linalg.norm(actuator_force), "base_height": env.base_height(state),
-                   "vx": lin[0], "vx_command": command[0]}
+                   "vx": lin[0], "vx_command": command[0], "vy": lin[1], "yaw_rate": ang[2]}
             info = info | {"last_action": action, "last_joint_vel": qd}
             obs = jp.nan_to_num(env._observe(state, info, key_obs), nan=0.0, posinf=0.0, neginf=0.0)
             return info, obs, row
@@ -324,9 +346,10 @@ class Controller:
         self._settle = jax.jit(jax.vmap(settle))
         self._split = lambda seed, n: jax.random.split(jax.random.PRNGKey(seed), n)
 
-    def start(self, qpos: np.ndarray, qvel: np.ndarray, seed: int):
-        """(info, observations) of robots in states (qpos, qvel), robot i seeded from `seed`."""
-        return self._start(qpos, qvel, self._split(seed, len(qpos)))
+    def start(self, qpos: np.ndarray, qvel: np.ndarray, seed: int, command: np.ndarray | None = None):
+        """(info, observations) of robots in states (qpos, qvel), robot i seeded from `seed`;
+        `command` (robots, 3): see the class docstring."""
+        return self._start(qpos, qvel, self._split(seed, len(qpos)), _commands(command, len(qpos)))
 
     def act(self, obs, qpos: np.ndarray, info):
         """(actions, PD targets (robots, 12) in actuator order, push now, push velocity, info, keys)."""
@@ -338,10 +361,19 @@ class Controller:
         contacts (robots, n, 2) geom pairs and (robots, n) signed distances."""
         return np.asarray(self._touching(geoms, dists))
 
-    def settle(self, qpos, qvel, info, keys, action, actuator_force):
-        """(info, observations, index rows as numpy) after the physics of a policy step."""
-        info, obs, row = self._settle(qpos, qvel, info, keys, action, actuator_force)
+    def settle(self, qpos, qvel, info, keys, action, actuator_force, command: np.ndarray | None = None):
+        """(info, observations, index rows as numpy) after the physics of a policy step;
+        `command` (robots, 3): see the class docstring."""
+        info, obs, row = self._settle(qpos, qvel, info, keys, action, actuator_force,
+                                      _commands(command, len(qpos)))
         return info, obs, {k: np.asarray(v) for k, v in row.items()}
+
+
+def _commands(command: np.ndarray | None, robots: int) -> np.ndarray:
+    """Commands (robots, 3) for Controller's jitted functions: NaN where the environment's own."""
+    if command is None:
+        return np.full((robots, 3), np.nan, np.float32)
+    return np.broadcast_to(np.asarray(command, np.float32), (robots, 3))
 
 
 def comparison_markdown(results: list[dict]) -> str:

@@ -115,10 +115,10 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
     return target
 
 
-def check_output_file(out: Path) -> None:
+def check_output_file(out: Path, flag: str = "--out") -> None:
     """Refuses an output file path that cannot be written (a folder, a missing or non-folder
     parent, no permission); call it before the slow work. The file itself is written whole by
-    footforge.atomic.atomic_file.
+    footforge.atomic.atomic_file. `flag` names the command's option in the fix.
 
     Raises:
       InputError: naming the path and what to change; exit 2.
@@ -129,6 +129,6 @@ def check_output_file(out: Path) -> None:
     if not parent.is_dir():
         why = "is not a folder" if parent.exists() else "does not exist"
         raise InputError(f"its folder {parent} {why}", file=str(out),
-                         fix="create the folder first or choose another --out")
+                         fix=f"create the folder first or choose another {flag}")
     if not os.access(parent, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK)):
-        raise InputError("not writable", file=str(out), fix="choose a writable --out path")
+        raise InputError("not writable", file=str(out), fix=f"choose a writable {flag} path")

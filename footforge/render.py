@@ -93,14 +93,17 @@ def render_frames(model: mujoco.MjModel, qpos: np.ndarray, *, width: int = 640, 
     return frames
 
 
-def write_gif(frames: Sequence[np.ndarray], path: Path, fps: float) -> None:
+def write_gif(frames: Sequence[np.ndarray], path: Path, fps: float, comment: str | None = None) -> None:
     """An animated GIF that loops, written whole or not at all. GIF delays are whole 10 ms, and
-    Pillow merges identical consecutive frames (their delays add up)."""
+    Pillow merges identical consecutive frames (their delays add up). `comment` goes into the
+    GIF's comment extension (Pillow reads it back as info["comment"], bytes)."""
     from PIL import Image
 
     images = [Image.fromarray(f) for f in frames]
+    extra = {"comment": comment} if comment else {}
     with atomic_file(path) as tmp:
-        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0)
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0,
+                       **extra)
 
 
 def write_strip(frames: Sequence[np.ndarray], path: Path, count: int = 6) -> None:
