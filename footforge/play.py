@@ -46,9 +46,9 @@ class PlayConfig:
     feet: str | None = None
     """ball, aff, aof or full (the closed chain); None: the feet the policy was trained on."""
     terrain: bool = False
-    """Walk on the closed-chain runner's terrain tiles (footforge.closed_chain.TERRAIN_TILES: slopes,
-    rough slope, obstacles, generated as the rough task's) instead of flat ground; the robot starts
-    on the first tile (a smooth slope at difficulty 0.5)."""
+    """Walk on the closed-chain runner's terrain tiles (footforge.closed_chain.TERRAIN_TILES: smooth
+    slope, rough slope, stairs down, obstacles, generated as the rough task's terrain) instead of
+    flat ground; the robot starts on the first tile (the smooth slope at difficulty 0.5)."""
     build_root: Path | None = None
     """Folder with one build per feet, <root>/<feet>/; None: build/<feet>, built on first use."""
     seed: int = 0

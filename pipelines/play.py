@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("policy", type=Path, metavar="POLICY", help="policy/ folder of a training run, or an .onnx file")
     p.add_argument("--feet", help="ball, aff, aof or full (the 34-joint closed chain); default: the policy's own")
     p.add_argument("--terrain", action="store_true",
-                   help="walk on terrain tiles (slopes, rough slope, obstacles) instead of flat ground")
+                   help="walk on terrain tiles (slopes, stairs down, obstacles) instead of flat ground")
     p.add_argument("--build-root", type=Path,
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
     p.add_argument("--seed", type=int, default=0, help="observation noise seed (default 0)")
