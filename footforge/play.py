@@ -225,6 +225,12 @@ class Player:
                                                     self._command(command))
         self.resets += 1
 
+    def warm_up(self) -> None:
+        """Compiles the runner's jitted step (seconds) with one step, then restarts: so that a
+        viewer does not freeze on its first frame and a timing holds the steady state."""
+        self.step(np.zeros(3))
+        self.reset(np.zeros(3))
+
     def _command(self, command) -> np.ndarray:
         return np.clip(np.asarray(command, float), self.command_low, self.command_high)[None]
 
@@ -252,9 +258,9 @@ class Player:
 
 
 def play_headless(player: Player, *, seconds: float, command=(0.0, 0.0, 0.0)) -> dict:
-    """Runs `player` for `seconds` under a fixed command. Returns {"steps", "policy_dt_s",
-    "falls", "fall_times_s", "wall_s", "real_time_factor" (simulated over wall-clock seconds, the
-    first step's JAX compilation included), "states": per policy step "time_s", "base_pos_m"
+    """Runs `player` (warmed up: Player.warm_up) for `seconds` under a fixed command. Returns
+    {"steps", "policy_dt_s", "falls", "fall_times_s", "wall_s", "real_time_factor" (simulated over
+    wall-clock seconds), "states": per policy step "time_s", "base_pos_m"
     (world, after the step), "base_height_m", "vx", "vy", "yaw_rate", "fell"}, and "qpos" (steps,
     nq) for rendering (not JSON)."""
     steps = int(round(seconds / player.policy_dt))
@@ -324,6 +330,7 @@ def play_interactive(player: Player, *, print_fn: Callable[[str], None] = print)
     import mujoco
     import mujoco.viewer
 
+    player.warm_up()  # before the window opens
     keys = collections.deque()  # key_callback runs on the viewer's thread: hand the keys over
     try:
         viewer = mujoco.viewer.launch_passive(player.model, player.data, key_callback=keys.append)

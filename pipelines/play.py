@@ -134,6 +134,8 @@ def _run(args) -> int:
     print(f"{PROG}: {meta['policy_type']} policy trained on {meta['feet']} ({meta['task']}, "
           f"{meta['global_step'] / 1e6:.1f} M steps), on {feet} feet, {'terrain tiles' if args.terrain else 'flat ground'}")
     player = Player(policy, PlayConfig(feet=feet, terrain=args.terrain, build_root=args.build_root, seed=args.seed))
+    if args.headless:
+        player.warm_up()  # the viewer warms up itself, before its window opens
     setup = time.perf_counter() - started
     if not args.headless:
         from footforge.play import play_interactive

@@ -219,4 +219,4 @@ def test_viewer_loop_takes_keys_and_steps(built, monkeypatch):
     play_interactive(player, print_fn=printed.append)
     assert len(seen) == 5 and np.isfinite(seen).all()
     assert printed[-1] == "command: vx +2.0 m/s, vy +0.0 m/s, yaw rate +0.1 rad/s"  # clipped to the training range
-    assert len(printed) == 27 and player.resets == 2  # the start, then Home
+    assert len(printed) == 27 and player.resets == 3  # the start, after the warm-up, then Home
