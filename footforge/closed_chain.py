@@ -35,6 +35,8 @@ import mujoco
 import numpy as np
 
 from footforge.envs.anymal import Robot, ensure_built, load_robot
+from footforge.envs.config import check_policy_on_feet
+from footforge.envs.stability import diverged
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
 from footforge.evaluate import INDICES
@@ -77,10 +79,7 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
     from footforge.train import load_policy
 
     policy, config, _ = load_policy(policy_dir)
-    if config.haptic:
-        raise InputError(f"a {config.policy} policy reads the passive joints of the {config.feet} feet it was "
-                         "trained on; the closed chain has others", file=str(policy_dir),
-                         fix="evaluate blind (B) or perceptive (P) policies on the closed chain")
+    check_policy_on_feet(config, FULL, str(policy_dir))
     if seconds <= 0 or num_robots < 1:
         raise InputError(f"seconds ({seconds}) and robots ({num_robots}) must be positive", fix="e.g. 10 s, 4 robots")
     env, trained = policy_environment(config, build_root, terrain_tiles)
@@ -176,7 +175,7 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
                     for k, value in zip(worst, equality(d)):
                         worst[k][i, t] = np.fmax(worst[k][i, t], value)
                         totals[k] += (value, 1)
-            ok[i] = not diverged(d)
+            ok[i] = not diverged(d, config.diverged_speed)
         fallen = control.touching(*padded_contacts(datas)) | ~ok
         info, obs, row = control.settle(_stack(datas, "qpos"), _stack(datas, "qvel"), info, keys, action,
                                         _stack(datas, "actuator_force"))
@@ -223,13 +222,6 @@ def place_at_start(robot: Robot, data: mujoco.MjData, terrain: Terrain | None = 
         data.qpos[2] += terrain.height_at(*data.qpos[:2])
     data.ctrl[robot.actuator_ids] = robot.default_q
     mujoco.mj_forward(robot.model, data)
-
-
-def diverged(data: mujoco.MjData) -> bool:
-    """Whether a simulation diverged: a non-finite state, or MuJoCo reset it because its
-    accelerations blew up (a BADQACC warning, counted since the data was made or reset)."""
-    return not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()
-                and data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0)
 
 
 def _spawn(terrain: Terrain, i: int) -> np.ndarray:

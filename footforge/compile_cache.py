@@ -34,9 +34,8 @@ def enable(enabled: bool = True) -> Path | None:
 
     if not enabled:
         return None
-    given = os.environ.get("JAX_COMPILATION_CACHE_DIR") or jax.config.jax_compilation_cache_dir
-    if given:
-        return Path(given)
+    if jax.config.jax_compilation_cache_dir:  # set by JAX_COMPILATION_CACHE_DIR (the GPU kit) or the caller
+        return Path(jax.config.jax_compilation_cache_dir)
     folder = default_folder()
     if folder is None:
         return None

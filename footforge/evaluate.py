@@ -19,6 +19,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from footforge.envs.config import check_policy_on_feet
 from footforge.errors import InputError
 
 INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
@@ -43,9 +44,7 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
 
     policy, env_config, _ = load_policy(policy_dir)
     feet = feet or env_config.feet
-    if env_config.haptic and feet != env_config.feet:
-        raise InputError(f"a {env_config.policy} policy trained on {env_config.feet} reads that foot's passive "
-                         f"joints; it cannot run on {feet}", fix="evaluate blind (B, P) policies zero-shot")
+    check_policy_on_feet(env_config, feet, str(policy_dir))
     seconds = seconds or SECONDS[env_config.task]
     env = from_config(replace(env_config, feet=feet, build_dir=build_dir, episode_length_s=seconds + 1.0))
     return policy, env_config, feet, seconds, env

@@ -175,14 +175,12 @@ def check_feet(policy: OnnxPolicy, feet: str | None) -> str:
       InputError: unknown feet, or a haptic policy on feet it was not trained on (the rule of
         footforge.closed_chain.evaluate_closed_chain).
     """
-    own = policy.config.feet
-    feet = feet or own
+    from footforge.envs.config import check_policy_on_feet
+
+    feet = feet or policy.config.feet
     if feet not in FEET:
         raise InputError(f"unknown feet '{feet}'", fix=f"use one of {', '.join(FEET)}")
-    if feet != own and policy.config.haptic:
-        raise InputError(f"a {policy.config.policy} policy reads the passive joints of the {own} feet it was trained "
-                         f"on; the {feet} feet have others", file=str(policy.source),
-                         fix=f"play it on --feet {own}, or play a blind (B) or perceptive (P) policy on other feet")
+    check_policy_on_feet(policy.config, feet, str(policy.source))
     return feet
 
 
@@ -240,14 +238,15 @@ class Player:
         (base frame, m/s and rad/s), "command"}; after a fall the robot is back at its start."""
         import mujoco
 
-        from footforge.closed_chain import diverged, padded_contacts
+        from footforge.closed_chain import padded_contacts
+        from footforge.envs.stability import diverged
 
         d, command = self.data, self._command(command)
         action, targets, _, _, self._info, keys = self._control.act(self._obs, d.qpos[None], self._info)
         d.ctrl[self.robot.actuator_ids] = targets[0]
         for _ in range(self.decimation):
             mujoco.mj_step(self.model, d)
-        fell = diverged(d) or bool(self._control.touching(*padded_contacts([d]))[0])
+        fell = diverged(d, self.policy.config.diverged_speed) or bool(self._control.touching(*padded_contacts([d]))[0])
         self._info, self._obs, row = self._control.settle(d.qpos[None], d.qvel[None], self._info, keys, action,
                                                           d.actuator_force[None], command)
         record = {"fell": fell, "base_height_m": float(row["base_height"][0]), "vx": float(row["vx"][0]),

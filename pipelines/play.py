@@ -24,14 +24,8 @@ from pathlib import Path
 PROG = "play"
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # usage errors exit 2 with one line, as footforge's do
-        self.print_usage(sys.stderr)
-        self.exit(2, f"{PROG}: error: {message}\n")
-
-
 def main(argv: list[str] | None = None) -> int:
-    p = _Parser(prog=PROG, description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("policy", type=Path, metavar="POLICY", help="policy/ folder of a training run, or an .onnx file")
     p.add_argument("--feet", help="ball, aff, aof or full (the 34-joint closed chain); default: the policy's own")
     p.add_argument("--terrain", action="store_true",

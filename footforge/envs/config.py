@@ -267,6 +267,18 @@ class EnvConfig:
         return int(round(self.episode_length_s / self.policy_dt))
 
 
+def check_policy_on_feet(config: EnvConfig, feet: str, source: str | None = None) -> None:
+    """Raises InputError for a haptic policy (BH, PH) on feet other than its own: it reads the
+    passive joints of the feet it was trained on, which other feet (the closed chain included) do
+    not have. Blind and perceptive policies run on any feet (zero-shot). `source`: the policy's
+    folder or file, named in the error."""
+    if config.haptic and feet != config.feet:
+        raise InputError(f"a {config.policy} policy reads the passive joints of the {config.feet} feet it was "
+                         f"trained on; the {feet} feet have others", file=source,
+                         fix=f"run it on its own {config.feet} feet, or a blind (B) or perceptive (P) policy "
+                             "on other feet")
+
+
 def check_feet_and_policy(feet: str, policy: str) -> None:
     """Raises InputError for a haptic policy on feet without passive joints."""
     if policy in ("BH", "PH") and feet == "ball":

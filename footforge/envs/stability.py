@@ -4,8 +4,7 @@ CPU MuJoCo steps the MJX environment's own model (load_robot: its timestep, cont
 settings) under an untrained policy's actions: each policy step a ~ N(0, 1) clipped to
 +-EnvConfig.action_clip (PPO's initial Gaussian), turned into PD targets by the flat task's
 velocity model (target += action_scale a policy_dt, within the joint ranges). A robot diverges
-when a generalised velocity passes EnvConfig.diverged_speed or turns non-finite, the environment's
-own criterion. A proxy for MJX, which runs the same model in float32 (benchmarks/action_stability.py
+by the environment's own criterion (diverged). A proxy for MJX, which runs the same model in float32 (benchmarks/action_stability.py
 --sim mjx measures both; on AOF they agreed, benchmarks/RESULTS.md).
 """
 
@@ -18,6 +17,15 @@ import numpy as np
 
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
+
+
+def diverged(data: mujoco.MjData, max_speed: float) -> bool:
+    """Whether a CPU MuJoCo simulation diverged, by the environment's criterion
+    (EnvConfig.diverged_speed): a non-finite state or a generalised velocity past `max_speed`;
+    or MuJoCo reset it because its accelerations blew up (a BADQACC warning, counted since the
+    data was made or reset)."""
+    return not (np.isfinite(data.qpos).all() and np.all(np.abs(data.qvel) < max_speed)
+                and data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0)
 
 
 def divergence_times(config: EnvConfig, robots: int, seconds: float, seed: int = 0) -> list[float | None]:
@@ -43,7 +51,7 @@ def divergence_times(config: EnvConfig, robots: int, seconds: float, seed: int =
             target = np.clip(target + config.action_scale * action * config.policy_dt, lo, hi)
             data.ctrl[robot.actuator_ids] = target
             mujoco.mj_step(model, data, nstep=config.decimation)
-            if not np.all(np.abs(data.qvel) < config.diverged_speed):  # NaN compares False too
+            if diverged(data, config.diverged_speed):
                 when = round((k + 1) * config.policy_dt, 4)
                 break
         times.append(when)
