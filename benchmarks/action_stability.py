@@ -59,7 +59,7 @@ def main() -> None:
     p.add_argument("--sim-dt", type=float, nargs="+", default=[0.005])
     p.add_argument("--decimation", type=int, nargs="+", default=[4], help="one per --sim-dt")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--contact-model", choices=("fast", "build"), default="fast", help="EnvConfig.contact_model")
+    p.add_argument("--contact-model", choices=("fast", "build", "stance"), default="fast", help="EnvConfig.contact_model")
     p.add_argument("--iterations", type=int, nargs=2, metavar=("NEWTON", "LINESEARCH"),
                    help="EnvConfig.solver_iterations and solver_ls_iterations (default: the config's)")
     args = p.parse_args()

@@ -241,6 +241,54 @@ def test_zero_action_robot_holds_its_stance_with_the_build_contact(built, feet):
     assert np.linalg.norm(feet_xy - feet_xy[0], axis=-1).max() < 0.005, feet
 
 
+def test_contact_models_are_refused_where_they_diverge(built):
+    """contact_model 'stance' runs on ball feet only, at sim_dt <= 2.5 ms, with >= 8 Newton and
+    >= 16 line-search iterations (where it was measured stable): anything else is refused before
+    any model is loaded, naming the keys to change."""
+    from footforge.envs.anymal import load_robot
+
+    stance = dict(contact_model="stance", sim_dt=0.0025, decimation=8, solver_iterations=8, solver_ls_iterations=16)
+    for feet in ("aff", "aof"):
+        with pytest.raises(InputError, match=f"diverges on {feet} feet") as e:
+            load_robot(EnvConfig(feet=feet, build_dir=str(built[feet][0]), **stance))
+        assert "contact_model='fast'" in e.value.fix
+    ball = EnvConfig(feet="ball", build_dir=str(built["ball"][0]), **stance)
+    with pytest.raises(InputError, match=r"sim_dt <= 0.0025 s \(given 0.005\)") as e:
+        load_robot(replace(ball, sim_dt=0.005, decimation=4))
+    assert "decimation=8" in e.value.fix
+    with pytest.raises(InputError, match="solver_iterations >= 8 and solver_ls_iterations >= 16"):
+        load_robot(replace(ball, solver_iterations=4, solver_ls_iterations=8))
+    model = load_robot(ball).model
+    assert model.opt.cone == 0 and model.opt.impratio == 10.0  # pyramidal
+    assert model.opt.integrator == 0 and np.allclose(model.geom_solimp[:, :3], (0.99, 0.999, 0.001))  # Euler
+
+
+@pytest.mark.slow  # one environment compiled at 8 Newton iterations, 8000 physics steps: about 3 minutes
+def test_the_stance_contact_holds_a_ball_robot_still_for_a_whole_episode(built):
+    """Issue 12's stance target in the MJX training environment with contact_model 'stance' (ball
+    feet): zero actions for a whole 20 s episode from the reset's random joint velocities, pushes
+    off; no fall, and after the first 0.5 s the base sinks less than 10 mm and no foot slides
+    more than 5 mm. With contact_model 'fast' the same robot sinks about 22 cm
+    (test_zero_action_robot_neither_sinks_in_mjx)."""
+    config = envs.default_config("flat", "ball", "B")
+    env = envs.make("flat", "ball", "B", build_dir=str(built["ball"][0]), contact_model="stance", sim_dt=0.0025,
+                    decimation=8, solver_iterations=8, solver_ls_iterations=16,
+                    pushes=replace(config.pushes, enabled=False))
+    step = jax.jit(env.step)
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    sites = env.robot.foot_sites
+    heights, feet_xy = [], []
+    for _ in range(env.config.episode_steps - 1):
+        state = step(state, jp.zeros(env.action_size))
+        assert float(state.done) == 0.0
+        heights.append(float(env.base_height(state.pipeline_state)))
+        feet_xy.append(np.asarray(state.pipeline_state.site_xpos[sites, :2]))
+    settle = int(round(0.5 / env.config.policy_dt))
+    heights, feet_xy = np.array(heights[settle:]), np.array(feet_xy[settle:])
+    assert heights[0] - heights.min() < 0.010, (heights[0], heights.min())
+    assert np.linalg.norm(feet_xy - feet_xy[0], axis=-1).max() < 0.005
+
+
 @pytest.mark.slow  # its own compiled environment: about 2 minutes on 2 cores
 def test_privileged_critic_observations(built):
     """EnvConfig.privileged_critic: Brax's dict observation, the policy's slice unchanged and the

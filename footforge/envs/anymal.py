@@ -33,6 +33,23 @@ BUILD_CONTACT_MIN_ITERATIONS = (16, 50)
 """Newton and line-search iterations the build's stiff contact needs at a 5 ms step: with fewer, an
 unconverged solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo
 (benchmarks/contact_sweep.py, benchmarks/RESULTS.md)."""
+STANCE_CONTACT_SOLIMP = (0.99, 0.999, 0.001)
+"""Contact impedance of EnvConfig.contact_model 'stance' (the build's): 99-99.9% of the constraint
+force is kept, so the friction's regularisation, and with it the creep speed, is about 1/20 of
+MuJoCo's default (0.9-0.95)."""
+STANCE_CONTACT_IMPRATIO = 10.0
+"""Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
+STANCE_CONTACT_MIN_ITERATIONS = (8, 16)
+"""Newton and line-search iterations 'stance' needs (MJX, float32, 2.5 ms): at 6 Newton iterations
+1 of 8 ball robots fell at rest and 1 diverged under random actions; at 4, 6 of 8 fell."""
+STANCE_CONTACT_MAX_SIM_DT = 0.0025
+"""Largest physics step of 'stance', s: at 5 ms (its friction's time constant then 10 ms) an
+unconverged step lets a ball foot chatter and walk (47 mm of slip in 6 s at 16/50 iterations)."""
+STANCE_CONTACT_FEET = ("ball",)
+"""Feet on which 'stance' is stable. On the adaptive feet it diverges in MJX: at 2.5 ms and 8/16
+iterations 8 of 8 AFF robots fell or diverged at rest (with the sole boxes replaced by corner
+spheres too) and AOF kept 2 of 8; at 16/50 iterations AFF sank 19 mm and slid 63 mm, AOF 62 mm
+and 180 mm, 2 of 8 AOF robots diverged under random actions (benchmarks/RESULTS.md, 2026-11-25)."""
 
 
 @dataclass(frozen=True)
@@ -148,13 +165,7 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     and their ground contact is measured geometrically instead (footforge.envs.rough).
     for_mjx=False keeps the model's own geoms, for MuJoCo on the CPU.
     """
-    needed = BUILD_CONTACT_MIN_ITERATIONS
-    if config.contact_model == "build" and (config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]):
-        raise InputError(
-            f"contact_model 'build' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
-            f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations}): with fewer "
-            "its stiff friction diverges", fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}, "
-            "or contact_model='fast'")
+    check_contact_model(config)
     folder = ensure_built(config)
     if terrain is None:
         model = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
@@ -174,6 +185,16 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
         model.opt.impratio = 1.0
         model.geom_solimp[:, :3] = FAST_CONTACT_SOLIMP
+    elif config.contact_model == "stance":
+        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+        model.opt.impratio = STANCE_CONTACT_IMPRATIO
+        model.geom_solimp[:, :3] = STANCE_CONTACT_SOLIMP
+        # Semi-implicit Euler (joint damping still implicit: eulerdamp stays on), as MuJoCo
+        # Playground's quadrupeds. implicitfast adds the actuators' velocity derivative (kv) to the
+        # mass matrix after the constraint solve, so the contact forces, solved for the plain
+        # mass matrix, no longer produce the accelerations they were solved for; with friction
+        # this stiff that mismatch threw ball robots metres up within 7 steps.
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
     category = np.zeros(model.ngeom, np.int32)
     body_names = [model.body(b).name for b in range(model.nbody)]
     for g in range(model.ngeom):
@@ -210,6 +231,36 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int), passive_names=tuple(passive),
         geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id,
         foot_sites=np.array(foot_sites(model)))
+
+
+def check_contact_model(config: EnvConfig) -> None:
+    """Raises InputError where config.contact_model cannot run stably with config's feet, step and
+    solver iterations (EnvConfig.contact_model; the limits are this module's constants)."""
+    fix_fast = "or contact_model='fast'"
+    if config.contact_model == "build":
+        needed = BUILD_CONTACT_MIN_ITERATIONS
+        if config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]:
+            raise InputError(
+                f"contact_model 'build' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
+                f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations}): with fewer "
+                "its stiff friction diverges", fix=f"set solver_iterations={needed[0]} and "
+                f"solver_ls_iterations={needed[1]}, {fix_fast}")
+    elif config.contact_model == "stance":
+        if config.feet not in STANCE_CONTACT_FEET:
+            raise InputError(f"contact_model 'stance' diverges on {config.feet} feet (their light passive links "
+                             "under stiff friction); it is stable on ball feet only",
+                             fix="use contact_model='fast' with adaptive feet")
+        if config.sim_dt > STANCE_CONTACT_MAX_SIM_DT + 1e-12:
+            raise InputError(f"contact_model 'stance' needs sim_dt <= {STANCE_CONTACT_MAX_SIM_DT} s (given "
+                             f"{config.sim_dt}): at a longer step its friction chatters",
+                             fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
+                                 f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, {fix_fast}")
+        needed = STANCE_CONTACT_MIN_ITERATIONS
+        if config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]:
+            raise InputError(
+                f"contact_model 'stance' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
+                f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations})",
+                fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}, {fix_fast}")
 
 
 def foot_sites(model: mujoco.MjModel) -> list[int]:

@@ -216,21 +216,38 @@ class EnvConfig:
     solver_iterations: int = 4
     """MJX Newton iterations per step (Playground uses 1-4); the contact model is contact_model's."""
     solver_ls_iterations: int = 8
-    contact_model: Literal["fast", "build"] = "fast"
-    """The contact model the environment steps.
+    contact_model: Literal["fast", "build", "stance"] = "fast"
+    """The contact model the environment steps (limits: footforge.envs.anymal.check_contact_model).
 
-    - build: the built scene's (parameter file `contact`: elliptic cone, impratio 10, solimp
-      0.99/0.999). It needs a converged solve: at this 5 ms step solver_iterations >= 16 and
-      solver_ls_iterations >= 50, refused with fewer (with fewer, an unconverged solve of its stiff
-      friction diverges from any moving start, in MJX as on the CPU). Converged, CPU MuJoCo holds
-      a stance to about 1 mm in 10 s (ball, AFF, AOF); this MJX environment does not yet (ball
-      slides 5 cm in 10 s from a reset, AOF diverges in float32), at several times the cost of
-      `fast` (benchmarks/contact_sweep.py, benchmarks/RESULTS.md).
-    - fast (default): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp 0.9/0.95/0.001,
-      stable at 4 iterations from any start (MuJoCo Playground trains at 1-4), at the price of
-      creep: its regularised friction lets a robot holding still slide and sink about 22 cm in
-      10-20 s (measured). Policies walk through it (the baselines' PhysX friction does not creep:
-      a known difference, issue 12)."""
+    Why it matters: with the default PD gains (kp 80) ANYmal C cannot stand on frictionless
+    ground (there it splays into a crouch at 0.295 m base height, feet 23 cm out), so standing
+    still rests on static friction: at the `stand` keyframe each foot pushes sideways with about
+    half its normal force. MuJoCo's friction is regularised, so under that load a foot creeps at a
+    speed of about R f / b (the friction rows' regularisation R, the foot's sideways force f, the
+    reference damping b, itself at most about 1 / sim_dt), and the robot sinks towards that
+    crouch. PhysX, the baselines' engine, has true static friction and does not creep.
+
+    - fast (default, every feet): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp
+      0.9/0.95/0.001, stable at 4 iterations from any start (MuJoCo Playground trains at 1-4), at
+      the price of that creep: a robot holding still slides and sinks about 22 cm in 10-20 s.
+      Policies walk through it.
+    - stance (ball feet only): a pyramidal cone with impratio 10 and the build's solimp
+      0.99/0.999/0.001 (friction regularisation about 1/100 of fast's), semi-implicit Euler
+      integration, at sim_dt <= 2.5 ms with >= 8 Newton and >= 16 line-search iterations. In MJX
+      (float32) a ball robot at zero action then sinks about 1-2 mm and slides about 1 mm in
+      10 s, and random actions diverge none, at about 3 times fast's cost per policy step on the
+      CPU (benchmarks/RESULTS.md, 2026-11-25). Not yet with low friction: at a friction
+      coefficient of 0.5 (the low end of RandomizationConfig.friction_range; the stance's
+      sideways load is 0.49 of the normal force) 3 of 8 robots diverged under random actions.
+      Refused on AFF and AOF, where it diverges.
+    - build: the built scene's (elliptic cone, impratio 10, solimp 0.99/0.999) under its
+      implicitfast integrator. It needs a converged solve (solver_iterations >= 16,
+      solver_ls_iterations >= 50, refused with fewer). At a 2.5 ms step it holds a stance in MJX
+      for ball, AFF and AOF at rest, but an untrained policy's actions diverge AOF (7 of 16 robots
+      in CPU MuJoCo), and it costs 5-10 times fast.
+
+    One model for every feet keeps feet comparisons fair, so fast stays the default until the
+    adaptive feet have a stable stance-holding model (issue 12)."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)
