@@ -3,9 +3,11 @@
 For each variant: from `stand` (the rest pose the build computes) and from `home` (the default
 angles, unloaded), the base height drop after the first 0.5 s and the largest foot slip, at the
 scene's own timestep and solver; `--pyramidal` also runs MuJoCo's default contact model on the
-same scene (pyramidal cone, impratio 1, solimp 0.9/0.95) for comparison. One JSON line.
+same scene (pyramidal cone, impratio 1, solimp 0.9/0.95) for comparison; `--loads` also the
+stance's ground forces (each foot's horizontal over vertical force at `stand`) and where the robot
+comes to rest without friction (footforge.stance.foot_loads, frictionless_rest). One JSON line.
 
-    python benchmarks/stance.py --build-root build --pyramidal
+    python benchmarks/stance.py --build-root build --pyramidal [--loads]
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ def main(argv=None) -> int:
     p.add_argument("--variants", nargs="+", default=["ball", "aff", "aof"])
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--pyramidal", action="store_true", help="also MuJoCo's default contact model")
+    p.add_argument("--loads", action="store_true", help="also the stance's sideways loads and frictionless rest")
     args = p.parse_args(argv)
 
-    from footforge.stance import stand
+    from footforge.stance import foot_loads, frictionless_rest, stand
 
     out = {"benchmark": "stance", "machine": platform.platform(), "mujoco": mujoco.__version__, "seconds": args.seconds}
     for variant in args.variants:
@@ -40,6 +43,10 @@ def main(argv=None) -> int:
             m.opt.cone, m.opt.impratio = mujoco.mjtCone.mjCONE_PYRAMIDAL, 1.0
             m.geom_solimp[:, :3] = (0.9, 0.95, 0.001)
             models["pyramidal"] = m
+        if args.loads:
+            height, splay = frictionless_rest(models["build"], seconds=args.seconds)
+            out[f"{variant}/loads"] = {"sideways_ratio": [round(float(r), 3) for r in foot_loads(models["build"]).sideways_ratio],
+                                       "frictionless_base_height_m": round(height, 4), "frictionless_splay_mm": round(1e3 * splay, 1)}
         for name, model in models.items():
             for key in ("stand", "home"):
                 s = stand(model, keyframe=key, seconds=args.seconds)

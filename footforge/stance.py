@@ -11,6 +11,7 @@ timestep and solver settings.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import mujoco
@@ -51,3 +52,53 @@ def stand(model: mujoco.MjModel, *, seconds: float = 10.0, settle_s: float = 0.5
     finite = bool(np.isfinite(data.qpos).all() and data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0)
     slip = float(np.linalg.norm(data.site_xpos[sites, :2] - feet, axis=1).max())
     return Stance(z_start, z_settled, z_settled - z_min, slip, finite)
+
+
+@dataclass(frozen=True)
+class FootLoads:
+    """Ground forces on each foot (LF, RF, LH, RH), world frame, N."""
+
+    forces_n: np.ndarray
+    """(4, 3): the sum of each foot's contact forces."""
+
+    @property
+    def sideways_ratio(self) -> np.ndarray:
+        """Per foot, horizontal over vertical force: the friction coefficient the stance needs
+        (PhysX-like static friction holds it only where the ground's coefficient is higher)."""
+        return np.hypot(self.forces_n[:, 0], self.forces_n[:, 1]) / np.abs(self.forces_n[:, 2])
+
+
+def foot_loads(model: mujoco.MjModel, *, keyframe: str = "stand", settle_s: float = 0.5) -> FootLoads:
+    """The ground forces on each foot after standing `settle_s` at `keyframe` with the actuators at
+    its targets (contact forces from mj_contactForce, rotated out of each contact frame)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(keyframe).id)
+    mujoco.mj_step(model, data, nstep=int(round(settle_s / model.opt.timestep)))
+    legs = [model.body(model.site_bodyid[s]).name.split("_")[0] for s in foot_sites(model)]
+    forces = np.zeros((len(legs), 3))
+    wrench = np.zeros(6)
+    for i in range(data.ncon):
+        contact = data.contact[i]
+        robot_geom = contact.geom1 if model.geom_contype[contact.geom1] == 0 else contact.geom2
+        leg = model.body(model.geom_bodyid[robot_geom]).name.split("_")[0]
+        if leg not in legs:
+            continue
+        mujoco.mj_contactForce(model, data, i, wrench)
+        force = contact.frame.reshape(3, 3).T @ wrench[:3]  # force on geom2, world frame
+        forces[legs.index(leg)] += force if robot_geom == contact.geom2 else -force
+    return FootLoads(forces)
+
+
+def frictionless_rest(model: mujoco.MjModel, *, seconds: float = 5.0, keyframe: str = "stand") -> tuple[float, float]:
+    """Where the robot comes to rest on frictionless ground (every geom's condim 1) from
+    `keyframe` with the actuators at its targets: (base height m, largest horizontal displacement
+    of a foot's touchdown site m). Soft friction creeps towards this pose."""
+    m = copy.copy(model)
+    m.geom_condim[:] = 1
+    data = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, data, m.key(keyframe).id)
+    mujoco.mj_forward(m, data)
+    sites = foot_sites(m)
+    start = data.site_xpos[sites, :2].copy()
+    mujoco.mj_step(m, data, nstep=int(round(seconds / m.opt.timestep)))
+    return float(data.qpos[2]), float(np.linalg.norm(data.site_xpos[sites, :2] - start, axis=1).max())

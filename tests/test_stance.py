@@ -30,3 +30,21 @@ def test_stand_keyframe_holds_the_default_targets(built):
     expected = [C.DEFAULT_JOINT_ANGLES_RAD[model.actuator(a).name] for a in range(model.nu)]
     np.testing.assert_allclose(ctrl, expected)
     np.testing.assert_allclose(ctrl, model.key("home").ctrl)
+
+
+@pytest.mark.parametrize("variant", ["ball", "aof"])
+def test_the_stance_rests_on_static_friction(built, variant):
+    """Why soft friction creeps (EnvConfig.contact_model): at `stand` the feet carry the robot's
+    weight (the vertical ground forces sum to m g, computed from the contacts and from the masses)
+    and push sideways against each other (horizontal forces cancelling in sum, each a large
+    fraction of its foot's load); without friction the PD legs splay into a crouch."""
+    from footforge.stance import foot_loads, frictionless_rest
+
+    model = mujoco.MjModel.from_xml_path(str(built[variant][0] / "scene.xml"))
+    loads = foot_loads(model)
+    weight = model.body_subtreemass[0] * -model.opt.gravity[2]
+    assert abs(loads.forces_n[:, 2].sum() - weight) < 0.005 * weight
+    assert np.abs(loads.forces_n[:, :2].sum(0)).max() < 0.01 * weight  # at rest: no net sideways force
+    assert loads.sideways_ratio.min() > 0.3, loads.sideways_ratio
+    height, splay = frictionless_rest(model)
+    assert model.key("stand").qpos[2] - height > 0.1 and splay > 0.1, (height, splay)
