@@ -226,19 +226,25 @@ def test_zero_action_robot_holds_its_stance_with_the_build_contact(built, feet):
     config = envs.default_config("flat", feet, RICHEST[feet])
     env = envs.make("flat", feet, RICHEST[feet], build_dir=str(built[feet][0]), contact_model="build",
                     solver_iterations=16, solver_ls_iterations=50, pushes=replace(config.pushes, enabled=False))
+    heights, feet_xy = _zero_action_stance(env, steps=int(round(10.0 / env.config.policy_dt)))
+    assert heights[0] - heights.min() < 0.010, (feet, heights[0], heights.min())
+    assert np.linalg.norm(feet_xy - feet_xy[0], axis=-1).max() < 0.005, feet
+
+
+def _zero_action_stance(env, steps: int):
+    """One robot from reset under zero actions for `steps` policy steps, asserting it never falls:
+    its base heights and foot touchdown positions (x, y) after the first 0.5 s."""
     step = jax.jit(env.step)
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     sites = env.robot.foot_sites
     heights, feet_xy = [], []
-    for _ in range(int(round(10.0 / env.config.policy_dt))):
+    for _ in range(steps):
         state = step(state, jp.zeros(env.action_size))
         assert float(state.done) == 0.0
         heights.append(float(env.base_height(state.pipeline_state)))
         feet_xy.append(np.asarray(state.pipeline_state.site_xpos[sites, :2]))
     settle = int(round(0.5 / env.config.policy_dt))
-    heights, feet_xy = np.array(heights[settle:]), np.array(feet_xy[settle:])
-    assert heights[0] - heights.min() < 0.010, (feet, heights[0], heights.min())
-    assert np.linalg.norm(feet_xy - feet_xy[0], axis=-1).max() < 0.005, feet
+    return np.array(heights[settle:]), np.array(feet_xy[settle:])
 
 
 def test_contact_models_are_refused_where_they_diverge(built):
@@ -274,17 +280,7 @@ def test_the_stance_contact_holds_a_ball_robot_still_for_a_whole_episode(built):
     env = envs.make("flat", "ball", "B", build_dir=str(built["ball"][0]), contact_model="stance", sim_dt=0.0025,
                     decimation=8, solver_iterations=8, solver_ls_iterations=16,
                     pushes=replace(config.pushes, enabled=False))
-    step = jax.jit(env.step)
-    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
-    sites = env.robot.foot_sites
-    heights, feet_xy = [], []
-    for _ in range(env.config.episode_steps - 1):
-        state = step(state, jp.zeros(env.action_size))
-        assert float(state.done) == 0.0
-        heights.append(float(env.base_height(state.pipeline_state)))
-        feet_xy.append(np.asarray(state.pipeline_state.site_xpos[sites, :2]))
-    settle = int(round(0.5 / env.config.policy_dt))
-    heights, feet_xy = np.array(heights[settle:]), np.array(feet_xy[settle:])
+    heights, feet_xy = _zero_action_stance(env, steps=env.config.episode_steps - 1)
     assert heights[0] - heights.min() < 0.010, (heights[0], heights.min())
     assert np.linalg.norm(feet_xy - feet_xy[0], axis=-1).max() < 0.005
 

@@ -236,31 +236,23 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
 def check_contact_model(config: EnvConfig) -> None:
     """Raises InputError where config.contact_model cannot run stably with config's feet, step and
     solver iterations (EnvConfig.contact_model; the limits are this module's constants)."""
-    fix_fast = "or contact_model='fast'"
-    if config.contact_model == "build":
-        needed = BUILD_CONTACT_MIN_ITERATIONS
-        if config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]:
-            raise InputError(
-                f"contact_model 'build' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
-                f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations}): with fewer "
-                "its stiff friction diverges", fix=f"set solver_iterations={needed[0]} and "
-                f"solver_ls_iterations={needed[1]}, {fix_fast}")
-    elif config.contact_model == "stance":
-        if config.feet not in STANCE_CONTACT_FEET:
-            raise InputError(f"contact_model 'stance' diverges on {config.feet} feet (their light passive links "
-                             "under stiff friction); it is stable on ball feet only",
-                             fix="use contact_model='fast' with adaptive feet")
-        if config.sim_dt > STANCE_CONTACT_MAX_SIM_DT + 1e-12:
-            raise InputError(f"contact_model 'stance' needs sim_dt <= {STANCE_CONTACT_MAX_SIM_DT} s (given "
-                             f"{config.sim_dt}): at a longer step its friction chatters",
-                             fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
-                                 f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, {fix_fast}")
-        needed = STANCE_CONTACT_MIN_ITERATIONS
-        if config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]:
-            raise InputError(
-                f"contact_model 'stance' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
-                f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations})",
-                fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}, {fix_fast}")
+    model = config.contact_model
+    if model == "stance" and config.feet not in STANCE_CONTACT_FEET:
+        raise InputError(f"contact_model 'stance' diverges on {config.feet} feet (their light passive links "
+                         "under stiff friction); it is stable on ball feet only",
+                         fix="use contact_model='fast' with adaptive feet")
+    if model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT + 1e-12:
+        raise InputError(f"contact_model 'stance' needs sim_dt <= {STANCE_CONTACT_MAX_SIM_DT} s (given "
+                         f"{config.sim_dt}): at a longer step its friction chatters",
+                         fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
+                             f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, or contact_model='fast'")
+    needed = {"build": BUILD_CONTACT_MIN_ITERATIONS, "stance": STANCE_CONTACT_MIN_ITERATIONS}.get(model)
+    if needed and (config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]):
+        raise InputError(
+            f"contact_model '{model}' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
+            f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations}): with fewer "
+            "its stiff friction diverges",
+            fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}, or contact_model='fast'")
 
 
 def foot_sites(model: mujoco.MjModel) -> list[int]:

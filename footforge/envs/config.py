@@ -234,9 +234,9 @@ class EnvConfig:
     - stance (ball feet only): a pyramidal cone with impratio 10 and the build's solimp
       0.99/0.999/0.001 (friction regularisation about 1/100 of fast's), semi-implicit Euler
       integration, at sim_dt <= 2.5 ms with >= 8 Newton and >= 16 line-search iterations. In MJX
-      (float32) a ball robot at zero action then sinks about 1-2 mm and slides about 1 mm in
-      10 s, and random actions diverge none, at about 3 times fast's cost per policy step on the
-      CPU (benchmarks/RESULTS.md, 2026-11-25). Not yet with low friction: at a friction
+      (float32) a ball robot at zero action then sinks about 2 mm and slides about 2.5 mm in
+      10 s, and random actions diverge none, at about 3.4 times fast's cost per policy step on
+      the CPU (benchmarks/RESULTS.md, 2026-11-25). Not yet with low friction: at a friction
       coefficient of 0.5 (the low end of RandomizationConfig.friction_range; the stance's
       sideways load is 0.49 of the normal force) 3 of 8 robots diverged under random actions.
       Refused on AFF and AOF, where it diverges.
