@@ -39,6 +39,17 @@ from footforge.envs.config import EnvConfig
 POLICY_DT = 0.02
 
 
+def grid_point(text: str) -> tuple[float, ...]:
+    """argparse type of --grid: five comma-separated numbers."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 5:
+        raise argparse.ArgumentTypeError(f"'{text}' is not dt,impratio,dmin,dmax,timeconst (five numbers)")
+    return values
+
+
 def rollout(mx, d0, qvel, key, decimation, policy_steps, acting, robot):
     act, lo, hi = jp.asarray(robot.actuator_ids), jp.asarray(robot.q_limits[:, 0]), jp.asarray(robot.q_limits[:, 1])
     sites = jp.asarray(robot.foot_sites)
@@ -63,7 +74,7 @@ def main(argv=None) -> int:
     p.add_argument("--integrator", choices=["euler", "implicitfast"], default="euler")
     p.add_argument("--cone", choices=["pyramidal", "elliptic"], default="pyramidal")
     p.add_argument("--iterations", type=int, nargs=2, default=[8, 16], metavar=("NEWTON", "LINESEARCH"))
-    p.add_argument("--grid", nargs="+", default=["0.0025,10,0.99,0.999,0.005"],
+    p.add_argument("--grid", nargs="+", type=grid_point, default=[grid_point("0.0025,10,0.99,0.999,0.005")],
                    help="dt,impratio,dmin,dmax,timeconst per point")
     p.add_argument("--friction", type=float, help="sliding friction of every geom (default: the model's 0.8)")
     p.add_argument("--robots", type=int, default=8)
@@ -92,7 +103,7 @@ def main(argv=None) -> int:
            "friction": args.friction, "robots": args.robots, "seconds": args.seconds}
     compiled = {}
     for point in args.grid:
-        dt, impratio, dmin, dmax, timeconst = map(float, point.split(","))
+        dt, impratio, dmin, dmax, timeconst = point
         m = copy.copy(m0)
         m.opt.timestep, m.opt.impratio = dt, impratio
         m.geom_solimp[:, :3] = (dmin, dmax, 0.001)
@@ -124,7 +135,7 @@ def main(argv=None) -> int:
         start = time.perf_counter()
         jax.block_until_ready(run(mx, d0, jp.asarray(qvel), keys, 1.0))
         figures["us_robot_policystep"] = round(1e6 * (time.perf_counter() - start) / args.robots / policy_steps)
-        out[point] = figures
+        out[",".join(f"{v:g}" for v in point)] = figures
     print(json.dumps(out))
     return 0
 
