@@ -39,14 +39,14 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
     Raises:
       InputError: a haptic policy on other feet (or no policy in the folder).
     """
-    from footforge.envs import from_config
+    from footforge.envs import from_config, on_feet
     from footforge.train import load_policy
 
     policy, env_config, _ = load_policy(policy_dir)
     feet = feet or env_config.feet
     check_policy_on_feet(env_config, feet, str(policy_dir))
     seconds = seconds or SECONDS[env_config.task]
-    env = from_config(replace(env_config, feet=feet, build_dir=build_dir, episode_length_s=seconds + 1.0))
+    env = from_config(replace(on_feet(env_config, feet), build_dir=build_dir, episode_length_s=seconds + 1.0))
     return policy, env_config, feet, seconds, env
 
 

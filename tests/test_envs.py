@@ -427,3 +427,25 @@ def test_adaptive_feet_train_at_a_physics_step_that_survives_a_policy_s_actions(
     at_5ms = divergence_times(replace(aof, sim_dt=0.005, decimation=4), robots=12, seconds=10.0, seed=0)
     assert sum(t is not None for t in at_5ms) >= 3, at_5ms
     assert divergence_times(aof, robots=12, seconds=10.0, seed=0) == [None] * 12
+
+
+def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(monkeypatch):
+    """A ball policy (5 ms x 4) evaluated on AOF feet must step AOF at 2.5 ms x 8, where a policy's
+    actions do not make it diverge (the test above), and still act every 20 ms; an AOF policy on
+    ball feet keeps its finer 2.5 ms. evaluate() builds its environment through on_feet."""
+    from footforge import evaluate as evaluation
+
+    ball = envs.default_config("flat", "ball", "B")
+    on_aof = envs.on_feet(ball, "aof")
+    assert (on_aof.feet, on_aof.sim_dt, on_aof.decimation) == ("aof", 0.0025, 8)
+    assert on_aof.policy_dt == pytest.approx(ball.policy_dt)
+    on_ball = envs.on_feet(envs.default_config("flat", "aof", "B"), "ball")
+    assert (on_ball.feet, on_ball.sim_dt, on_ball.decimation) == ("ball", 0.0025, 8)
+    # A policy step the feet's step does not divide keeps the policy's own physics.
+    odd = envs.on_feet(replace(ball, sim_dt=0.006, decimation=3), "aof")
+    assert (odd.feet, odd.sim_dt, odd.decimation) == ("aof", 0.006, 3)
+    built_configs = []
+    monkeypatch.setattr("footforge.train.load_policy", lambda d: (None, ball, None))
+    monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)
+    evaluation._policy_and_env("policy", "aof", 1.0, None)
+    assert (built_configs[0].feet, built_configs[0].sim_dt, built_configs[0].decimation) == ("aof", 0.0025, 8)

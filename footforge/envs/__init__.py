@@ -57,6 +57,18 @@ def _physics_step(feet: str) -> dict:
     return {} if feet == "ball" else {"sim_dt": 0.0025, "decimation": 8}
 
 
+def on_feet(config, feet: str):
+    """`config` (a policy's training configuration) moved to `feet`: the same policy step, at the
+    physics step `feet` need (_physics_step) unless the policy's own is finer. A ball policy
+    evaluated on AOF feet thus steps AOF at 2.5 ms, where its light links do not diverge, and
+    still acts every 20 ms."""
+    sim_dt = min(config.sim_dt, _physics_step(feet).get("sim_dt", EnvConfig.sim_dt))
+    decimation = config.policy_dt / sim_dt
+    if abs(decimation - round(decimation)) > 1e-6:  # a policy step the feet's step does not divide
+        sim_dt, decimation = config.sim_dt, config.decimation
+    return replace(config, feet=feet, sim_dt=sim_dt, decimation=int(round(decimation)))
+
+
 def from_config(config):
     """The environment for a configuration: LocomotionEnv (flat) or RoughEnv (rough)."""
     if config.task == "rough":
