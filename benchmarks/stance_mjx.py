@@ -17,6 +17,9 @@ targets at the defaults, for `--seconds`:
 
     python benchmarks/stance_mjx.py --feet ball --integrator euler --cone pyramidal --iterations 8 16 \\
         --grid 0.0025,10,0.99,0.999,0.005 [--friction 0.5] [--build-dir DIR]
+
+With JAX_ENABLE_X64=1 in the environment MJX runs in float64 (MJX's own default is float32), to
+tell precision from the solver and the collision code when MJX and CPU MuJoCo disagree.
 """
 
 from __future__ import annotations
@@ -59,11 +62,14 @@ def rollout(mx, d0, qvel, key, decimation, policy_steps, acting, robot):
         a = jp.clip(jax.random.normal(k, (12,)), -1.0, 1.0) * acting
         target = jp.clip(target + 13.5 * a * POLICY_DT, lo, hi)
         d = d.replace(ctrl=d.ctrl.at[act].set(target))
-        d = jax.lax.fori_loop(0, decimation, lambda _, x: mjx.step(mx, x), d)
+        # Under JAX_ENABLE_X64 mjx.step returns some integer fields wider than put_data made
+        # them; the loop carry keeps the input's dtypes (a no-op in float32).
+        d = jax.lax.fori_loop(0, decimation, lambda _, x: jax.tree.map(lambda new, old: new.astype(old.dtype),
+                                                                       mjx.step(mx, x), x), d)
         bad = bad | ~jp.all(jp.isfinite(d.qvel)) | jp.any(jp.abs(d.qvel) > 1000.0)
         return (d, target, bad), (d.qpos[2], d.site_xpos[sites, :2])
 
-    start = (d0.replace(qvel=qvel), jp.asarray(robot.default_q, jp.float32), jp.array(False))
+    start = (d0.replace(qvel=qvel.astype(d0.qvel.dtype)), jp.asarray(robot.default_q, d0.ctrl.dtype), jp.array(False))
     (_, _, bad), (z, xy) = jax.lax.scan(policy_step, start, jax.random.split(key, policy_steps))
     return bad, z, xy
 
@@ -77,6 +83,8 @@ def main(argv=None) -> int:
     p.add_argument("--grid", nargs="+", type=grid_point, default=[grid_point("0.0025,10,0.99,0.999,0.005")],
                    help="dt,impratio,dmin,dmax,timeconst per point")
     p.add_argument("--friction", type=float, help="sliding friction of every geom (default: the model's 0.8)")
+    p.add_argument("--foot-armature", type=float,
+                   help="armature of the passive foot joints, kg m^2 (default: the model's)")
     p.add_argument("--robots", type=int, default=8)
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--seed", type=int, default=0)
@@ -91,6 +99,8 @@ def main(argv=None) -> int:
     m0.opt.iterations, m0.opt.ls_iterations = args.iterations
     if args.friction is not None:
         m0.geom_friction[:, 0] = args.friction
+    if args.foot_armature is not None:
+        m0.dof_armature[robot.passive_dof] = args.foot_armature
     rng = np.random.default_rng(args.seed)
     qvel = np.zeros((args.robots, m0.nv), np.float32)
     qvel[:, 6:] = rng.uniform(-0.1, 0.1, (args.robots, m0.nv - 6))
@@ -100,7 +110,7 @@ def main(argv=None) -> int:
     settle = int(round(0.5 / POLICY_DT))
     out = {"benchmark": "stance_mjx", "machine": platform.platform(), "jax_device": str(jax.devices()[0]),
            "feet": args.feet, "integrator": args.integrator, "cone": args.cone, "iterations": args.iterations,
-           "friction": args.friction, "robots": args.robots, "seconds": args.seconds}
+           "friction": args.friction, "foot_armature": args.foot_armature, "robots": args.robots, "seconds": args.seconds}
     compiled = {}
     for point in args.grid:
         dt, impratio, dmin, dmax, timeconst = point

@@ -410,7 +410,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     from brax.training.agents.ppo import train as ppo_train
     from tensorboardX import SummaryWriter
 
-    from footforge.envs import from_config
+    from footforge.envs import enable_float64_physics, from_config
     from footforge.envs.randomization import randomizer
     from footforge.envs.wrappers import wrap_for_training
 
@@ -422,6 +422,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         def notice(text: str) -> None:
             print(text, file=sys.stderr, flush=True)
     jax_compat.install()  # Brax 0.14.2's PPO on JAX >= 0.10
+    enable_float64_physics(env_config)  # EnvConfig.float64_physics; before the environment's arrays
     ppo.check()
     if max_wall_s is not None and max_wall_s <= 0:
         raise InputError(f"max_wall_s must be positive, got {max_wall_s}", fix="give a positive time budget")

@@ -69,6 +69,39 @@ def on_feet(config, feet: str):
     return replace(config, feet=feet, sim_dt=sim_dt, decimation=int(round(decimation)))
 
 
+def with_contact_model(config, contact_model: str):
+    """`config` with `contact_model` (EnvConfig.contact_model) and the physics it needs: for
+    'stance' a step of at most STANCE_CONTACT_MAX_SIM_DT (the policy step kept) and at least the
+    feet's STANCE_CONTACT_MIN_ITERATIONS; for 'build' BUILD_CONTACT_MIN_ITERATIONS. Settings
+    already finer than those are kept."""
+    from footforge.envs.anymal import (BUILD_CONTACT_MIN_ITERATIONS, STANCE_CONTACT_MAX_SIM_DT,
+                                       STANCE_CONTACT_MIN_ITERATIONS)
+
+    changes = {"contact_model": contact_model}
+    needed = {"stance": STANCE_CONTACT_MIN_ITERATIONS.get(config.feet), "build": BUILD_CONTACT_MIN_ITERATIONS}
+    if contact_model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT:
+        decimation = config.policy_dt / STANCE_CONTACT_MAX_SIM_DT
+        if abs(decimation - round(decimation)) > 1e-6:
+            raise InputError(f"contact_model 'stance' steps at most {STANCE_CONTACT_MAX_SIM_DT} s, which does not "
+                             f"divide the policy step {config.policy_dt:g} s",
+                             fix="use a policy step (sim_dt x decimation) that is a multiple of 2.5 ms")
+        changes |= {"sim_dt": STANCE_CONTACT_MAX_SIM_DT, "decimation": int(round(decimation))}
+    if needed.get(contact_model):
+        iterations, ls_iterations = needed[contact_model]
+        changes |= {"solver_iterations": max(config.solver_iterations, iterations),
+                    "solver_ls_iterations": max(config.solver_ls_iterations, ls_iterations)}
+    return replace(config, **changes)
+
+
+def enable_float64_physics(config) -> None:
+    """Turns on JAX's x64 mode where `config` asks for float64 physics (EnvConfig.float64_physics).
+    Process-wide: call it before JAX makes its first array (footforge's entry points do)."""
+    if config.float64_physics:
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
+
+
 def from_config(config):
     """The environment for a configuration: LocomotionEnv (flat) or RoughEnv (rough)."""
     if config.task == "rough":

@@ -39,17 +39,16 @@ force is kept, so the friction's regularisation, and with it the creep speed, is
 MuJoCo's default (0.9-0.95)."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
-STANCE_CONTACT_MIN_ITERATIONS = (8, 16)
-"""Newton and line-search iterations 'stance' needs (MJX, float32, 2.5 ms): at 6 Newton iterations
-1 of 8 ball robots fell at rest and 1 diverged under random actions; at 4, 6 of 8 fell."""
+STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (30, 30)}
+"""Newton and line-search iterations 'stance' needs per feet (2.5 ms). Below them an unconverged
+solve of its stiff friction diverges under a policy's actions: ball at 6 Newton iterations (MJX,
+float32: 1 of 8 robots fell at rest, 1 diverged acting); AFF at 8/16 (CPU MuJoCo, 7 of 8 robots
+within 0.35 s of random actions); AOF at 16/50 (5 of 8 within 8 s). The light passive links of the
+adaptive feet couple many stiff friction rows, which take more iterations to converge
+(benchmarks/RESULTS.md, 2026-11-25, the seventh look)."""
 STANCE_CONTACT_MAX_SIM_DT = 0.0025
 """Largest physics step of 'stance', s: at 5 ms (its friction's time constant then 10 ms) an
 unconverged step lets a ball foot chatter and walk (47 mm of slip in 6 s at 16/50 iterations)."""
-STANCE_CONTACT_FEET = ("ball",)
-"""Feet on which 'stance' is stable. On the adaptive feet it diverges in MJX: at 2.5 ms and 8/16
-iterations 8 of 8 AFF robots fell or diverged at rest (with the sole boxes replaced by corner
-spheres too) and AOF kept 2 of 8; at 16/50 iterations AFF sank 19 mm and slid 63 mm, AOF 62 mm
-and 180 mm, 2 of 8 AOF robots diverged under random actions (benchmarks/RESULTS.md, 2026-11-25)."""
 
 
 @dataclass(frozen=True)
@@ -237,21 +236,17 @@ def check_contact_model(config: EnvConfig) -> None:
     """Raises InputError where config.contact_model cannot run stably with config's feet, step and
     solver iterations (EnvConfig.contact_model; the limits are this module's constants)."""
     model = config.contact_model
-    if model == "stance" and config.feet not in STANCE_CONTACT_FEET:
-        raise InputError(f"contact_model 'stance' diverges on {config.feet} feet (their light passive links "
-                         "under stiff friction); it is stable on ball feet only",
-                         fix="use contact_model='fast' with adaptive feet")
     if model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT + 1e-12:
         raise InputError(f"contact_model 'stance' needs sim_dt <= {STANCE_CONTACT_MAX_SIM_DT} s (given "
                          f"{config.sim_dt}): at a longer step its friction chatters",
                          fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
                              f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, or contact_model='fast'")
-    needed = {"build": BUILD_CONTACT_MIN_ITERATIONS, "stance": STANCE_CONTACT_MIN_ITERATIONS}.get(model)
+    needed = {"build": BUILD_CONTACT_MIN_ITERATIONS, "stance": STANCE_CONTACT_MIN_ITERATIONS.get(config.feet)}.get(model)
     if needed and (config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]):
         raise InputError(
             f"contact_model '{model}' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
             f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations}): with fewer "
-            "its stiff friction diverges",
+            f"its stiff friction diverges on {config.feet} feet",
             fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}, or contact_model='fast'")
 
 

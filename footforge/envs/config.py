@@ -229,25 +229,39 @@ class EnvConfig:
 
     - fast (default, every feet): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp
       0.9/0.95/0.001, stable at 4 iterations from any start (MuJoCo Playground trains at 1-4), at
-      the price of that creep: a robot holding still slides and sinks about 22 cm in 10-20 s.
-      Policies walk through it.
-    - stance (ball feet only): a pyramidal cone with impratio 10 and the build's solimp
+      the price of that creep: a robot holding still slides and sinks about 22 cm in 10-20 s
+      (AFF at 2.5 ms: 150 mm of sinking and 174 mm of slip in 10 s). Policies walk through it.
+    - stance (every feet): a pyramidal cone with impratio 10 and the build's solimp
       0.99/0.999/0.001 (friction regularisation about 1/100 of fast's), semi-implicit Euler
-      integration, at sim_dt <= 2.5 ms with >= 8 Newton and >= 16 line-search iterations. In MJX
-      (float32) a ball robot at zero action then sinks about 2 mm and slides about 2.5 mm in
-      10 s, and random actions diverge none, at about 3.4 times fast's cost per policy step on
-      the CPU (benchmarks/RESULTS.md, 2026-11-25). Not yet with low friction: at a friction
+      integration, at sim_dt <= 2.5 ms with at least the feet's Newton and line-search
+      iterations (ball 8/16, AFF 16/16, AOF 30/30: with fewer its friction diverges under a
+      policy's actions). Zero-action robots in MJX, 10 s from the reset's random velocities
+      (benchmarks/stance_mjx.py; benchmarks/RESULTS.md, 2026-11-25), sinking / sliding:
+      ball 2.1 / 2.5 mm in float32; AFF 1.2 / 1.3 mm and AOF 1.6 / 2.3 mm with
+      float64_physics, none diverging under random actions. The adaptive feet need float64: in
+      MJX's float32 their many stiff friction rows on light links are solved too inexactly and
+      they creep (AFF 8 / 14 mm in 5 s), as CPU MuJoCo (float64) does not. Cost per robot and
+      policy step on this CPU, against fast at the same step: ball 3.4x, AFF 2.3x (float64),
+      AOF 2.5x (float64, 30 iterations). Not yet with low friction: at a friction
       coefficient of 0.5 (the low end of RandomizationConfig.friction_range; the stance's
-      sideways load is 0.49 of the normal force) 3 of 8 robots diverged under random actions.
-      Refused on AFF and AOF, where it diverges.
+      sideways load is 0.49 of the normal force) 3 of 8 ball robots diverged under random
+      actions. footforge.envs.with_contact_model sets the step and iterations it needs.
     - build: the built scene's (elliptic cone, impratio 10, solimp 0.99/0.999) under its
       implicitfast integrator. It needs a converged solve (solver_iterations >= 16,
       solver_ls_iterations >= 50, refused with fewer). At a 2.5 ms step it holds a stance in MJX
       for ball, AFF and AOF at rest, but an untrained policy's actions diverge AOF (7 of 16 robots
       in CPU MuJoCo), and it costs 5-10 times fast.
 
-    One model for every feet keeps feet comparisons fair, so fast stays the default until the
-    adaptive feet have a stable stance-holding model (issue 12)."""
+    fast stays the default: the policies of the first GPU campaign trained with it, and the
+    price of stance (more iterations, and float64 for the adaptive feet) on a GPU is not yet
+    measured. Train with stance by `--contact-model stance [--float64-physics]`."""
+    float64_physics: bool = False
+    """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
+    whole process, to be set before JAX makes its first array: footforge's training, evaluation
+    and benchmark entry points set it from this field (footforge.envs.enable_float64_physics),
+    and an environment built without it refuses to start. The policy's side stays float32: the
+    environment hands observations, rewards and metrics over in float32. Needed by the adaptive
+    feet's stance (contact_model)."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)

@@ -23,6 +23,7 @@ from footforge import constants as C
 from footforge.envs import observations, rewards
 from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, load_robot
 from footforge.envs.config import EnvConfig, check_feet_and_policy
+from footforge.errors import InputError
 
 N_ACTUATED = len(C.ACTUATED_JOINTS)
 
@@ -36,9 +37,29 @@ def _wrap(angle):
     return jp.arctan2(jp.sin(angle), jp.cos(angle))
 
 
+def _narrow(x):
+    """float32 for floating arrays, int32 for signed integers (the policy's side's precision)."""
+    if jp.issubdtype(x.dtype, jp.floating):
+        return x.astype(jp.float32)
+    return x.astype(jp.int32) if jp.issubdtype(x.dtype, jp.signedinteger) else x
+
+
+def policy_side(state: State) -> State:
+    """`state` with what the policy's side reads (observations, reward, done, metrics, info) in
+    float32 and int32, whatever precision the physics (pipeline_state) runs in
+    (EnvConfig.float64_physics): PPO's networks, normaliser and loop carries stay float32."""
+    narrow = lambda tree: jax.tree_util.tree_map(_narrow, tree)  # noqa: E731
+    return state.replace(obs=narrow(state.obs), reward=_narrow(state.reward), done=_narrow(state.done),
+                         metrics=narrow(state.metrics), info=narrow(state.info))
+
+
 class LocomotionEnv(Env):
     def __init__(self, config: EnvConfig, robot: Robot | None = None):
         check_feet_and_policy(config.feet, config.policy)
+        if config.float64_physics and not jax.config.read("jax_enable_x64"):
+            raise InputError("float64_physics needs JAX's x64 mode, which is off in this process",
+                             fix="call footforge.envs.enable_float64_physics(config) (or set JAX_ENABLE_X64=1) "
+                                 "before JAX makes its first array")
         self.config = config
         self.robot = robot or load_robot(config)
         r = self.robot
@@ -101,7 +122,7 @@ class LocomotionEnv(Env):
         rng, key_obs = jax.random.split(rng)
         info["rng"] = rng
         obs = self.observation(data, info, key_obs)
-        return State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info)
+        return policy_side(State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info))
 
     def _place(self, data, qpos, qvel, target, where=True):
         """The robot at (qpos, qvel) with PD targets `target` (only where `where`: the fields a
@@ -239,8 +260,8 @@ class LocomotionEnv(Env):
                     heading_target=jp.where(ended, new_heading, info["heading_target"]))
         obs = jax.tree_util.tree_map(lambda o: jp.nan_to_num(o, nan=0.0, posinf=0.0, neginf=0.0),
                                      self.observation(data, info, key_obs))
-        return state.replace(pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32),
-                             metrics=metrics, info=info)
+        return policy_side(state.replace(pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32),
+                                         metrics=metrics, info=info))
 
     # Pieces --------------------------------------------------------------------------------
     def _sample_command(self, key):

@@ -28,7 +28,7 @@ from mujoco import mjx
 from footforge.envs import curriculum
 from footforge.envs.anymal import GEOM_BASE, GEOM_THIGH, load_robot
 from footforge.envs.config import EnvConfig
-from footforge.envs.locomotion import LocomotionEnv
+from footforge.envs.locomotion import LocomotionEnv, policy_side
 from footforge.envs.terrain import generate, surface_height
 from footforge.errors import InputError
 
@@ -76,7 +76,7 @@ class RoughEnv(LocomotionEnv):
         data = mjx.forward(self.mjx_model, self._place(state.pipeline_state,
                                                        *self._start_state(info, jax.random.fold_in(rng, 2))))
         info |= {"target": data.ctrl[self._ctrl_order], "command": self._heading_command(info, data)}
-        return state.replace(pipeline_state=data, obs=self.observation(data, info, key), info=info)
+        return policy_side(state.replace(pipeline_state=data, obs=self.observation(data, info, key), info=info))
 
     # Curriculum and spawns -------------------------------------------------------------------
     def _spawn(self, level, column, key):
