@@ -410,7 +410,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     from brax.training.agents.ppo import train as ppo_train
     from tensorboardX import SummaryWriter
 
-    from footforge.envs import enable_float64_physics, from_config
+    from footforge.envs import from_config
     from footforge.envs.randomization import randomizer
     from footforge.envs.wrappers import wrap_for_training
 
@@ -422,7 +422,13 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         def notice(text: str) -> None:
             print(text, file=sys.stderr, flush=True)
     jax_compat.install()  # Brax 0.14.2's PPO on JAX >= 0.10
-    enable_float64_physics(env_config)  # EnvConfig.float64_physics; before the environment's arrays
+    if env_config.float64_physics:
+        # Measured 2026-11-25: under JAX's x64 mode Brax 0.14.2's PPO makes some of its state
+        # float64 (Adam's decay rates among them) and its minibatch scan then fails on the
+        # carry's dtypes; the environment's own float64 path (policy_side) is not the problem.
+        raise InputError("float64_physics cannot train yet: Brax's PPO is not dtype-stable under JAX's x64 mode",
+                         fix="train with float64_physics=False (contact_model 'stance' then creeps on AFF/AOF feet "
+                             "about 1.4 mm/s); float64 physics serves evaluations and stance measurements")
     ppo.check()
     if max_wall_s is not None and max_wall_s <= 0:
         raise InputError(f"max_wall_s must be positive, got {max_wall_s}", fix="give a positive time budget")

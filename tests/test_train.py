@@ -514,3 +514,35 @@ def test_the_first_epoch_is_estimated_from_the_throughput_not_its_compilation():
     assert next_epoch_seconds(290.0, True, None, 4_000_000) == 290.0  # no throughput measured
     assert next_epoch_seconds(90.0, False, 46_000.0, 4_000_000) == 90.0  # a later epoch: its own time
     assert next_epoch_seconds(10.0, True, 1_000.0, 4_000_000) == 10.0  # never above what was observed
+
+
+def test_contact_model_flag_sets_the_stance_physics_and_resume_keeps_it(written_run, monkeypatch, capsys, tmp_path):
+    """--contact-model stance trains with the step and solver iterations the stance needs on the
+    chosen feet (envs.with_contact_model); a resumed run names a differing --contact-model."""
+    from footforge.train_cli import main
+
+    seen = _capture_train(monkeypatch)
+    assert main("flat", "", ["--feet", "aof", "--contact-model", "stance", "--out", str(tmp_path / "a")]) == 0
+    env = seen["env"]
+    assert (env.contact_model, env.sim_dt, env.decimation) == ("stance", 0.0025, 8)
+    assert (env.solver_iterations, env.solver_ls_iterations) == (30, 30)
+    run, cfg, _ = written_run
+    assert cfg.contact_model == "fast"
+    capsys.readouterr()
+    assert main("flat", "", ["--out", str(run), "--resume", "--contact-model", "stance"]) == 2
+    assert "--contact-model stance differs from the run's fast" in capsys.readouterr().err
+
+
+def test_float64_physics_is_refused_by_training_before_any_work(tmp_path):
+    """EnvConfig.float64_physics cannot train (Brax's PPO under JAX's x64 mode): refused with the
+    setting to change, before the run folder is made."""
+    from dataclasses import replace
+
+    from footforge import envs
+    from footforge.train import PPOConfig, train
+
+    config = replace(envs.default_config("flat", "aff", "B"), float64_physics=True)
+    with pytest.raises(InputError, match="float64_physics cannot train") as e:
+        train(config, PPOConfig(num_envs=8, batch_size=8, num_minibatches=1), tmp_path / "run")
+    assert "float64_physics=False" in e.value.fix
+    assert not (tmp_path / "run").exists()

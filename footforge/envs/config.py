@@ -254,14 +254,18 @@ class EnvConfig:
 
     fast stays the default: the policies of the first GPU campaign trained with it, and the
     price of stance (more iterations, and float64 for the adaptive feet) on a GPU is not yet
-    measured. Train with stance by `--contact-model stance [--float64-physics]`."""
+    measured. Train with stance by `--contact-model stance` (float32: the adaptive feet then
+    creep about 1.4 mm/s, a tenth of fast's)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
-    whole process, to be set before JAX makes its first array: footforge's training, evaluation
-    and benchmark entry points set it from this field (footforge.envs.enable_float64_physics),
-    and an environment built without it refuses to start. The policy's side stays float32: the
-    environment hands observations, rewards and metrics over in float32. Needed by the adaptive
-    feet's stance (contact_model)."""
+    whole process, to be set before JAX makes its first array by
+    footforge.envs.enable_float64_physics(config) (or JAX_ENABLE_X64=1); an environment built
+    without it refuses to start. The policy's side stays float32: the environment hands
+    observations, rewards, metrics and info over in float32 (envs.wrappers.policy_side). The
+    adaptive feet's stance needs it (contact_model). Training refuses it for now: Brax 0.14.2's
+    PPO is not dtype-stable under x64 (some of its optimiser state turns float64 and its
+    minibatch scan fails), so it serves stance measurements and evaluations in one's own
+    scripts (tests/test_envs.py shows one)."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)

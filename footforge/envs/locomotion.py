@@ -23,6 +23,7 @@ from footforge import constants as C
 from footforge.envs import observations, rewards
 from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, load_robot
 from footforge.envs.config import EnvConfig, check_feet_and_policy
+from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
 
 N_ACTUATED = len(C.ACTUATED_JOINTS)
@@ -35,22 +36,6 @@ def _yaw(quat):
 
 def _wrap(angle):
     return jp.arctan2(jp.sin(angle), jp.cos(angle))
-
-
-def _narrow(x):
-    """float32 for floating arrays, int32 for signed integers (the policy's side's precision)."""
-    if jp.issubdtype(x.dtype, jp.floating):
-        return x.astype(jp.float32)
-    return x.astype(jp.int32) if jp.issubdtype(x.dtype, jp.signedinteger) else x
-
-
-def policy_side(state: State) -> State:
-    """`state` with what the policy's side reads (observations, reward, done, metrics, info) in
-    float32 and int32, whatever precision the physics (pipeline_state) runs in
-    (EnvConfig.float64_physics): PPO's networks, normaliser and loop carries stay float32."""
-    narrow = lambda tree: jax.tree_util.tree_map(_narrow, tree)  # noqa: E731
-    return state.replace(obs=narrow(state.obs), reward=_narrow(state.reward), done=_narrow(state.done),
-                         metrics=narrow(state.metrics), info=narrow(state.info))
 
 
 class LocomotionEnv(Env):

@@ -10,9 +10,27 @@ only clears the done flag and the step count of ended episodes before the next s
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jp
 from brax.envs.base import Env, State, Wrapper
 from brax.envs.wrappers.training import DomainRandomizationVmapWrapper, EpisodeWrapper, VmapWrapper
+
+
+def _narrow(x):
+    """float32 for floating arrays, int32 for signed integers (the policy's side's precision)."""
+    if jp.issubdtype(x.dtype, jp.floating):
+        return x.astype(jp.float32)
+    return x.astype(jp.int32) if jp.issubdtype(x.dtype, jp.signedinteger) else x
+
+
+def policy_side(state: State) -> State:
+    """`state` with what the policy's side reads and carries (observations, reward, done,
+    metrics, info) in float32 and int32, whatever precision the physics (pipeline_state) runs in
+    (EnvConfig.float64_physics): PPO's networks, normaliser and loop carries stay float32, and a
+    step returns the dtypes it was given (a scan's carry must). A no-op in float32."""
+    narrow = lambda tree: jax.tree_util.tree_map(_narrow, tree)  # noqa: E731
+    return state.replace(obs=narrow(state.obs), reward=_narrow(state.reward), done=_narrow(state.done),
+                         metrics=narrow(state.metrics), info=narrow(state.info))
 
 
 class SelfResetWrapper(Wrapper):
