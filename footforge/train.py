@@ -428,7 +428,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         # carry's dtypes; the environment's own float64 path (policy_side) is not the problem.
         raise InputError("float64_physics cannot train yet: Brax's PPO is not dtype-stable under JAX's x64 mode",
                          fix="train with float64_physics=False (contact_model 'stance' then creeps on AFF/AOF feet "
-                             "about 1.4 mm/s); float64 physics serves evaluations and stance measurements")
+                             "about 1.3 mm/s); float64 physics serves evaluations and stance measurements")
     ppo.check()
     if max_wall_s is not None and max_wall_s <= 0:
         raise InputError(f"max_wall_s must be positive, got {max_wall_s}", fix="give a positive time budget")

@@ -178,8 +178,9 @@ def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 12, open: fails deterministically (MJX contact creep with "
-                   "contact_model 'fast', from the randomised start); not yet diagnosed")
+@pytest.mark.xfail(strict=True, reason="issue 12: the default contact_model 'fast' creeps (ball: base 0.54 -> "
+                   "0.28 m in 12 s, then falls); contact_model 'stance' holds it "
+                   "(test_the_stance_contact_holds_level_0)")
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
     """Rough task, level 0 (flat platform), zero position actions: the PD holds the default pose
@@ -193,6 +194,32 @@ def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
         assert float(state.done) == 0.0, f"{feet}: fell at episode step {int(state.info['episode_step'])}"
         heights.append(float(env.base_height(state.pipeline_state)))
     assert min(heights) > 0.25, (feet, min(heights))
+
+
+@pytest.mark.slow  # one rough environment per feet compiled at the stance's iterations: 2-3 minutes each
+@pytest.mark.parametrize("feet", list(RICHEST))
+def test_the_stance_contact_holds_level_0(built, feet):
+    """Issue 12's rough-terrain stance: level 0 (the flat platform), zero position actions from the
+    randomised start, contact_model 'stance' (float32, as training runs): no fall in a whole 20 s
+    episode, the base above 0.25 m throughout; and for ball feet, after the first 2 s (the
+    randomised joints settling onto the default targets), the issue's stance target of less than
+    10 mm of sinking. (The adaptive feet still creep in float32, EnvConfig.contact_model.) With
+    'fast' the ball robot sinks 26 cm and falls after 12 s
+    (test_zero_action_robot_stands_a_whole_episode_on_level_0)."""
+    config = envs.with_contact_model(envs.default_config("rough", feet, RICHEST[feet]), "stance")
+    env = envs.from_config(replace(config, build_dir=str(built[feet][0]), terrain=SMALL,
+                                   pushes=replace(config.pushes, enabled=False)))
+    step = jax.jit(env.step)
+    state = jax.jit(env.reset_on_tile)(jax.random.PRNGKey(3), 0, 0)
+    heights = []
+    for _ in range(env.config.episode_steps - 1):
+        state = step(state, jp.zeros(12))
+        assert float(state.done) == 0.0, f"{feet}: fell at episode step {int(state.info['episode_step'])}"
+        heights.append(float(env.base_height(state.pipeline_state)))
+    assert min(heights) > 0.25, (feet, min(heights))
+    if feet == "ball":
+        settled = np.array(heights[int(round(2.0 / env.config.policy_dt)):])
+        assert settled[0] - settled.min() < 0.010, (settled[0], settled.min())
 
 
 class _Counter(Env):

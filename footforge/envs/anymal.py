@@ -37,6 +37,13 @@ STANCE_CONTACT_SOLIMP = (0.99, 0.999, 0.001)
 """Contact impedance of EnvConfig.contact_model 'stance' (the build's): 99-99.9% of the constraint
 force is kept, so the friction's regularisation, and with it the creep speed, is about 1/20 of
 MuJoCo's default (0.9-0.95)."""
+STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE = (0.95, 0.99, 0.001)
+"""'stance' impedance of the adaptive feet in float32 MJX, where their many stiff friction rows on
+light links are solved too inexactly: zero-action robots in 10 s (MJX, 4 robots, the AFF at 16,
+the AOF at 30 iterations) sank / slid 16.8 / 28.8 mm (AFF) and 37.4 / 72.7 mm (AOF) at
+0.99/0.999, and 6.7 / 14.7 and 7.1 / 12.2 mm at 0.95/0.99 (the best of 16 settings tried). In
+float64 (EnvConfig.float64_physics) the stiffer 0.99/0.999 holds them: 1.2 / 1.3 and 1.6 / 2.3 mm
+(0.95/0.99: 4.0 / 6.3 mm, AFF)."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
 STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (30, 30)}
@@ -187,7 +194,8 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     elif config.contact_model == "stance":
         model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
         model.opt.impratio = STANCE_CONTACT_IMPRATIO
-        model.geom_solimp[:, :3] = STANCE_CONTACT_SOLIMP
+        model.geom_solimp[:, :3] = (STANCE_CONTACT_SOLIMP if config.feet == "ball" or config.float64_physics
+                                    else STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE)
         # Semi-implicit Euler (joint damping still implicit: eulerdamp stays on), as MuJoCo
         # Playground's quadrupeds. implicitfast adds the actuators' velocity derivative (kv) to the
         # mass matrix after the constraint solve, so the contact forces, solved for the plain

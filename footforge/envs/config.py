@@ -232,17 +232,18 @@ class EnvConfig:
       the price of that creep: a robot holding still slides and sinks about 22 cm in 10-20 s
       (AFF at 2.5 ms: 150 mm of sinking and 174 mm of slip in 10 s). Policies walk through it.
     - stance (every feet): a pyramidal cone with impratio 10 and the build's solimp
-      0.99/0.999/0.001 (friction regularisation about 1/100 of fast's), semi-implicit Euler
-      integration, at sim_dt <= 2.5 ms with at least the feet's Newton and line-search
-      iterations (ball 8/16, AFF 16/16, AOF 30/30: with fewer its friction diverges under a
-      policy's actions). Zero-action robots in MJX, 10 s from the reset's random velocities
-      (benchmarks/stance_mjx.py; benchmarks/RESULTS.md, 2026-11-25), sinking / sliding:
-      ball 2.1 / 2.5 mm in float32; AFF 1.2 / 1.3 mm and AOF 1.6 / 2.3 mm with
-      float64_physics, none diverging under random actions. The adaptive feet need float64: in
-      MJX's float32 their many stiff friction rows on light links are solved too inexactly and
-      they creep (AFF 8 / 14 mm in 5 s), as CPU MuJoCo (float64) does not. Cost per robot and
-      policy step on this CPU, against fast at the same step: ball 3.4x, AFF 2.3x (float64),
-      AOF 2.5x (float64, 30 iterations). Not yet with low friction: at a friction
+      0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; the adaptive feet in
+      float32: 0.95/0.99/0.001), semi-implicit Euler integration, at sim_dt <= 2.5 ms with at
+      least the feet's Newton and line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with
+      fewer its friction diverges under a policy's actions). Zero-action robots in MJX, 10 s from
+      the reset's random velocities (benchmarks/stance_mjx.py; benchmarks/RESULTS.md,
+      2026-11-25), sinking / sliding: ball 2.1 / 2.5 mm (float32); AFF 1.2 / 1.3 mm and AOF
+      1.6 / 2.3 mm with float64_physics; in float32 AFF 6.7 / 14.7 mm and AOF 7.1 / 12.2 mm
+      (fast: 150 / 174 and 169 / 182 mm). None diverged under random actions. In MJX's float32
+      the adaptive feet's many stiff friction rows on light links are solved too inexactly to
+      hold still, as CPU MuJoCo (float64) and float64 MJX do. Cost per robot and policy step on
+      this CPU, against fast at the same step: ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
+      AOF 1.8x (float32) and 2.5x (float64). Not yet with low friction: at a friction
       coefficient of 0.5 (the low end of RandomizationConfig.friction_range; the stance's
       sideways load is 0.49 of the normal force) 3 of 8 ball robots diverged under random
       actions. footforge.envs.with_contact_model sets the step and iterations it needs.
@@ -255,7 +256,7 @@ class EnvConfig:
     fast stays the default: the policies of the first GPU campaign trained with it, and the
     price of stance (more iterations, and float64 for the adaptive feet) on a GPU is not yet
     measured. Train with stance by `--contact-model stance` (float32: the adaptive feet then
-    creep about 1.4 mm/s, a tenth of fast's)."""
+    creep about 1.3 mm/s, a twelfth of fast's)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
     whole process, to be set before JAX makes its first array by
