@@ -39,10 +39,11 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
     Raises:
       InputError: a haptic policy on other feet (or no policy in the folder).
     """
-    from footforge.envs import from_config, on_feet
+    from footforge.envs import enable_float64_physics, from_config, on_feet
     from footforge.train import load_policy
 
     policy, env_config, _ = load_policy(policy_dir)
+    enable_float64_physics(env_config)  # the physics it trained on (EnvConfig.float64_physics)
     feet = feet or env_config.feet
     check_policy_on_feet(env_config, feet, str(policy_dir))
     seconds = seconds or SECONDS[env_config.task]

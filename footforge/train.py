@@ -40,6 +40,7 @@ the same reason) plus the evaluation's time (next_epoch_seconds).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -141,10 +142,32 @@ def network_factory(ppo: PPOConfig, privileged: bool = False):
     from flax import linen
 
     keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if privileged else {}
-    return functools.partial(
+    make = functools.partial(
         ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=ppo.policy_hidden_layers,
         value_hidden_layer_sizes=ppo.value_hidden_layers, activation=linen.elu,
         distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std, **keys)
+
+    def float32_networks(*args, **kwargs):
+        # Under JAX's x64 mode (EnvConfig.float64_physics) Brax's log-std parameter is made in
+        # float64 (jnp.full of a Python float), and optax's inject_hyperparams then makes Adam's
+        # decay rates float64 too, which turns the float32 parameters' moments float64 and breaks
+        # PPO's minibatch scan. Every parameter is made float32 (a no-op without x64).
+        networks = make(*args, **kwargs)
+        return dataclasses.replace(networks, policy_network=_float32_init(networks.policy_network),
+                                   value_network=_float32_init(networks.value_network))
+    return float32_networks
+
+
+def _float32_init(network):
+    """`network` (Brax's FeedForwardNetwork) whose init returns float32 parameters."""
+    import jax
+    import jax.numpy as jp
+
+    def init(*args, **kwargs):
+        params = network.init(*args, **kwargs)
+        return jax.tree_util.tree_map(lambda x: x.astype(jp.float32) if jp.issubdtype(x.dtype, jp.floating) else x,
+                                      params)
+    return dataclasses.replace(network, init=init)
 
 
 CHECKPOINT_MANIFEST = "footforge_checkpoint.json"
@@ -410,7 +433,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     from brax.training.agents.ppo import train as ppo_train
     from tensorboardX import SummaryWriter
 
-    from footforge.envs import from_config
+    from footforge.envs import enable_float64_physics, from_config
     from footforge.envs.randomization import randomizer
     from footforge.envs.wrappers import wrap_for_training
 
@@ -422,13 +445,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         def notice(text: str) -> None:
             print(text, file=sys.stderr, flush=True)
     jax_compat.install()  # Brax 0.14.2's PPO on JAX >= 0.10
-    if env_config.float64_physics:
-        # Measured 2026-11-25: under JAX's x64 mode Brax 0.14.2's PPO makes some of its state
-        # float64 (Adam's decay rates among them) and its minibatch scan then fails on the
-        # carry's dtypes; the environment's own float64 path (policy_side) is not the problem.
-        raise InputError("float64_physics cannot train yet: Brax's PPO is not dtype-stable under JAX's x64 mode",
-                         fix="train with float64_physics=False (contact_model 'stance' then creeps on AFF/AOF feet "
-                             "about 1.3 mm/s); float64 physics serves evaluations and stance measurements")
+    enable_float64_physics(env_config)  # EnvConfig.float64_physics: before the environment's first array
     ppo.check()
     if max_wall_s is not None and max_wall_s <= 0:
         raise InputError(f"max_wall_s must be positive, got {max_wall_s}", fix="give a positive time budget")

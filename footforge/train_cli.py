@@ -45,6 +45,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     p.add_argument("--contact-model", choices=["fast", "stance"],
                    help="the MJX contact model (EnvConfig.contact_model; default fast, which creeps at rest); stance "
                         "holds a standing robot and sets the 2.5 ms step and the solver iterations it needs")
+    p.add_argument("--float64-physics", action="store_const", const=True,
+                   help="step MJX in float64 (EnvConfig.float64_physics): the adaptive feet's stance holds only in "
+                        "float64; the networks stay float32")
     p.add_argument("--build-root", type=Path,
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/), as in "
                         "the evaluation pipelines")
@@ -91,7 +94,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                     "coordinator_address": args.coordinator, "num_processes": args.num_processes,
                     "process_id": args.process_id}))
             from footforge import compile_cache
+            from footforge.envs import enable_float64_physics
 
+            enable_float64_physics(env_config)  # before any JAX array
             compile_cache.enable(not args.no_compile_cache)
             with _Reporter(console, task, ppo.num_timesteps) as report:
                 metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
@@ -124,7 +129,8 @@ _SETTINGS = (("--feet", "feet", ("env", "feet")), ("--policy", "policy", ("env",
              ("--minibatches", "minibatches", ("ppo", "num_minibatches")),
              ("--checkpoint-every", "checkpoint_every", ("ppo", "checkpoint_every_steps")),
              ("--eval-envs", "eval_envs", ("ppo", "num_eval_envs")),
-             ("--contact-model", "contact_model", ("env", "contact_model")))
+             ("--contact-model", "contact_model", ("env", "contact_model")),
+             ("--float64-physics", "float64_physics", ("env", "float64_physics")))
 
 
 def _new_configs(task: str, args):
@@ -137,6 +143,8 @@ def _new_configs(task: str, args):
         env_config = replace(env_config, terrain=_override(env_config.terrain, args.terrain))
     if args.contact_model:
         env_config = envs.with_contact_model(env_config, args.contact_model)
+    if args.float64_physics:
+        env_config = replace(env_config, float64_physics=True)
     overrides = {field: getattr(args, attr) for _, attr, (section, field) in _SETTINGS
                  if section == "ppo" and getattr(args, attr) is not None}
     if args.timesteps is not None:

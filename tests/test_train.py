@@ -521,11 +521,19 @@ def test_contact_model_flag_sets_the_stance_physics_and_resume_keeps_it(written_
     chosen feet (envs.with_contact_model); a resumed run names a differing --contact-model."""
     from footforge.train_cli import main
 
+    from footforge import envs as envs_module
+
     seen = _capture_train(monkeypatch)
+    switched = []  # x64 is process-wide: recorded here, not switched in the test process
+    monkeypatch.setattr(envs_module, "enable_float64_physics", lambda config: switched.append(config.float64_physics))
     assert main("flat", "", ["--feet", "aof", "--contact-model", "stance", "--out", str(tmp_path / "a")]) == 0
     env = seen["env"]
     assert (env.contact_model, env.sim_dt, env.decimation) == ("stance", 0.0025, 8)
     assert (env.solver_iterations, env.solver_ls_iterations) == (30, 30)
+    assert not env.float64_physics and switched == [False]
+    assert main("flat", "", ["--feet", "aof", "--contact-model", "stance", "--float64-physics",
+                             "--out", str(tmp_path / "b")]) == 0
+    assert seen["env"].float64_physics and switched == [False, True]
     run, cfg, _ = written_run
     assert cfg.contact_model == "fast"
     capsys.readouterr()
@@ -533,16 +541,35 @@ def test_contact_model_flag_sets_the_stance_physics_and_resume_keeps_it(written_
     assert "--contact-model stance differs from the run's fast" in capsys.readouterr().err
 
 
-def test_float64_physics_is_refused_by_training_before_any_work(tmp_path):
-    """EnvConfig.float64_physics cannot train (Brax's PPO under JAX's x64 mode): refused with the
-    setting to change, before the run folder is made."""
-    from dataclasses import replace
-
-    from footforge import envs
-    from footforge.train import PPOConfig, train
-
-    config = replace(envs.default_config("flat", "aff", "B"), float64_physics=True)
-    with pytest.raises(InputError, match="float64_physics cannot train") as e:
-        train(config, PPOConfig(num_envs=8, batch_size=8, num_minibatches=1), tmp_path / "run")
-    assert "float64_physics=False" in e.value.fix
-    assert not (tmp_path / "run").exists()
+@pytest.mark.slow  # a subprocess (x64 is process-wide): a tiny ball run, about 2 minutes
+def test_training_with_float64_physics_keeps_the_networks_float32(built, tmp_path):
+    """--float64-physics --contact-model stance: MJX steps in float64 (EnvConfig.float64_physics)
+    while PPO's side stays float32 (the environment's policy_side, Brax's bookkeeping through
+    PolicySideWrapper, and float32 network parameters: Brax makes its log-std float64 under x64,
+    which made Adam's moments float64 and broke PPO's minibatch scan). The run ends, its saved
+    configuration says float64, the saved networks' parameters are float32 and the policy acts.
+    (Brax's observation normaliser keeps its running statistics in float64 under x64: type-stable,
+    and the ONNX export casts it.)"""
+    script = (
+        "import sys, jax, numpy as np\n"
+        "from footforge.train_cli import main\n"
+        "code = main('flat', 'test', sys.argv[1:])\n"
+        "assert code == 0, code\n"
+        "assert jax.config.read('jax_enable_x64')\n"
+        "from footforge.train import load_policy\n"
+        "policy, config, _ = load_policy(sys.argv[sys.argv.index('--out') + 1] + '/policy')\n"
+        "assert config.float64_physics and config.contact_model == 'stance'\n"
+        "from footforge.train import load_policy_parameters\n"
+        "saved = load_policy_parameters(sys.argv[sys.argv.index('--out') + 1] + '/policy').params\n"
+        "leaves = jax.tree_util.tree_leaves(saved[1:])  # policy and value networks (saved[0]: the normaliser)\n"
+        "print('PARAMS', sorted({str(x.dtype) for x in leaves}))\n"
+        "action = policy(jax.numpy.zeros(48, jax.numpy.float32), jax.random.PRNGKey(0))[0]\n"
+        "print('ACTION', action.shape, bool(jax.numpy.isfinite(action).all()))\n")
+    run = subprocess.run(
+        [sys.executable, "-c", script, "--feet", "ball", "--contact-model", "stance", "--float64-physics",
+         "--build-root", str(built["ball"][0].parent), "--num-envs", "8", "--timesteps", "600", "--unroll-length", "4",
+         "--batch-size", "8", "--minibatches", "1", "--eval-envs", "4", "--checkpoint-every", "300",
+         "--no-evaluations", "--no-compile-cache", "--out", str(tmp_path / "run")],
+        capture_output=True, text=True, timeout=1500)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "PARAMS ['float32']" in run.stdout and "ACTION (12,) True" in run.stdout

@@ -241,7 +241,7 @@ class EnvConfig:
       1.6 / 2.3 mm with float64_physics; in float32 AFF 6.7 / 14.7 mm and AOF 7.1 / 12.2 mm
       (fast: 150 / 174 and 169 / 182 mm). None diverged under random actions. In MJX's float32
       the adaptive feet's many stiff friction rows on light links are solved too inexactly to
-      hold still, as CPU MuJoCo (float64) and float64 MJX do. Cost per robot and policy step on
+      hold still; CPU MuJoCo (float64) and float64 MJX hold them. Cost per robot and policy step on
       this CPU, against fast at the same step: ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
       AOF 1.8x (float32) and 2.5x (float64). Not yet with low friction: at a friction
       coefficient of 0.5 (the low end of RandomizationConfig.friction_range; the stance's
@@ -255,18 +255,17 @@ class EnvConfig:
 
     fast stays the default: the policies of the first GPU campaign trained with it, and the
     price of stance (more iterations, and float64 for the adaptive feet) on a GPU is not yet
-    measured. Train with stance by `--contact-model stance` (float32: the adaptive feet then
-    creep about 1.3 mm/s, a twelfth of fast's)."""
+    measured. Train with stance by `--contact-model stance`, for the adaptive feet with
+    `--float64-physics` (in float32 they still creep about 1.3 mm/s, a twelfth of fast's)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
-    whole process, to be set before JAX makes its first array by
-    footforge.envs.enable_float64_physics(config) (or JAX_ENABLE_X64=1); an environment built
-    without it refuses to start. The policy's side stays float32: the environment hands
-    observations, rewards, metrics and info over in float32 (envs.wrappers.policy_side). The
-    adaptive feet's stance needs it (contact_model). Training refuses it for now: Brax 0.14.2's
-    PPO is not dtype-stable under x64 (some of its optimiser state turns float64 and its
-    minibatch scan fails), so it serves stance measurements and evaluations in one's own
-    scripts (tests/test_envs.py shows one)."""
+    whole process, set before JAX makes its first array by
+    footforge.envs.enable_float64_physics(config) (training, `--float64-physics`, and evaluation
+    call it; in one's own script call it first, or set JAX_ENABLE_X64=1); an environment built
+    without it refuses to start. The policy's side stays float32: the environment and the
+    training wrapper hand observations, rewards, metrics and info over in float32
+    (envs.wrappers.policy_side), and the networks' parameters are made float32
+    (train.network_factory). The adaptive feet's stance needs it (contact_model)."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)

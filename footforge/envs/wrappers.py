@@ -33,6 +33,19 @@ def policy_side(state: State) -> State:
                          metrics=narrow(state.metrics), info=narrow(state.info))
 
 
+class PolicySideWrapper(Wrapper):
+    """policy_side on every state the wrapped stack returns, Brax's bookkeeping included: under
+    JAX's x64 mode (EnvConfig.float64_physics) Brax's wrappers make their episode counters and
+    metrics float64 at reset (JAX's default dtype is then float64) while the environment's steps
+    return float32."""
+
+    def reset(self, rng: jax.Array) -> State:
+        return policy_side(self.env.reset(rng))
+
+    def step(self, state: State, action: jp.ndarray) -> State:
+        return policy_side(self.env.step(state, action))
+
+
 class SelfResetWrapper(Wrapper):
     """AutoResetWrapper's bookkeeping without its state replacement."""
 
@@ -45,4 +58,4 @@ class SelfResetWrapper(Wrapper):
 def wrap_for_training(env: Env, episode_length: int, action_repeat: int = 1, randomization_fn=None) -> Wrapper:
     """Brax's training wrapping for self-restarting environments (pass as ppo.train's wrap_env_fn)."""
     env = VmapWrapper(env) if randomization_fn is None else DomainRandomizationVmapWrapper(env, randomization_fn)
-    return SelfResetWrapper(EpisodeWrapper(env, episode_length, action_repeat))
+    return PolicySideWrapper(SelfResetWrapper(EpisodeWrapper(env, episode_length, action_repeat)))
