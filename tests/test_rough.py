@@ -186,14 +186,21 @@ def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
     """Rough task, level 0 (flat platform), zero position actions: the PD holds the default pose
     from the randomised start for a full 20 s episode without a fall (how far it sinks through
     MJX's contact creep: test_envs' xfail, issue 12)."""
-    env, states, step = rough[feet]
+    env, _, step = rough[feet]
+    heights = _zero_action_episode_on_level_0(env, step, feet)
+    assert min(heights) > 0.25, (feet, min(heights))
+
+
+def _zero_action_episode_on_level_0(env, step, feet: str) -> np.ndarray:
+    """A whole episode of zero actions on level 0 from a randomised start (key 3), asserting no
+    fall: the base heights over the terrain."""
     state = jax.jit(env.reset_on_tile)(jax.random.PRNGKey(3), 0, 0)
     heights = []
     for _ in range(env.config.episode_steps - 1):
         state = step(state, jp.zeros(12))
         assert float(state.done) == 0.0, f"{feet}: fell at episode step {int(state.info['episode_step'])}"
         heights.append(float(env.base_height(state.pipeline_state)))
-    assert min(heights) > 0.25, (feet, min(heights))
+    return np.array(heights)
 
 
 @pytest.mark.slow  # one rough environment per feet compiled at the stance's iterations: 2-3 minutes each
@@ -209,16 +216,10 @@ def test_the_stance_contact_holds_level_0(built, feet):
     config = envs.with_contact_model(envs.default_config("rough", feet, RICHEST[feet]), "stance")
     env = envs.from_config(replace(config, build_dir=str(built[feet][0]), terrain=SMALL,
                                    pushes=replace(config.pushes, enabled=False)))
-    step = jax.jit(env.step)
-    state = jax.jit(env.reset_on_tile)(jax.random.PRNGKey(3), 0, 0)
-    heights = []
-    for _ in range(env.config.episode_steps - 1):
-        state = step(state, jp.zeros(12))
-        assert float(state.done) == 0.0, f"{feet}: fell at episode step {int(state.info['episode_step'])}"
-        heights.append(float(env.base_height(state.pipeline_state)))
+    heights = _zero_action_episode_on_level_0(env, jax.jit(env.step), feet)
     assert min(heights) > 0.25, (feet, min(heights))
     if feet == "ball":
-        settled = np.array(heights[int(round(2.0 / env.config.policy_dt)):])
+        settled = heights[int(round(2.0 / env.config.policy_dt)):]
         assert settled[0] - settled.min() < 0.010, (settled[0], settled.min())
 
 
