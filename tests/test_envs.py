@@ -531,6 +531,10 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     # A policy step the feet's step does not divide keeps the policy's own physics.
     odd = envs.on_feet(replace(ball, sim_dt=0.006, decimation=3), "aof")
     assert (odd.feet, odd.sim_dt, odd.decimation) == ("aof", 0.006, 3)
+    # A stance policy gets the iterations the stance needs on the other feet (ball 8/16, AOF 30/30).
+    stance_on_aof = envs.on_feet(envs.with_contact_model(ball, "stance"), "aof")
+    assert (stance_on_aof.contact_model, stance_on_aof.solver_iterations, stance_on_aof.solver_ls_iterations) == \
+        ("stance", 30, 30)
     built_configs = []
     monkeypatch.setattr("footforge.train.load_policy", lambda d: (None, ball, None))
     monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)

@@ -58,15 +58,17 @@ def _physics_step(feet: str) -> dict:
 
 
 def on_feet(config, feet: str):
-    """`config` (a policy's training configuration) moved to `feet`: the same policy step, at the
-    physics step `feet` need (_physics_step) unless the policy's own is finer. A ball policy
-    evaluated on AOF feet thus steps AOF at 2.5 ms, where its light links do not diverge, and
-    still acts every 20 ms."""
+    """`config` (a policy's training configuration) moved to `feet`: the same policy step and
+    contact model, at the physics step `feet` need (_physics_step) unless the policy's own is
+    finer, and with at least the solver iterations its contact model needs on `feet`
+    (with_contact_model). A ball policy evaluated on AOF feet thus steps AOF at 2.5 ms, where its
+    light links do not diverge, and still acts every 20 ms."""
     sim_dt = min(config.sim_dt, _physics_step(feet).get("sim_dt", EnvConfig.sim_dt))
     decimation = config.policy_dt / sim_dt
     if abs(decimation - round(decimation)) > 1e-6:  # a policy step the feet's step does not divide
         sim_dt, decimation = config.sim_dt, config.decimation
-    return replace(config, feet=feet, sim_dt=sim_dt, decimation=int(round(decimation)))
+    moved = replace(config, feet=feet, sim_dt=sim_dt, decimation=int(round(decimation)))
+    return with_contact_model(moved, config.contact_model)
 
 
 def with_contact_model(config, contact_model: str):
