@@ -243,19 +243,22 @@ class EnvConfig:
       the adaptive feet's many stiff friction rows on light links are solved too inexactly to
       hold still; CPU MuJoCo (float64) and float64 MJX hold them. Cost per robot and policy step on
       this CPU, against fast at the same step: ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
-      AOF 1.8x (float32) and 2.5x (float64). Not yet with low friction: at a friction
-      coefficient of 0.5 (the low end of RandomizationConfig.friction_range; the stance's
-      sideways load is 0.49 of the normal force) 3 of 8 ball robots diverged under random
-      actions. footforge.envs.with_contact_model sets the step and iterations it needs.
+      AOF 1.8x (float32) and 2.5x (float64). Only at a friction coefficient of about 0.8 (the
+      model's) or more: a pyramidal cone bounds the sideways force by |fx| + |fy| <= mu fn, so
+      along a diagonal to mu / sqrt(2) of the normal force (0.53 at mu 0.75), against the
+      stance's 0.49. At mu 0.75 (10 s, 8 robots) ball sank 141 mm and slid 248 mm (3 of 8
+      diverged under random actions), AFF 125 / 199 mm, AOF 101 / 133 mm; most of
+      RandomizationConfig.friction_range lies below. footforge.envs.with_contact_model sets the
+      step and iterations it needs.
     - build: the built scene's (elliptic cone, impratio 10, solimp 0.99/0.999) under its
       implicitfast integrator. It needs a converged solve (solver_iterations >= 16,
       solver_ls_iterations >= 50, refused with fewer). At a 2.5 ms step it holds a stance in MJX
       for ball, AFF and AOF at rest, but an untrained policy's actions diverge AOF (7 of 16 robots
       in CPU MuJoCo), and it costs 5-10 times fast.
 
-    fast stays the default: the policies of the first GPU campaign trained with it, and the
-    price of stance (more iterations, and float64 for the adaptive feet) on a GPU is not yet
-    measured. Train with stance by `--contact-model stance`, for the adaptive feet with
+    fast stays the default: stance holds only at high friction (above), the policies of the
+    first GPU campaign trained with fast, and the price of stance (more iterations, and float64
+    for the adaptive feet) on a GPU is not yet measured. Train with stance by `--contact-model stance`, for the adaptive feet with
     `--float64-physics` (in float32 they still creep about 1.3 mm/s, a twelfth of fast's)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
