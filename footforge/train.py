@@ -142,20 +142,23 @@ def network_factory(ppo: PPOConfig, privileged: bool = False):
     from flax import linen
 
     keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if privileged else {}
-    make = functools.partial(
-        ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=ppo.policy_hidden_layers,
-        value_hidden_layer_sizes=ppo.value_hidden_layers, activation=linen.elu,
-        distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std, **keys)
 
+    # Brax records the factory's keyword defaults (inspect.signature, which follows __wrapped__)
+    # in ppo_network_config.json: the wrapper keeps make_ppo_networks' signature.
+    @functools.wraps(ppo_networks.make_ppo_networks)
     def float32_networks(*args, **kwargs):
         # Under JAX's x64 mode (EnvConfig.float64_physics) Brax's log-std parameter is made in
         # float64 (jnp.full of a Python float), and optax's inject_hyperparams then makes Adam's
         # decay rates float64 too, which turns the float32 parameters' moments float64 and breaks
         # PPO's minibatch scan. Every parameter is made float32 (a no-op without x64).
-        networks = make(*args, **kwargs)
+        networks = ppo_networks.make_ppo_networks(*args, **kwargs)
         return dataclasses.replace(networks, policy_network=_float32_init(networks.policy_network),
                                    value_network=_float32_init(networks.value_network))
-    return float32_networks
+
+    return functools.partial(
+        float32_networks, policy_hidden_layer_sizes=ppo.policy_hidden_layers,
+        value_hidden_layer_sizes=ppo.value_hidden_layers, activation=linen.elu,
+        distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std, **keys)
 
 
 def _float32_init(network):

@@ -283,12 +283,13 @@ def test_contact_models_are_refused_where_they_diverge(built):
 def test_the_adaptive_feet_s_stance_diverges_under_actions_with_fewer_iterations(built):
     """Why 'stance' needs 16 Newton iterations on AFF feet (STANCE_CONTACT_MIN_ITERATIONS): under an
     untrained policy's random actions (footforge.envs.stability, CPU MuJoCo, float64) an
-    unconverged solve of its stiff friction throws AFF robots within a fraction of a second at
-    8/16 iterations, and none diverge at 16/16."""
+    unconverged solve of its stiff friction (solimp 0.99/0.999, float64_physics's) throws AFF
+    robots within a fraction of a second at 8/16 iterations, and none diverge at 16/16."""
     from footforge.envs import anymal
     from footforge.envs.stability import divergence_times
 
-    stance = envs.with_contact_model(EnvConfig(feet="aff", build_dir=str(built["aff"][0])), "stance")
+    stance = envs.with_contact_model(EnvConfig(feet="aff", build_dir=str(built["aff"][0]), float64_physics=True),
+                                     "stance")
     assert divergence_times(stance, robots=4, seconds=4.0, seed=0) == [None] * 4
     minimum = anymal.STANCE_CONTACT_MIN_ITERATIONS
     try:  # the refusal lifted, to show what it prevents

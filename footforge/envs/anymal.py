@@ -52,7 +52,10 @@ solve of its stiff friction diverges under a policy's actions: ball at 6 Newton 
 float32: 1 of 8 robots fell at rest, 1 diverged acting); AFF at 8/16 (CPU MuJoCo, 7 of 8 robots
 within 0.35 s of random actions); AOF at 16/50 (5 of 8 within 8 s). The light passive links of the
 adaptive feet couple many stiff friction rows, which take more iterations to converge
-(benchmarks/RESULTS.md, 2026-11-25, the seventh look)."""
+(benchmarks/RESULTS.md, 2026-11-25, the seventh look). Those figures are at solimp 0.99/0.999
+(float64_physics's); at the adaptive feet's softer float32 impedance (0.95/0.99) AFF at 8/16 and
+AOF at 16/50 did not diverge (CPU MuJoCo, 8 robots, 10 s), but MJX there is measured at 16/16
+and 30/30 only, so the minima stay."""
 STANCE_CONTACT_MAX_SIM_DT = 0.0025
 """Largest physics step of 'stance', s: at 5 ms (its friction's time constant then 10 ms) an
 unconverged step lets a ball foot chatter and walk (47 mm of slip in 6 s at 16/50 iterations)."""
