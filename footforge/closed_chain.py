@@ -104,9 +104,11 @@ def policy_environment(config, build_root: Path | None = None, terrain_tiles: Te
     with `config` (flat ground: LocomotionEnv; on `terrain_tiles`: RoughEnv, its terrain height
     under the base and under the height scan; env.terrain is then the Terrain), and the policy's
     own feet as a CPU robot (cpu_robot) on that ground."""
+    from footforge.envs import enable_float64_physics
     from footforge.envs.locomotion import LocomotionEnv
     from footforge.envs.rough import RoughEnv
 
+    enable_float64_physics(config)  # a policy trained in float64 physics: its environment's maths need x64
     if terrain_tiles:
         env = RoughEnv(replace(config, task="rough", terrain=terrain_tiles, build_dir=_build_dir(config.feet, build_root)))
         return env, cpu_robot(config, config.feet, build_root, env.terrain)

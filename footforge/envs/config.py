@@ -258,8 +258,9 @@ class EnvConfig:
 
     fast stays the default: stance holds only at high friction (above), the policies of the
     first GPU campaign trained with fast, and the price of stance (more iterations, and float64
-    for the adaptive feet) on a GPU is not yet measured. Train with stance by `--contact-model stance`, for the adaptive feet with
-    `--float64-physics` (in float32 they still creep about 1.3 mm/s, a twelfth of fast's)."""
+    for the adaptive feet) on a GPU is not yet measured. Train with stance by
+    `--contact-model stance`, for the adaptive feet with `--float64-physics` (in float32 they
+    still creep about 1.3 mm/s, a twelfth of fast's)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
     whole process, set before JAX makes its first array by

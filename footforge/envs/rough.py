@@ -28,7 +28,8 @@ from mujoco import mjx
 from footforge.envs import curriculum
 from footforge.envs.anymal import GEOM_BASE, GEOM_THIGH, load_robot
 from footforge.envs.config import EnvConfig
-from footforge.envs.locomotion import LocomotionEnv, policy_side
+from footforge.envs.locomotion import LocomotionEnv
+from footforge.envs.wrappers import policy_side
 from footforge.envs.terrain import generate, surface_height
 from footforge.errors import InputError
 
