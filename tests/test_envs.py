@@ -346,7 +346,9 @@ def test_the_stance_contact_holds_an_adaptive_foot_robot_still_in_float64(built)
     import subprocess
     import sys
 
-    run = subprocess.run([sys.executable, "-c", _FLOAT64_STANCE, "aff", str(built["aff"][0]), "10"],
+    # A float64 value scattered into a float32 array warns now and will be an error in JAX.
+    run = subprocess.run([sys.executable, "-W", "error:scatter inputs have incompatible types:FutureWarning", "-c",
+                          _FLOAT64_STANCE, "aff", str(built["aff"][0]), "10"],
                          capture_output=True, text=True, timeout=1500)
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads(run.stdout.strip().splitlines()[-1])

@@ -566,7 +566,8 @@ def test_training_with_float64_physics_keeps_the_networks_float32(built, tmp_pat
         "action = policy(jax.numpy.zeros(48, jax.numpy.float32), jax.random.PRNGKey(0))[0]\n"
         "print('ACTION', action.shape, bool(jax.numpy.isfinite(action).all()))\n")
     run = subprocess.run(
-        [sys.executable, "-c", script, "--feet", "ball", "--contact-model", "stance", "--float64-physics",
+        [sys.executable, "-W", "error:scatter inputs have incompatible types:FutureWarning", "-c", script,
+         "--feet", "ball", "--contact-model", "stance", "--float64-physics",
          "--build-root", str(built["ball"][0].parent), "--num-envs", "8", "--timesteps", "600", "--unroll-length", "4",
          "--batch-size", "8", "--minibatches", "1", "--eval-envs", "4", "--checkpoint-every", "300",
          "--no-evaluations", "--no-compile-cache", "--out", str(tmp_path / "run")],

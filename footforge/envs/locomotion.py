@@ -263,7 +263,7 @@ class LocomotionEnv(Env):
         c = self.config.commands
         error = _wrap(info["heading_target"] - _yaw(data.qpos[3:7]))
         yaw_rate = jp.clip(c.heading_gain * error, -c.yaw_rate_limit, c.yaw_rate_limit)
-        return info["command"].at[2].set(yaw_rate)
+        return info["command"].at[2].set(yaw_rate.astype(info["command"].dtype))  # float64 physics: f32 command
 
     def base_state(self, data):
         """(linear velocity, angular velocity, projected gravity) in the base frame."""
