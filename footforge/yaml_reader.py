@@ -29,7 +29,8 @@ class YamlReader:
         self.data, self.path, self.file = data, path, file
 
     def fail(self, msg: str, fix: str) -> InputError:
-        return InputError(msg, file=str(self.file), element=f"key '{self.path}'", fix=fix)
+        return InputError(msg, file=str(self.file), element=f"key '{self.path}'" if self.path else "top level",
+                          fix=fix)
 
     def mapping(self) -> dict:
         if not isinstance(self.data, dict):
