@@ -79,7 +79,7 @@ def foot_loads(model: mujoco.MjModel, *, keyframe: str = "stand", settle_s: floa
     wrench = np.zeros(6)
     for i in range(data.ncon):
         contact = data.contact[i]
-        robot_geom = contact.geom1 if model.geom_contype[contact.geom1] == 0 else contact.geom2
+        robot_geom = contact.geom2 if model.geom_bodyid[contact.geom1] == 0 else contact.geom1  # the world's is the ground
         leg = model.body(model.geom_bodyid[robot_geom]).name.split("_")[0]
         if leg not in legs:
             continue

@@ -73,14 +73,11 @@ def on_feet(config, feet: str):
 
 def with_contact_model(config, contact_model: str):
     """`config` with `contact_model` (EnvConfig.contact_model) and the physics it needs: for
-    'stance' a step of at most STANCE_CONTACT_MAX_SIM_DT (the policy step kept) and at least the
-    feet's STANCE_CONTACT_MIN_ITERATIONS; for 'build' BUILD_CONTACT_MIN_ITERATIONS. Settings
-    already finer than those are kept."""
-    from footforge.envs.anymal import (BUILD_CONTACT_MIN_ITERATIONS, STANCE_CONTACT_MAX_SIM_DT,
-                                       STANCE_CONTACT_MIN_ITERATIONS)
+    'stance' a step of at most STANCE_CONTACT_MAX_SIM_DT (the policy step kept); for 'stance' and
+    'build' at least anymal.min_solver_iterations. Settings already finer than those are kept."""
+    from footforge.envs.anymal import STANCE_CONTACT_MAX_SIM_DT, min_solver_iterations
 
     changes = {"contact_model": contact_model}
-    needed = {"stance": STANCE_CONTACT_MIN_ITERATIONS.get(config.feet), "build": BUILD_CONTACT_MIN_ITERATIONS}
     if contact_model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT:
         decimation = config.policy_dt / STANCE_CONTACT_MAX_SIM_DT
         if abs(decimation - round(decimation)) > 1e-6:
@@ -88,8 +85,9 @@ def with_contact_model(config, contact_model: str):
                              f"divide the policy step {config.policy_dt:g} s",
                              fix="use a policy step (sim_dt x decimation) that is a multiple of 2.5 ms")
         changes |= {"sim_dt": STANCE_CONTACT_MAX_SIM_DT, "decimation": int(round(decimation))}
-    if needed.get(contact_model):
-        iterations, ls_iterations = needed[contact_model]
+    needed = min_solver_iterations(contact_model, config.feet)
+    if needed:
+        iterations, ls_iterations = needed
         changes |= {"solver_iterations": max(config.solver_iterations, iterations),
                     "solver_ls_iterations": max(config.solver_ls_iterations, ls_iterations)}
     return replace(config, **changes)

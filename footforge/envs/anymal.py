@@ -243,6 +243,13 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         foot_sites=np.array(foot_sites(model)))
 
 
+def min_solver_iterations(contact_model: str, feet: str) -> tuple[int, int] | None:
+    """(Newton, line-search) iterations `contact_model` needs on `feet`, or None (fast: any)."""
+    if contact_model == "stance":
+        return STANCE_CONTACT_MIN_ITERATIONS[feet]
+    return BUILD_CONTACT_MIN_ITERATIONS if contact_model == "build" else None
+
+
 def check_contact_model(config: EnvConfig) -> None:
     """Raises InputError where config.contact_model cannot run stably with config's feet, step and
     solver iterations (EnvConfig.contact_model; the limits are this module's constants)."""
@@ -252,7 +259,7 @@ def check_contact_model(config: EnvConfig) -> None:
                          f"{config.sim_dt}): at a longer step its friction chatters",
                          fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
                              f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, or contact_model='fast'")
-    needed = {"build": BUILD_CONTACT_MIN_ITERATIONS, "stance": STANCE_CONTACT_MIN_ITERATIONS.get(config.feet)}.get(model)
+    needed = min_solver_iterations(model, config.feet)
     if needed and (config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]):
         raise InputError(
             f"contact_model '{model}' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
