@@ -39,7 +39,9 @@ from mujoco import mjx
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 
-POLICY_DT = 0.02
+FLAT = EnvConfig()
+"""The flat task's velocity action model: target += action_scale x a x policy_dt (a clipped)."""
+POLICY_DT = FLAT.policy_dt
 
 
 def grid_point(text: str) -> tuple[float, ...]:
@@ -59,8 +61,8 @@ def rollout(mx, d0, qvel, key, decimation, policy_steps, acting, robot):
 
     def policy_step(carry, k):
         d, target, bad = carry
-        a = jp.clip(jax.random.normal(k, (12,)), -1.0, 1.0) * acting
-        target = jp.clip(target + 13.5 * a * POLICY_DT, lo, hi)
+        a = jp.clip(jax.random.normal(k, (12,)), -FLAT.action_clip, FLAT.action_clip) * acting
+        target = jp.clip(target + FLAT.action_scale * a * POLICY_DT, lo, hi)
         d = d.replace(ctrl=d.ctrl.at[act].set(target))
         # Under JAX_ENABLE_X64 mjx.step returns some integer fields wider than put_data made
         # them; the loop carry keeps the input's dtypes (a no-op in float32).

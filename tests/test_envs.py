@@ -366,10 +366,9 @@ def test_the_stance_contact_holds_a_ball_robot_still_for_a_whole_episode(built):
     off; no fall, and after the first 0.5 s the base sinks less than 10 mm and no foot slides
     more than 5 mm. With contact_model 'fast' the same robot sinks about 22 cm
     (test_zero_action_robot_neither_sinks_in_mjx)."""
-    config = envs.default_config("flat", "ball", "B")
-    env = envs.make("flat", "ball", "B", build_dir=str(built["ball"][0]), contact_model="stance", sim_dt=0.0025,
-                    decimation=8, solver_iterations=8, solver_ls_iterations=16,
-                    pushes=replace(config.pushes, enabled=False))
+    config = envs.with_contact_model(envs.default_config("flat", "ball", "B"), "stance")
+    env = envs.from_config(replace(config, build_dir=str(built["ball"][0]), pushes=replace(config.pushes, enabled=False)))
+    assert (env.config.sim_dt, env.config.solver_iterations, env.config.solver_ls_iterations) == (0.0025, 8, 16)
     heights, feet_xy = _zero_action_stance(env, steps=env.config.episode_steps - 1)
     assert heights[0] - heights.min() < 0.010, (heights[0], heights.min())
     assert np.linalg.norm(feet_xy - feet_xy[0], axis=-1).max() < 0.005
