@@ -48,15 +48,9 @@ def main(argv=None) -> int:
     t0 = time.time()
     print("env steps | wall s | episode length (policy steps) | forward error m/s | return", flush=True)
 
-    seen = []
-
-    def progress(step, total, metrics):
-        # Called after evaluations and after logs of training episodes, with the latest value of
-        # every metric: a new evaluation is one whose figures changed.
-        key = (metrics.get("eval/episode_reward"), metrics.get("eval/avg_episode_length"))
-        if key[0] is None or (seen and seen[-1] == key):
+    def progress(step, total, metrics, evaluation):
+        if not evaluation or "eval/episode_reward" not in metrics:
             return
-        seen.append(key)
         print(f"{step:>9,} | {time.time() - t0:6.0f} | {metrics['eval/avg_episode_length']:6.1f} | "
               f"{metrics['eval/episode_error/lin_vel_x_per_step']:.3f} | {metrics['eval/episode_reward']:.3f}",
               flush=True)

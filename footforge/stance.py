@@ -7,6 +7,9 @@ after that a correct contact model holds it still. Measured after `settle_s`: th
 height drop (its height at settle_s minus the lowest it reaches later) and each foot's slip (the
 horizontal displacement of its touchdown site), over `seconds` in all, at the model's own
 timestep and solver settings.
+
+env_stance measures the same in a training environment (MJX, its contact model and precision)
+from a reset state, the episode's own start.
 """
 
 from __future__ import annotations
@@ -102,3 +105,44 @@ def frictionless_rest(model: mujoco.MjModel, *, seconds: float = 5.0, keyframe: 
     start = data.site_xpos[sites, :2].copy()
     mujoco.mj_step(m, data, nstep=int(round(seconds / m.opt.timestep)))
     return float(data.qpos[2]), float(np.linalg.norm(data.site_xpos[sites, :2] - start, axis=1).max())
+
+
+@dataclass(frozen=True)
+class EnvStance:
+    """A robot of a training environment (MJX) under zero actions: figures after settle_s."""
+
+    drop_after_settle_m: float
+    """Base height over the ground at settle_s minus the lowest it reaches later."""
+    slip_after_settle_m: float
+    """Largest horizontal displacement of a foot's touchdown site after settle_s."""
+    base_height_min_m: float
+    """Lowest base height over the ground in the whole run."""
+    fell: bool
+    """The episode ended (a fall or a diverged simulation) before the end."""
+
+
+def env_stance(env, state, *, seconds: float, settle_s: float = 0.5, step=None) -> EnvStance:
+    """Issue 12's stance measure in a footforge environment: one robot from `state` (a reset
+    state, unbatched) given zero actions for `seconds`, at the environment's own physics (its
+    contact model, step and precision). `step`: the environment's jitted step, if already
+    compiled."""
+    import jax
+    import jax.numpy as jp
+
+    step = step or jax.jit(env.step)
+    sites = env.robot.foot_sites
+    policy_steps = int(round(seconds / env.config.policy_dt))
+    settle = int(round(settle_s / env.config.policy_dt))
+    heights, feet_xy, fell = [], [], False
+    for _ in range(policy_steps):
+        state = step(state, jp.zeros(env.action_size))
+        if float(state.done) != 0.0:
+            fell = True
+            break
+        heights.append(float(env.base_height(state.pipeline_state)))
+        feet_xy.append(np.asarray(state.pipeline_state.site_xpos[sites, :2]))
+    if fell or len(heights) <= settle:
+        return EnvStance(float("nan"), float("nan"), min(heights, default=float("nan")), True)
+    settled, xy = np.array(heights[settle:]), np.array(feet_xy[settle:])
+    return EnvStance(float(settled[0] - settled.min()), float(np.linalg.norm(xy - xy[0], axis=-1).max()),
+                     float(min(heights)), False)

@@ -27,3 +27,44 @@ def built(tmp_path_factory):
     root = tmp_path_factory.mktemp("build")
     cache = tmp_path_factory.mktemp("coacd")
     return {v: (root / v, build(BuildOptions(variant=v, out_dir=root / v, cache_dir=cache))) for v in VARIANTS}
+
+
+_FLOAT64_STANCE = """
+import dataclasses, json, sys
+from dataclasses import replace
+import jax
+from footforge import envs
+from footforge.envs.config import ResetConfig
+from footforge.envs.terrain import TerrainConfig
+from footforge.stance import env_stance
+task, feet, build_root = sys.argv[1], sys.argv[2], sys.argv[3]
+config = envs.default_config(task, feet, "B")
+config = replace(config, build_dir=build_root + "/" + feet, float64_physics=True,
+                 pushes=replace(config.pushes, enabled=False))
+if task == "rough":  # level 0 from the stand keyframe; a small field (level 0 is the same platform)
+    config = replace(config, reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
+                     terrain=TerrainConfig(num_levels=3, num_columns=6, tile_size_m=4.0, border_m=2.0, platform_m=1.5))
+envs.enable_float64_physics(config)
+env = envs.from_config(config)
+key = jax.random.PRNGKey(0)
+state = jax.jit(env.reset)(key) if task == "flat" else env.reset_on_tile(key, 0, 0)
+step = jax.jit(env.step)
+after = step(state, jax.numpy.zeros(env.action_size))
+print(json.dumps(dataclasses.asdict(env_stance(env, state, seconds=10.0, step=step)) | {
+    "physics": str(after.pipeline_state.qpos.dtype), "obs": str(after.obs.dtype), "reward": str(after.reward.dtype),
+    "metrics": sorted({str(v.dtype) for v in after.metrics.values()})}))
+"""
+
+
+def float64_stance(task: str, feet: str, build_root) -> dict:
+    """footforge.stance.env_stance over 10 s in a subprocess with float64 physics (x64 is
+    process-wide), and the dtypes the policy's side sees."""
+    import json
+    import subprocess
+    import sys
+
+    # A float64 value scattered into a float32 array warns now and will be an error in JAX.
+    run = subprocess.run([sys.executable, "-W", "error:scatter inputs have incompatible types:FutureWarning", "-c",
+                          _FLOAT64_STANCE, task, feet, str(build_root)], capture_output=True, text=True, timeout=1500)
+    assert run.returncode == 0, run.stderr[-3000:]
+    return json.loads(run.stdout.strip().splitlines()[-1])

@@ -38,7 +38,7 @@ def test_card_of_a_trained_run(tmp_path):
     assert "983,040 of 1,000,000" in card and "2 h 3 min, over 2 calls" in card
     assert "1 x NVIDIA H100 (gpu, 1 process), 16 CPU cores" in card and "wall-time budget" in card
     assert "return 12.500" in card and "policy 256-128-64" in card and "velocity actions x 13.5 rad/s" in card
-    assert "50 Hz control" in card and "randomised: friction" in card
+    assert "50 Hz control (2.5 ms x 8)" in card and "randomised: nothing" in card and "stance contact model" in card
     for name in INDICES:
         row = next(line for line in card.splitlines() if line.startswith(f"| {name} ("))
         cells = row.split(" | ")[1:]

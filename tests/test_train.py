@@ -516,9 +516,10 @@ def test_the_first_epoch_is_estimated_from_the_throughput_not_its_compilation():
     assert next_epoch_seconds(10.0, True, 1_000.0, 4_000_000) == 10.0  # never above what was observed
 
 
-def test_contact_model_flag_sets_the_stance_physics_and_resume_keeps_it(written_run, monkeypatch, capsys, tmp_path):
-    """--contact-model stance trains with the step and solver iterations the stance needs on the
-    chosen feet (envs.with_contact_model); a resumed run names a differing --contact-model."""
+def test_contact_model_flag_sets_the_model_s_physics_and_resume_keeps_it(written_run, monkeypatch, capsys, tmp_path):
+    """Training uses contact_model 'stance' by default, with the step and solver iterations it
+    needs on the chosen feet; --contact-model fast sets fast's own physics (ball feet back at
+    5 ms x 4, 4/8 iterations; envs.physics); a resumed run names a differing --contact-model."""
     from footforge.train_cli import main
 
     from footforge import envs as envs_module
@@ -526,19 +527,22 @@ def test_contact_model_flag_sets_the_stance_physics_and_resume_keeps_it(written_
     seen = _capture_train(monkeypatch)
     switched = []  # x64 is process-wide: recorded here, not switched in the test process
     monkeypatch.setattr(envs_module, "enable_float64_physics", lambda config: switched.append(config.float64_physics))
-    assert main("flat", "", ["--feet", "aof", "--contact-model", "stance", "--out", str(tmp_path / "a")]) == 0
+    assert main("flat", "", ["--feet", "aof", "--out", str(tmp_path / "a")]) == 0
     env = seen["env"]
     assert (env.contact_model, env.sim_dt, env.decimation) == ("stance", 0.0025, 8)
     assert (env.solver_iterations, env.solver_ls_iterations) == (30, 30)
     assert not env.float64_physics and switched == [False]
-    assert main("flat", "", ["--feet", "aof", "--contact-model", "stance", "--float64-physics",
-                             "--out", str(tmp_path / "b")]) == 0
+    assert main("flat", "", ["--feet", "aof", "--float64-physics", "--out", str(tmp_path / "b")]) == 0
     assert seen["env"].float64_physics and switched == [False, True]
+    assert main("flat", "", ["--feet", "ball", "--contact-model", "fast", "--out", str(tmp_path / "c")]) == 0
+    env = seen["env"]
+    assert (env.contact_model, env.sim_dt, env.decimation, env.solver_iterations, env.solver_ls_iterations) == \
+        ("fast", 0.005, 4, 4, 8)
     run, cfg, _ = written_run
-    assert cfg.contact_model == "fast"
+    assert cfg.contact_model == "stance"
     capsys.readouterr()
-    assert main("flat", "", ["--out", str(run), "--resume", "--contact-model", "stance"]) == 2
-    assert "--contact-model stance differs from the run's fast" in capsys.readouterr().err
+    assert main("flat", "", ["--out", str(run), "--resume", "--contact-model", "fast"]) == 2
+    assert "--contact-model fast differs from the run's stance" in capsys.readouterr().err
 
 
 @pytest.mark.slow  # a subprocess (x64 is process-wide): a tiny ball run, about 2 minutes

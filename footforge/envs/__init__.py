@@ -17,11 +17,13 @@ TASKS = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
 FEET = ("ball", "aff", "aof")
 
 
-def default_config(task: str, feet: str, policy: str) -> EnvConfig:
-    """The task's configuration for (feet, policy).
+def default_config(task: str, feet: str, policy: str, contact_model: str | None = None) -> EnvConfig:
+    """The task's configuration for (feet, policy), with `contact_model` (default
+    EnvConfig.contact_model) and the physics step and solver iterations it needs on `feet`
+    (with_contact_model).
 
     Raises:
-      InputError: an unknown task, feet or policy type, or a haptic policy on ball feet.
+      InputError: an unknown task, feet, policy type or contact model, or a haptic policy on ball feet.
     """
     if task not in TASKS:
         raise InputError(f"unknown task '{task}'", fix=f"use one of {', '.join(TASKS)}")
@@ -32,38 +34,60 @@ def default_config(task: str, feet: str, policy: str) -> EnvConfig:
         raise InputError(f"policy type '{policy}' is not available for the {task} task",
                          fix=f"use one of {', '.join(TASKS[task])}")
     check_feet_and_policy(feet, policy)
-    physics = _physics_step(feet)
     if task == "flat":
         # The flat baseline's published scales where it has them (the rest: the rough baseline's).
         # Its reset puts the joints at the defaults (only their velocities are drawn).
         flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
-        return EnvConfig(task="flat", feet=feet, policy=policy, action="velocity", rewards=flat_rewards,
-                         reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)), **physics)
-    # The rough baseline: position targets default + 0.5 a, planar commands in [-1, 1] m/s with
-    # slow ones zeroed.
-    commands = CommandConfig(lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-1.0, 1.0), zero_below=0.25)
-    return EnvConfig(task="rough", feet=feet, policy=policy, action="position", action_scale=0.5, commands=commands,
-                     **physics)
+        config = EnvConfig(task="flat", feet=feet, policy=policy, action="velocity", rewards=flat_rewards,
+                           reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)))
+    else:
+        # The rough baseline: position targets default + 0.5 a, planar commands in [-1, 1] m/s with
+        # slow ones zeroed.
+        commands = CommandConfig(lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-1.0, 1.0), zero_below=0.25)
+        config = EnvConfig(task="rough", feet=feet, policy=policy, action="position", action_scale=0.5,
+                           commands=commands)
+    contact_model = contact_model or config.contact_model
+    return replace(config, contact_model=contact_model, **physics(feet, contact_model))
 
 
-def _physics_step(feet: str) -> dict:
-    """EnvConfig's sim_dt and decimation for the feet: the baselines' 5 ms x 4 for ball feet; 2.5 ms
-    x 8 for the adaptive feet (the same 50 Hz policy). Their light passive links (AOF's sole
-    halves, the ankle links) make the 5 ms step diverge under a policy's actions: an untrained
-    policy's actions on flat ground (benchmarks/action_stability.py, 32 robots, 10 s) diverged 30
-    AOF episodes in MJX (19 of 32 robots; CPU MuJoCo: 23 of 32) at 5 ms and none at 2.5 ms, and
-    in the H100 campaign 29-37% of AOF and up to 3% of AFF training episodes diverged at 5 ms
-    (benchmarks/RESULTS.md, 2026-11-24). The price: twice the physics steps per policy step."""
-    return {} if feet == "ball" else {"sim_dt": 0.0025, "decimation": 8}
+CONTACT_MODELS = ("stance", "fast", "build")
+"""EnvConfig.contact_model's choices, the default first."""
+
+
+def physics(feet: str, contact_model: str) -> dict:
+    """EnvConfig's sim_dt, decimation, solver_iterations and solver_ls_iterations for `contact_model`
+    on `feet` at the 50 Hz policy step (what envs.default_config sets).
+
+    Step: 2.5 ms x 8, except ball feet with 'fast', which keep the baselines' 5 ms x 4. 'stance'
+    and 'build' hold a stance only at 2.5 ms (anymal.STANCE_CONTACT_MAX_SIM_DT; the build's
+    contact slid 51 mm in 10 s at 5 ms, 2.9 mm at 2.5 ms). The adaptive feet's light passive links
+    (AOF's sole halves, the ankle links) make any 5 ms step diverge under a policy's actions
+    (benchmarks/action_stability.py, 32 robots, 10 s, 'fast': 30 AOF episodes diverged in MJX, 19
+    of 32 robots, CPU MuJoCo 23 of 32, at 5 ms and none at 2.5 ms; in the H100 campaign 29-37% of
+    AOF and up to 3% of AFF training episodes diverged at 5 ms; benchmarks/RESULTS.md,
+    2026-11-24). Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground trains at 1-4),
+    'stance' and 'build' anymal.min_solver_iterations.
+
+    Raises:
+      InputError: an unknown contact model.
+    """
+    from footforge.envs.anymal import STANCE_CONTACT_MAX_SIM_DT, min_solver_iterations
+
+    if contact_model not in CONTACT_MODELS:
+        raise InputError(f"unknown contact model '{contact_model}'", fix=f"use one of {', '.join(CONTACT_MODELS)}")
+    sim_dt = 0.005 if (feet, contact_model) == ("ball", "fast") else STANCE_CONTACT_MAX_SIM_DT
+    iterations, ls_iterations = min_solver_iterations(contact_model, feet) or (4, 8)
+    return {"sim_dt": sim_dt, "decimation": int(round(0.02 / sim_dt)), "solver_iterations": iterations,
+            "solver_ls_iterations": ls_iterations}
 
 
 def on_feet(config, feet: str):
     """`config` (a policy's training configuration) moved to `feet`: the same policy step and
-    contact model, at the physics step `feet` need (_physics_step) unless the policy's own is
+    contact model, at the physics step `feet` need with it (physics()) unless the policy's own is
     finer, and with at least the solver iterations its contact model needs on `feet`
-    (with_contact_model). A ball policy evaluated on AOF feet thus steps AOF at 2.5 ms, where its
-    light links do not diverge, and still acts every 20 ms."""
-    sim_dt = min(config.sim_dt, _physics_step(feet).get("sim_dt", EnvConfig.sim_dt))
+    (with_contact_model). A ball policy trained with 'fast' (5 ms x 4) evaluated on AOF feet thus
+    steps AOF at 2.5 ms, where its light links do not diverge, and still acts every 20 ms."""
+    sim_dt = min(config.sim_dt, physics(feet, config.contact_model)["sim_dt"])
     decimation = config.policy_dt / sim_dt
     if abs(decimation - round(decimation)) > 1e-6:  # a policy step the feet's step does not divide
         sim_dt, decimation = config.sim_dt, config.decimation
@@ -72,9 +96,10 @@ def on_feet(config, feet: str):
 
 
 def with_contact_model(config, contact_model: str):
-    """`config` with `contact_model` (EnvConfig.contact_model) and the physics it needs: for
-    'stance' a step of at most STANCE_CONTACT_MAX_SIM_DT (the policy step kept); for 'stance' and
-    'build' at least anymal.min_solver_iterations. Settings already finer than those are kept."""
+    """`config` with `contact_model` (EnvConfig.contact_model) and what it needs beyond config's
+    own physics: for 'stance' a step of at most STANCE_CONTACT_MAX_SIM_DT (the policy step kept);
+    for 'stance' and 'build' at least anymal.min_solver_iterations. Settings already finer than
+    those are kept (envs.default_config sets a model's own physics, physics())."""
     from footforge.envs.anymal import STANCE_CONTACT_MAX_SIM_DT, min_solver_iterations
 
     changes = {"contact_model": contact_model}
@@ -114,8 +139,11 @@ def from_config(config):
 
 
 def make(task: str, feet: str, policy: str, **overrides):
-    """An environment of the registry; `overrides` replace EnvConfig fields (e.g. build_dir)."""
-    return from_config(replace(default_config(task, feet, policy), **overrides))
+    """An environment of the registry; `overrides` replace EnvConfig fields (e.g. build_dir). A
+    contact_model among them comes with its own physics (default_config); a step or iterations
+    given beside it win."""
+    config = default_config(task, feet, policy, overrides.pop("contact_model", None))
+    return from_config(replace(config, **overrides))
 
 
 def registry() -> list[tuple[str, str, str]]:

@@ -116,12 +116,20 @@ class ResetConfig:
 class RandomizationConfig:
     """Domain randomisation, drawn once per robot (per environment slot) when training starts, as
     legged_gym draws it when it creates its environments. Each is off where its range is None.
-    Defaults: on where legged_gym's base configuration has it on (friction), off where it is off
-    (payload) or absent (motor strength); the paper's Isaac Sim baseline randomises none."""
+    Defaults: all off, as the paper's baseline (OmniIsaacGymEnvs' Anymal and AnymalTerrain: ground
+    friction 1.0 static and dynamic, no randomisation) and the paper itself; the ranges to switch
+    on are legged_gym's."""
 
-    friction_range: tuple[float, float] | None = (0.5, 1.25)
-    """Sliding friction coefficient of every contact of the robot with the ground (legged_gym
-    friction_range, on by default there)."""
+    friction_range: tuple[float, float] | None = None
+    """Sliding friction coefficient of every contact of the robot with the ground, dimensionless;
+    legged_gym's is (0.5, 1.25), on by default there. Two differences to weigh before using it:
+    legged_gym draws the robot's coefficient and PhysX averages it with the terrain's 1.0 (so its
+    contacts see 0.75-1.125), while this sets the contact's coefficient itself (MuJoCo combines two
+    geoms' by their maximum; the models' ground is 1.0, the robot's 0.8); and MuJoCo's pyramidal
+    cone (contact_model 'stance', 'fast') bounds a diagonal sideways force to mu / sqrt(2) of the
+    normal force, against the 0.49 that ANYmal C's default stance needs (EnvConfig.contact_model):
+    below mu of about 0.7 a robot holding still slides (at 0.75 'stance' robots slid 133-248 mm in
+    10 s; benchmarks/RESULTS.md, 2026-11-25)."""
     payload_mass_kg_range: tuple[float, float] | None = None
     """Mass added to the base at its centre of mass, kg; legged_gym's added_mass_range is (-1, 1),
     off by default there. The base's inertia scales with its mass."""
@@ -183,9 +191,11 @@ class EnvConfig:
     positions and velocities)."""
     build_dir: str | None = None
     """Folder of the build outputs; default build/<feet> (built on first use if missing)."""
-    sim_dt: float = 0.005
-    """Physics step, s (MuJoCo clamps contact time constants to at least 2 steps)."""
-    decimation: int = 4
+    sim_dt: float = 0.0025
+    """Physics step, s (MuJoCo clamps contact time constants to at least 2 steps). The default is
+    contact_model 'stance''s; envs.default_config and envs.with_contact_model set the step each
+    contact model needs on each feet (envs.physics)."""
+    decimation: int = 8
     """Physics steps per policy step (50 Hz)."""
     episode_length_s: float = 20.0
     """Time-outs end an episode as a truncation (PPO bootstraps them)."""
@@ -213,10 +223,13 @@ class EnvConfig:
     action_clip: float = 1.0
     """Policy outputs are clipped to +-this before they are used (rewards and the last-action
     observation see the clipped value): rl_games clips to the baselines' action space [-1, 1]."""
-    solver_iterations: int = 4
-    """MJX Newton iterations per step (Playground uses 1-4); the contact model is contact_model's."""
-    solver_ls_iterations: int = 8
-    contact_model: Literal["fast", "build", "stance"] = "fast"
+    solver_iterations: int = 8
+    """MJX Newton iterations per step (Playground uses 1-4); at least what contact_model needs on
+    the feet (anymal.min_solver_iterations: stance ball 8, AFF 16, AOF 30; envs.default_config and
+    envs.with_contact_model set it), refused with fewer."""
+    solver_ls_iterations: int = 16
+    """MJX line-search iterations per Newton iteration (stance: ball 16, AFF 16, AOF 30)."""
+    contact_model: Literal["stance", "fast", "build"] = "stance"
     """The contact model the environment steps (limits: footforge.envs.anymal.check_contact_model).
 
     Why it matters: with the default PD gains (kp 80) ANYmal C cannot stand on frictionless
@@ -227,11 +240,14 @@ class EnvConfig:
     reference damping b, itself at most about 1 / sim_dt), and the robot sinks towards that
     crouch. PhysX, the baselines' engine, has true static friction and does not creep.
 
-    - fast (default, every feet): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp
-      0.9/0.95/0.001, stable at 4 iterations from any start (MuJoCo Playground trains at 1-4), at
-      the price of that creep: a robot holding still slides and sinks about 22 cm in 10-20 s
-      (AFF at 2.5 ms: 150 mm of sinking and 174 mm of slip in 10 s). Policies walk through it.
-    - stance (every feet): a pyramidal cone with impratio 10 and the build's solimp
+    - fast (`--contact-model fast`): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp
+      0.9/0.95/0.001, implicitfast, 4 Newton / 8 line-search iterations, ball feet at the
+      baselines' 5 ms x 4: stable from any start (MuJoCo Playground trains at 1-4 iterations) and
+      cheap, at the price of that creep: a robot holding still slides and sinks about 22 cm in
+      10-20 s (AFF: 150 mm of sinking and 174 mm of slip in 10 s), which corrupts the base height
+      and foot slippage indices that compare the feet. For throughput studies; the first GPU
+      campaign's policies trained with it (their saved configuration keeps it).
+    - stance (default, every feet): a pyramidal cone with impratio 10 and the build's solimp
       0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; the adaptive feet in
       float32: 0.95/0.99/0.001), semi-implicit Euler integration, at sim_dt <= 2.5 ms with at
       least the feet's Newton and line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with
@@ -243,24 +259,27 @@ class EnvConfig:
       the adaptive feet's many stiff friction rows on light links are solved too inexactly to
       hold still; CPU MuJoCo (float64) and float64 MJX hold them. Cost per robot and policy step on
       this CPU, against fast at the same step: ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
-      AOF 1.8x (float32) and 2.5x (float64). Only at a friction coefficient of about 0.8 (the
-      model's) or more: a pyramidal cone bounds the sideways force by |fx| + |fy| <= mu fn, so
+      AOF 1.8x (float32) and 2.5x (float64). It needs a friction coefficient of about 0.7 or
+      more (the models' contacts have 1.0, the ground's, as the baseline: MuJoCo takes the larger
+      of two geoms'): a pyramidal cone bounds the sideways force by |fx| + |fy| <= mu fn, so
       along a diagonal to mu / sqrt(2) of the normal force (0.53 at mu 0.75), against the
       stance's 0.49. At mu 0.75 (10 s, 8 robots) ball sank 141 mm and slid 248 mm (3 of 8
-      diverged under random actions), AFF 125 / 199 mm, AOF 101 / 133 mm; most of
-      RandomizationConfig.friction_range lies below. footforge.envs.with_contact_model sets the
-      step and iterations it needs.
+      diverged under random actions), AFF 125 / 199 mm, AOF 101 / 133 mm; most of legged_gym's
+      friction range (RandomizationConfig.friction_range) lies below. envs.with_contact_model
+      sets the step and iterations it needs.
     - build: the built scene's (elliptic cone, impratio 10, solimp 0.99/0.999) under its
       implicitfast integrator. It needs a converged solve (solver_iterations >= 16,
       solver_ls_iterations >= 50, refused with fewer). At a 2.5 ms step it holds a stance in MJX
       for ball, AFF and AOF at rest, but an untrained policy's actions diverge AOF (7 of 16 robots
       in CPU MuJoCo), and it costs 5-10 times fast.
 
-    fast stays the default: stance holds only at high friction (above), the policies of the
-    first GPU campaign trained with fast, and the price of stance (more iterations, and float64
-    for the adaptive feet) on a GPU is not yet measured. Train with stance by
-    `--contact-model stance`, for the adaptive feet with `--float64-physics` (in float32 they
-    still creep about 1.3 mm/s, a twelfth of fast's)."""
+    stance is the default (the issue 12 audit: a robot that cannot stand still corrupts the
+    evaluation's base height and slippage, the indices that compare the feet): it holds the stance
+    where the baselines' PhysX does, at their ground friction of 1.0. Its price is the 2.5 ms step
+    and the solver iterations (above; on a GPU not yet measured: `benchmarks/env_speed.py
+    --contact-models fast stance`). The adaptive feet meet the stance target (sinking < 10 mm,
+    slip < 5 mm in 10 s) with float64_physics (`--float64-physics`); in float32 they creep about
+    1.3 mm/s, a twelfth of fast's."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
     whole process, set before JAX makes its first array by
