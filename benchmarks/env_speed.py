@@ -1,6 +1,6 @@
 """MJX environment throughput per task, foot variant, policy type, contact model and batch size:
 compile time and policy steps per second (and physics steps per second: a policy step is 4 physics
-steps for ball feet, 8 for the adaptive feet and under contact_model 'stance'), on whatever JAX
+steps for ball feet under contact_model 'fast', 8 otherwise), on whatever JAX
 device is present; one JSON line. Rough terrain uses the default 10 x 20 tile heightfield; the
 figures of one run are comparable with each other (ratios), not with another machine's.
 
@@ -8,9 +8,10 @@ Usage: python benchmarks/env_speed.py [--batches 16 64 256] [--steps 20] [--feet
            [--tasks flat rough] [--policies B P BH PH] [--contact-models fast stance]
            [--float64-physics]
 
-Keys: <task>_<feet>_<policy>_b<batch> for the default contact model (fast), with _stance before
-_b<batch> for 'stance' (envs.with_contact_model: its step and iterations). --float64-physics runs
-every environment of the run in float64 (EnvConfig.float64_physics; JAX's x64 is process-wide).
+Keys: <task>_<feet>_<policy>_b<batch> for 'fast' (the key of the measurements before the
+environments' default became 'stance'), with _stance before _b<batch> for 'stance'; each model at
+its own step and iterations (envs.default_config). --float64-physics runs every environment of
+the run in float64 (EnvConfig.float64_physics; JAX's x64 is process-wide).
 """
 
 import argparse
@@ -33,8 +34,9 @@ def main() -> None:
     p.add_argument("--tasks", nargs="+", default=["flat", "rough"], choices=list(envs.TASKS))
     p.add_argument("--policies", nargs="+", default=["B", "PH"],
                    help="policy types where the task has them (PH on ball feet falls back to P)")
-    p.add_argument("--contact-models", nargs="+", default=["fast"], choices=["fast", "stance"],
-                   help="EnvConfig.contact_model values to measure (default fast)")
+    p.add_argument("--contact-models", nargs="+", default=["stance", "fast"], choices=["stance", "fast"],
+                   help="EnvConfig.contact_model values to measure (default both: stance, the environments' "
+                        "default, and fast)")
     p.add_argument("--float64-physics", action="store_true", help="MJX in float64 (EnvConfig.float64_physics)")
     p.add_argument("--no-compile-cache", action="store_true",
                    help="measure cold compilation: without JAX's persistent cache (footforge/compile_cache.py)")
@@ -55,7 +57,7 @@ def main() -> None:
                 if policy in envs.TASKS[task] and policy not in policies:
                     policies.append(policy)
             for policy, contact in ((kind, model) for kind in policies for model in args.contact_models):
-                config = envs.with_contact_model(envs.default_config(task, feet, policy), contact)
+                config = envs.default_config(task, feet, policy, contact)
                 env = envs.from_config(replace(config, float64_physics=args.float64_physics))
                 name = f"{task}_{feet}_{policy}" + ("" if contact == "fast" else f"_{contact}")
                 for batch in args.batches:

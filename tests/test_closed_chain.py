@@ -75,7 +75,7 @@ def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
     result = evaluate_closed_chain(untrained["B"], seconds=0.2, num_robots=1, build_root=built["full"][0].parent)
     assert list(result["feet"]) == ["ball", "full"]
     for feet, column in result["feet"].items():
-        assert column["physics_steps_per_policy_step"] == {"ball": 4, "full": 80}[feet]
+        assert column["physics_steps_per_policy_step"] == {"ball": 8, "full": 80}[feet]  # 2.5 ms (stance), 0.25 ms
         assert column["finite"] and column["falls"] == 0 and column["fall_times_s"] == [None]
         figures = [v for index in column["indices"].values() for v in index.values()]
         figures += [column["simulated_s"], column["wall_s"], column["real_time_factor"]]

@@ -30,9 +30,9 @@ GEOM_SHANK = 20
 FAST_CONTACT_SOLIMP = (0.9, 0.95, 0.001)
 """MuJoCo's default solimp, for EnvConfig.contact_model 'fast'."""
 BUILD_CONTACT_MIN_ITERATIONS = (16, 50)
-"""Newton and line-search iterations the build's stiff contact needs at a 5 ms step: with fewer, an
-unconverged solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo
-(benchmarks/contact_sweep.py, benchmarks/RESULTS.md)."""
+"""Newton and line-search iterations the build's stiff contact needs: with fewer, an unconverged
+solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo (measured at 5 ms,
+benchmarks/contact_sweep.py; at 2.5 ms 4/8 diverged too; benchmarks/RESULTS.md)."""
 STANCE_CONTACT_SOLIMP = (0.99, 0.999, 0.001)
 """Contact impedance of EnvConfig.contact_model 'stance' (the build's): 99-99.9% of the constraint
 force is kept, so the friction's regularisation, and with it the creep speed, is about 1/20 of

@@ -268,10 +268,10 @@ class EnvConfig:
       friction range (RandomizationConfig.friction_range) lies below. envs.with_contact_model
       sets the step and iterations it needs.
     - build: the built scene's (elliptic cone, impratio 10, solimp 0.99/0.999) under its
-      implicitfast integrator. It needs a converged solve (solver_iterations >= 16,
-      solver_ls_iterations >= 50, refused with fewer). At a 2.5 ms step it holds a stance in MJX
-      for ball, AFF and AOF at rest, but an untrained policy's actions diverge AOF (7 of 16 robots
-      in CPU MuJoCo), and it costs 5-10 times fast.
+      implicitfast integrator, at 2.5 ms. It needs a converged solve (solver_iterations >= 16,
+      solver_ls_iterations >= 50, refused with fewer). It holds a stance in MJX for ball, AFF and
+      AOF at rest (at 5 ms the ball robot slid 51 mm), but an untrained policy's actions diverge
+      AOF (7 of 16 robots in CPU MuJoCo), and it costs 5-10 times fast.
 
     stance is the default (the issue 12 audit: a robot that cannot stand still corrupts the
     evaluation's base height and slippage, the indices that compare the feet): it holds the stance
