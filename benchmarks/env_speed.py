@@ -6,7 +6,7 @@ figures of one run are comparable with each other (ratios), not with another mac
 
 Usage: python benchmarks/env_speed.py [--batches 16 64 256] [--steps 20] [--feet ball aff aof]
            [--tasks flat rough] [--policies B P BH PH] [--contact-models fast stance]
-           [--float64-physics]
+           [--float64-physics] [--shank-collisions on off]
 
 Keys: <task>_<feet>_<policy>_b<batch> for 'fast' (the key of the measurements before the
 environments' default became 'stance'), with _stance before _b<batch> for 'stance'; each model at
@@ -38,6 +38,9 @@ def main() -> None:
                    help="EnvConfig.contact_model values to measure (default both: stance, the environments' "
                         "default, and fast)")
     p.add_argument("--float64-physics", action="store_true", help="MJX in float64 (EnvConfig.float64_physics)")
+    p.add_argument("--shank-collisions", nargs="+", default=["on"], choices=["on", "off"],
+                   help="rough task: shank tubes colliding with the terrain (EnvConfig.shank_collisions); "
+                        "'on off' measures both (keys of 'off' end in _noshank before _b<batch>)")
     p.add_argument("--no-compile-cache", action="store_true",
                    help="measure cold compilation: without JAX's persistent cache (footforge/compile_cache.py)")
     args = p.parse_args()
@@ -56,10 +59,14 @@ def main() -> None:
                     policy = policy.replace("H", "")
                 if policy in envs.TASKS[task] and policy not in policies:
                     policies.append(policy)
-            for policy, contact in ((kind, model) for kind in policies for model in args.contact_models):
+            shanks = args.shank_collisions if task == "rough" else ["on"]
+            for policy, contact, shank in ((kind, model, on) for kind in policies for model in args.contact_models
+                                           for on in shanks):
                 config = envs.default_config(task, feet, policy, contact)
-                env = envs.from_config(replace(config, float64_physics=args.float64_physics))
-                name = f"{task}_{feet}_{policy}" + ("" if contact == "fast" else f"_{contact}")
+                env = envs.from_config(replace(config, float64_physics=args.float64_physics,
+                                               shank_collisions=shank == "on"))
+                name = (f"{task}_{feet}_{policy}" + ("" if contact == "fast" else f"_{contact}")
+                        + ("" if shank == "on" else "_noshank"))
                 for batch in args.batches:
                     figures[f"{name}_b{batch}"] = _measure(env, batch, args.steps)
     print(json.dumps(figures))

@@ -341,6 +341,15 @@ def test_shank_tubes_collide_with_the_terrain_as_capsules(built):
         assert not np.asarray(foot_contacts(category, env.robot.floor_geom, geoms, dist)).any()
         base, knees = ground_contacts(category, env.robot.floor_geom, geoms, dist)
         assert not bool(base) and int(knees) == 0
+        # shank_collisions=False (Playground's feet-only collisions): the same pose, no tube contact.
+        feet_only = load_robot(replace(env.config, shank_collisions=False), env.terrain).model
+        assert not (feet_only.geom_contype[capsules] | feet_only.geom_conaffinity[capsules]).any(), feet
+        data = mujoco.MjData(feet_only)
+        data.qpos[:] = np.array(env.robot.stand_qpos)
+        data.qpos[:2] = env.terrain.tile_center(SMALL.num_levels - 1, 0)
+        data.qpos[2] += float(env.terrain_height(data.qpos[:2])) - (lowest - ground).min() - 0.005
+        mujoco.mj_forward(feet_only, data)
+        assert not any({int(c.geom1), int(c.geom2)} & set(capsules.tolist()) for c in data.contact[: data.ncon])
 
 
 def test_rough_step_returns_the_types_it_takes(rough):

@@ -184,7 +184,7 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         spec = mujoco.MjSpec.from_file(str(folder / "scene.xml"))
         spec.delete(spec.geom(FLOOR_GEOM))
         add_to_spec(spec, terrain, name=FLOOR_GEOM)
-        if for_mjx:
+        if for_mjx and config.shank_collisions:
             _shank_tubes_as_capsules(spec)
         model = spec.compile()
     model.opt.timestep = config.sim_dt

@@ -303,6 +303,12 @@ class EnvConfig:
     """Rough task only."""
     height_scan: HeightScanConfig = field(default_factory=HeightScanConfig)
     curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
+    shank_collisions: bool = True
+    """Rough task: the shank tubes collide with the terrain (as capsules of the same radius and
+    extent: MJX cannot collide cylinders with heightfields), so shanks stop at stair risers as in
+    OmniIsaacGymEnvs, where the whole robot collides. False: feet only (with the geometric base
+    and knee probes that end episodes), as MuJoCo Playground's Go1. Their price on MJX:
+    benchmarks/env_speed.py --shank-collisions on off (benchmarks/RESULTS.md)."""
     terminate_on_knees: int = 2
     """A step with at least this many thigh (knee) contacts ends the episode; any base contact does."""
 
