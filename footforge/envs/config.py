@@ -277,9 +277,11 @@ class EnvConfig:
     evaluation's base height and slippage, the indices that compare the feet): it holds the stance
     where the baselines' PhysX does, at their ground friction of 1.0. Its price is the 2.5 ms step
     and the solver iterations (above; on a GPU not yet measured: `benchmarks/env_speed.py
-    --contact-models fast stance`). The adaptive feet meet the stance target (sinking < 10 mm,
-    slip < 5 mm in 10 s) with float64_physics (`--float64-physics`); in float32 they creep about
-    1.3 mm/s, a twelfth of fast's."""
+    --contact-models fast stance`). On flat ground the adaptive feet meet the stance target
+    (sinking < 10 mm, slip < 5 mm in 10 s) with float64_physics (`--float64-physics`); in float32
+    they creep about 1.3 mm/s, a twelfth of fast's. On the rough terrain's heightfield float64
+    holds ball feet; AFF and AOF still slide about 6 mm in 10 s there (benchmarks/stance_env.py,
+    benchmarks/RESULTS.md, 2026-11-25)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
     whole process, set before JAX makes its first array by
