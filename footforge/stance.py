@@ -9,7 +9,8 @@ horizontal displacement of its touchdown site), over `seconds` in all, at the mo
 timestep and solver settings.
 
 env_stance measures the same in a training environment (MJX, its contact model and precision)
-from a reset state, the episode's own start.
+from a reset state, the episode's own start; env_stance_start sets up issue 12's measurement
+(benchmarks/stance_env.py and the tests).
 """
 
 from __future__ import annotations
@@ -121,6 +122,39 @@ class EnvStance:
     """The episode ended (a fall or a diverged simulation) before the end."""
 
 
+STANCE_TERRAIN_FIELDS = {"num_levels": 3, "num_columns": 6, "tile_size_m": 4.0, "border_m": 2.0, "platform_m": 1.5}
+"""The rough terrain of the stance measurement (TerrainConfig fields): level 0's spawn platform is
+the same as in the full field, which compiles far slower."""
+
+
+def env_stance_start(task: str, feet: str, build_dir: str, *, contact_model: str | None = None,
+                     float64_physics: bool = False, seed: int = 0):
+    """(environment, start state) of issue 12's stance measurement: the task's default
+    configuration (or `contact_model`), pushes off; flat: the task's own reset (the `stand`
+    keyframe, joint velocities U(+-0.1) rad/s); rough: level 0 of a small field
+    (STANCE_TERRAIN_FIELDS) from the `stand` keyframe (the rough reset's randomised joint angles
+    off: the issue measures at the keyframe, with the actuators at its targets). float64_physics
+    switches JAX's x64 mode for the whole process (envs.enable_float64_physics)."""
+    from dataclasses import replace
+
+    import jax
+
+    from footforge import envs
+    from footforge.envs.config import ResetConfig
+    from footforge.envs.terrain import TerrainConfig
+
+    config = envs.default_config(task, feet, "B", contact_model)
+    config = replace(config, build_dir=str(build_dir), float64_physics=float64_physics,
+                     pushes=replace(config.pushes, enabled=False))
+    if task == "rough":
+        config = replace(config, reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
+                         terrain=TerrainConfig(**STANCE_TERRAIN_FIELDS))
+    envs.enable_float64_physics(config)
+    env = envs.from_config(config)
+    key = jax.random.PRNGKey(seed)
+    return env, (jax.jit(env.reset)(key) if task == "flat" else env.reset_on_tile(key, 0, 0))
+
+
 def env_stance(env, state, *, seconds: float, settle_s: float = 0.5, step=None) -> EnvStance:
     """Issue 12's stance measure in a footforge environment: one robot from `state` (a reset
     state, unbatched) given zero actions for `seconds`, at the environment's own physics (its
@@ -129,10 +163,12 @@ def env_stance(env, state, *, seconds: float, settle_s: float = 0.5, step=None) 
     import jax
     import jax.numpy as jp
 
-    step = step or jax.jit(env.step)
-    sites = env.robot.foot_sites
     policy_steps = int(round(seconds / env.config.policy_dt))
     settle = int(round(settle_s / env.config.policy_dt))
+    if policy_steps <= settle:
+        raise ValueError(f"seconds ({seconds}) must exceed settle_s ({settle_s})")
+    step = step or jax.jit(env.step)
+    sites = env.robot.foot_sites
     heights, feet_xy, fell = [], [], False
     for _ in range(policy_steps):
         state = step(state, jp.zeros(env.action_size))
@@ -141,7 +177,7 @@ def env_stance(env, state, *, seconds: float, settle_s: float = 0.5, step=None) 
             break
         heights.append(float(env.base_height(state.pipeline_state)))
         feet_xy.append(np.asarray(state.pipeline_state.site_xpos[sites, :2]))
-    if fell or len(heights) <= settle:
+    if fell:
         return EnvStance(float("nan"), float("nan"), min(heights, default=float("nan")), True)
     settled, xy = np.array(heights[settle:]), np.array(feet_xy[settle:])
     return EnvStance(float(settled[0] - settled.min()), float(np.linalg.norm(xy - xy[0], axis=-1).max()),

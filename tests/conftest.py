@@ -31,23 +31,10 @@ def built(tmp_path_factory):
 
 _FLOAT64_STANCE = """
 import dataclasses, json, sys
-from dataclasses import replace
 import jax
-from footforge import envs
-from footforge.envs.config import ResetConfig
-from footforge.envs.terrain import TerrainConfig
-from footforge.stance import env_stance
+from footforge.stance import env_stance, env_stance_start
 task, feet, build_root = sys.argv[1], sys.argv[2], sys.argv[3]
-config = envs.default_config(task, feet, "B")
-config = replace(config, build_dir=build_root + "/" + feet, float64_physics=True,
-                 pushes=replace(config.pushes, enabled=False))
-if task == "rough":  # level 0 from the stand keyframe; a small field (level 0 is the same platform)
-    config = replace(config, reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
-                     terrain=TerrainConfig(num_levels=3, num_columns=6, tile_size_m=4.0, border_m=2.0, platform_m=1.5))
-envs.enable_float64_physics(config)
-env = envs.from_config(config)
-key = jax.random.PRNGKey(0)
-state = jax.jit(env.reset)(key) if task == "flat" else env.reset_on_tile(key, 0, 0)
+env, state = env_stance_start(task, feet, build_root + "/" + feet, float64_physics=True)
 step = jax.jit(env.step)
 after = step(state, jax.numpy.zeros(env.action_size))
 print(json.dumps(dataclasses.asdict(env_stance(env, state, seconds=10.0, step=step)) | {

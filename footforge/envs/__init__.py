@@ -9,8 +9,10 @@ Tasks x feet x policy types: flat x {ball, aff, aof} x {B, BH}; rough x {ball, a
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import get_args
 
-from footforge.envs.config import CommandConfig, EnvConfig, ResetConfig, RewardScales, check_feet_and_policy
+from footforge.envs.config import (CommandConfig, ContactModel, EnvConfig, ResetConfig, RewardScales,
+                                   check_feet_and_policy)
 from footforge.errors import InputError
 
 TASKS = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
@@ -50,8 +52,9 @@ def default_config(task: str, feet: str, policy: str, contact_model: str | None 
     return replace(config, contact_model=contact_model, **physics(feet, contact_model))
 
 
-CONTACT_MODELS = ("stance", "fast", "build")
-"""EnvConfig.contact_model's choices, the default first."""
+CONTACT_MODELS = get_args(ContactModel)
+POLICY_DT = EnvConfig.sim_dt * EnvConfig.decimation
+"""The policy step of every task, s (50 Hz, the baselines')."""
 
 
 def physics(feet: str, contact_model: str) -> dict:
@@ -77,7 +80,7 @@ def physics(feet: str, contact_model: str) -> dict:
         raise InputError(f"unknown contact model '{contact_model}'", fix=f"use one of {', '.join(CONTACT_MODELS)}")
     sim_dt = 0.005 if (feet, contact_model) == ("ball", "fast") else STANCE_CONTACT_MAX_SIM_DT
     iterations, ls_iterations = min_solver_iterations(contact_model, feet) or (4, 8)
-    return {"sim_dt": sim_dt, "decimation": int(round(0.02 / sim_dt)), "solver_iterations": iterations,
+    return {"sim_dt": sim_dt, "decimation": int(round(POLICY_DT / sim_dt)), "solver_iterations": iterations,
             "solver_ls_iterations": ls_iterations}
 
 

@@ -14,6 +14,8 @@ from footforge.errors import InputError
 
 PolicyType = Literal["B", "BH", "P", "PH"]
 Feet = Literal["ball", "aff", "aof"]
+ContactModel = Literal["stance", "fast", "build"]
+"""EnvConfig.contact_model's choices, the default first."""
 
 
 @dataclass(frozen=True)
@@ -229,7 +231,7 @@ class EnvConfig:
     envs.with_contact_model set it), refused with fewer."""
     solver_ls_iterations: int = 16
     """MJX line-search iterations per Newton iteration (stance: ball 16, AFF 16, AOF 30)."""
-    contact_model: Literal["stance", "fast", "build"] = "stance"
+    contact_model: ContactModel = "stance"
     """The contact model the environment steps (limits: footforge.envs.anymal.check_contact_model).
 
     Why it matters: with the default PD gains (kp 80) ANYmal C cannot stand on frictionless
