@@ -6,19 +6,32 @@ figures of one run are comparable with each other (ratios), not with another mac
 
 Usage: python benchmarks/env_speed.py [--batches 16 64 256] [--steps 20] [--feet ball aff aof]
            [--tasks flat rough] [--policies B P BH PH] [--contact-models fast stance]
-           [--float64-physics] [--shank-collisions on off]
+           [--float64-physics] [--shank-collisions on off] [--playground]
 
 Keys: <task>_<feet>_<policy>_b<batch> for 'fast' (the key of the measurements before the
 environments' default became 'stance'), with _stance before _b<batch> for 'stance'; each model at
 its own step and iterations (envs.default_config). --float64-physics runs every environment of
 the run in float64 (EnvConfig.float64_physics; JAX's x64 is process-wide).
+
+--playground (off by default) also measures MuJoCo Playground's Go1 joystick environment
+(Go1JoystickFlatTerrain / Go1JoystickRoughTerrain, MJX "jax" implementation, zero actions) for each
+of the run's tasks at the same batch sizes and steps, in the same process: keys
+playground_go1_<task>_b<batch>, each with compile_s, policy_steps_per_s and physics_steps_per_s as
+above (a Go1 policy step is 5 physics steps of 4 ms) plus its ctrl_dt, sim_dt, solver iterations,
+cone and contacts per foot; and playground (the package's version). --feet, --policies,
+--contact-models and --shank-collisions do not apply to it; under --float64-physics it runs in
+float64 too (x64 is process-wide). It needs the optional bench extra
+(pip install -c constraints.txt -e ".[bench]"; without it the run exits with code 2); see
+benchmarks/playground_go1.py (stand-in visual meshes for Menagerie's Go1, physics checked).
 """
 
 import argparse
 import json
 import platform
+import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import jax
 import jax.numpy as jp
@@ -43,7 +56,22 @@ def main() -> None:
                         "'on off' measures both (keys of 'off' end in _noshank before _b<batch>)")
     p.add_argument("--no-compile-cache", action="store_true",
                    help="measure cold compilation: without JAX's persistent cache (footforge/compile_cache.py)")
+    p.add_argument("--playground", action="store_true",
+                   help="also MuJoCo Playground's Go1 joystick for each task and batch size (keys "
+                        "playground_go1_<task>_b<batch>; needs the bench extra)")
+    p.add_argument("--build-roots", nargs="+", default=[""], metavar="[LABEL=]DIR",
+                   help="builds to measure, each holding <DIR>/<feet>/ (default: the environments' own, build/); "
+                        "a LABEL is added to the keys (<task>_<feet>_<policy>_<LABEL>..._b<batch>), so that "
+                        "builds from different parameter files are measured in one run")
     args = p.parse_args()
+    roots = [tuple(r.split("=", 1)) if "=" in r else ("", r) for r in args.build_roots]
+    go1 = None
+    if args.playground:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/playground_go1.py
+        import playground_go1 as go1
+
+        if not go1.available():
+            p.error(f"--playground: {go1.MISSING_MESSAGE}")  # exit code 2
     if args.float64_physics:  # before any JAX array
         jax.config.update("jax_enable_x64", True)
     from footforge import compile_cache
@@ -51,6 +79,8 @@ def main() -> None:
     cache = compile_cache.enable(not args.no_compile_cache)
     figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,
                "compile_cache": str(cache) if cache else None, "float64_physics": args.float64_physics}
+    if go1:
+        figures["playground"] = go1.version()
     for task in args.tasks:
         for feet in args.feet:
             policies = []
@@ -60,15 +90,22 @@ def main() -> None:
                 if policy in envs.TASKS[task] and policy not in policies:
                     policies.append(policy)
             shanks = args.shank_collisions if task == "rough" else ["on"]
-            for policy, contact, shank in ((kind, model, on) for kind in policies for model in args.contact_models
-                                           for on in shanks):
+            for policy, contact, shank, (label, root) in ((kind, model, on, r) for kind in policies
+                                                          for model in args.contact_models for on in shanks
+                                                          for r in roots):
                 config = envs.default_config(task, feet, policy, contact)
                 env = envs.from_config(replace(config, float64_physics=args.float64_physics,
-                                               shank_collisions=shank == "on"))
-                name = (f"{task}_{feet}_{policy}" + ("" if contact == "fast" else f"_{contact}")
-                        + ("" if shank == "on" else "_noshank"))
+                                               shank_collisions=shank == "on",
+                                               build_dir=f"{root}/{feet}" if root else config.build_dir))
+                name = (f"{task}_{feet}_{policy}" + (f"_{label}" if label else "")
+                        + ("" if contact == "fast" else f"_{contact}") + ("" if shank == "on" else "_noshank"))
                 for batch in args.batches:
                     figures[f"{name}_b{batch}"] = _measure(env, batch, args.steps)
+        if go1 and task in go1.ENV_NAMES:
+            env, meshes = go1.make_env(task)
+            for batch in args.batches:
+                figures[f"playground_go1_{task}_b{batch}"] = go1.measure(task, batch, args.steps, env=env) | {
+                    "meshes": meshes}
     print(json.dumps(figures))
 
 

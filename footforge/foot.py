@@ -10,10 +10,11 @@
   `sole_back` bodies, each on a hinge about its roll link's transversal (y) axis at its pivot.
 Every derived body's mass, centre of mass and inertia are the composite (Pinocchio) of the links
 it replaces at the reference pose, so the derived foot at q = 0 has exactly the mass
-distribution of the closed chain at its reference pose. Derived bodies collide through boxes that
-enclose the replaced links' collision geometry at that pose (one box per arch and roll link, one
-per sole body: flat soles, cheap and robust in MJX); they carry the replaced links' visual
-meshes.
+distribution of the closed chain at its reference pose. Derived bodies collide through the boxes
+that enclose the replaced links' collision geometry at that pose (one per arch and roll link, one
+per sole body), or, as the parameter file's `contact` chooses (params.FootContact), through
+spheres or capsules on each sole box's bottom face and nothing above the sole: the contact geometry
+MJX collides cheapest with planes and heightfields. They carry the replaced links' visual meshes.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from dm_control import mjcf
 from footforge import kinematics
 from footforge.errors import InputError
 from footforge.collision import DecompositionConfig, Hulls, decompose
-from footforge.params import PassiveJoint, VariantParams
+from footforge.params import FootContact, PassiveJoint, VariantParams
 from footforge.sidecar import FAMILIES, Sidecar
 from footforge.urdf_import import (MeshAssets, ParsedURDF, add_body_tree, add_default_classes, add_geoms,
                                    inertial_attributes, is_mesh, joint_axis, quat_wxyz)
@@ -115,11 +116,13 @@ def _hull_geoms(source: FootSource, assets: MeshAssets) -> dict[str, list[dict]]
     return geoms
 
 
-def _root_body(source: FootSource, root: mjcf.RootElement, assets: MeshAssets, hull_geoms):
+def _root_body(source: FootSource, root: mjcf.RootElement, assets: MeshAssets, hull_geoms, *,
+               collide: bool = True):
     parsed = source.parsed
     body = root.worldbody.add("body", name=parsed.root_link)
     body.add("inertial", **inertial_attributes(parsed.model.inertias[1]))
-    add_geoms(body, parsed, 1, assets, collision_geoms=hull_geoms)
+    add_geoms(body, parsed, 1, assets, collision_geoms=hull_geoms,
+              kinds=("visual", "collision") if collide else ("visual",))
     return body
 
 
@@ -210,6 +213,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
     parsed, sidecar, params = source.parsed, source.sidecar, source.params
     joints = params.joints_for(variant)
     sole_lift = params.sole_lift_m[variant]
+    contact = params.foot_contact[variant]
     ref_model, ref_data = _compiled_full(full or build_full(source, name="reference"))
     q = source.reference.q
     data = parsed.model.createData()
@@ -224,7 +228,8 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
     root = _new_root(name, sidecar, params.contact_solref_for(variant))
     root.default.add("default", dclass=DERIVED_JOINT_CLASS).joint.set_attributes(type="hinge", limited="true")
     assets = MeshAssets(root)
-    root_body = _root_body(source, root, assets, _hull_geoms(source, assets))
+    root_body = _root_body(source, root, assets, _hull_geoms(source, assets),
+                           collide=contact.upper_collisions)
 
     def frame_at(point) -> pin.SE3:
         return pin.SE3(np.eye(3), np.asarray(point, dtype=float))
@@ -241,14 +246,26 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
         for member in members:  # the replaced links' looks
             add_geoms(body, parsed, member, assets, offset=frame.actInv(oMi[member]), kinds=("visual",))
         for group_name, group in envelope_groups:
+            is_sole = group_name.startswith("sole")
+            if not (is_sole or contact.upper_collisions):
+                continue
             pts = collision_points(ref_model, ref_data, [parsed.link_of(m) for m in group])
             if len(pts) == 0:
                 continue
             local = (pts - frame.translation) @ frame.rotation
             lo, hi = local.min(0), local.max(0)
-            lift = np.array([0.0, 0.0, sole_lift if group_name.startswith("sole") else 0.0])
-            body.add("geom", name=f"{group_name}_collision", dclass="collision", type="box",
-                     pos=(lo + hi) / 2 + lift, size=(hi - lo) / 2)
+            center, half = (lo + hi) / 2 + [0.0, 0.0, sole_lift if is_sole else 0.0], (hi - lo) / 2
+            if is_sole and contact.sole != "box":
+                if contact.radius_m > min(half[:2]):
+                    raise InputError(f"radius_m {contact.radius_m:g} m is wider than the {variant} {group_name} "
+                                     f"plate (half sizes {half[0]:.4f} x {half[1]:.4f} m)",
+                                     file=str(params.source), element=f"{variant}.contact.radius_m",
+                                     fix=f"give at most {min(half[:2]):.4f} m")
+                for i, shape in enumerate(sole_primitives(center, half, contact)):
+                    body.add("geom", name=f"{group_name}_{i}_collision", dclass="collision", **shape)
+            else:
+                body.add("geom", name=f"{group_name}_collision", dclass="collision", type="box", pos=center,
+                         size=half)
         return body
 
     # The pitch hinge sits at the arch pivot, on the arch joints' common axis.
@@ -281,17 +298,34 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
                      split[body_name], body_name, axis, params.aof_sole_range,
                      [(body_name, split[body_name])])
     clearance = sole_clearance(root)
-    if clearance < 0.001:
+    if clearance < 0.001:  # inf when only the sole collides
         raise InputError(f"sole_lift_m {sole_lift:g} m raises the {variant} sole to within 1 mm of the foot's other "
                          f"collision boxes (clearance {clearance * 1e3:.1f} mm)", file=str(params.source),
                          element=f"{variant}.sole_lift_m",
                          fix=f"keep sole_lift_m below {sole_lift + clearance - 0.001:.4f} m so the sole stays the lowest part")
     names = ["ankle_pitch", "ankle_roll"] + ([] if variant == "aff" else ["sole_front", "sole_back"])
     info = {"replaced_links": {k: [parsed.link_of(j) for j in v] for k, v in split.items()},
-            "sole_clearance_m": clearance,
+            "sole_clearance_m": clearance if np.isfinite(clearance) else None,
+            "contact": {"sole": contact.sole, "upper_collisions": contact.upper_collisions,
+                        **({"grid": list(contact.grid), "radius_m": contact.radius_m} if contact.sole != "box" else {})},
             "reference_pose_closure_error_m": source.reference.closure_error_m}
     return _finish(FootModel(variant, root, parsed.root_link, {n: 0.0 for n in names}, names,
                              np.zeros(3), info))
+
+
+def sole_primitives(center, half, contact: FootContact) -> list[dict]:
+    """Geom attributes of the spheres or capsules (FootContact) standing in for a sole box
+    (`center`, `half` sizes, in the sole body's frame). Their lowest points lie on the box's
+    bottom face, the outer ones reaching its edges, so they touch flat ground where the box would."""
+    r, (nx, ny) = contact.radius_m, contact.grid
+    z = center[2] - half[2] + r
+    ys = np.linspace(center[1] - half[1] + r, center[1] + half[1] - r, ny) if ny > 1 else [center[1]]
+    if contact.sole == "spheres":
+        xs = np.linspace(center[0] - half[0] + r, center[0] + half[0] - r, nx) if nx > 1 else [center[0]]
+        return [dict(type="sphere", size=[r], pos=[x, y, z]) for x in xs for y in ys]
+    edges = np.linspace(center[0] - half[0] + r, center[0] + half[0] - r, nx + 1)  # capsule segments
+    return [dict(type="capsule", size=[r], fromto=[x0, y, z, x1, y, z])
+            for x0, x1 in zip(edges[:-1], edges[1:]) for y in ys]
 
 
 def sole_clearance(root: mjcf.RootElement) -> float:

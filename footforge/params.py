@@ -29,6 +29,33 @@ class PassiveJoint:
     """Spring rest angle, rad."""
 
 
+SOLE_CONTACT_SHAPES = ("box", "spheres", "capsules")
+"""How a derived foot's sole plates collide (FootContact.sole)."""
+
+
+@dataclass(frozen=True)
+class FootContact:
+    """The collision geometry of a derived foot (AFF, AOF): what touches the ground."""
+
+    sole: str = "box"
+    """'box': each sole plate collides through the box enclosing the links it replaces (exact
+    envelope, but MJX's box-plane and box-heightfield tests are its costliest and give 4 contacts
+    each); 'spheres': through a grid of spheres, as MuJoCo Playground's quadrupeds touch the
+    ground (one contact per sphere on a plane); 'capsules': through rows of capsules along the
+    foot's length (two contacts each on a plane), which, unlike spheres, leave no gap along the
+    sole for an edge or a bar to poke through. Their lowest points lie on the box's bottom face
+    and inside its footprint, so on flat ground the plate stands where the box would."""
+    grid: tuple[int, int] = (2, 2)
+    """Spheres per sole plate along the foot's length (x) and width (y); for capsules, segments
+    along x and rows along y. The outer ones reach the box's edges."""
+    radius_m: float = 0.01
+    """Sphere or capsule radius, m."""
+    upper_collisions: bool = True
+    """Whether the parts above the sole (ankle, arch and roll links) collide too. Off, only the sole
+    touches the ground: each of those boxes costs MJX a collision test and four contacts per
+    step."""
+
+
 @dataclass(frozen=True)
 class FullChainSettings:
     timestep: float
@@ -59,6 +86,8 @@ class VariantParams:
     """Per derived variant (aff, aof): how far the sole's collision box is raised above the closed
     chain's lowest point at the slack reference pose, m. Under load the chain flattens and the
     ankle sinks; a lift lets the rigid sole stand at the loaded chain's height (calibrated)."""
+    foot_contact: dict[str, FootContact]
+    """Per derived variant (aff, aof): its collision geometry."""
     rig_payload_mass: float
     """kg."""
     rig_slider_damping: float
@@ -101,6 +130,23 @@ def _pair(r: YamlReader, n: int) -> tuple[float, ...]:
     return tuple(YamlReader(v, f"{r.path}[{i}]", r.file).float() for i, v in enumerate(r.data))
 
 
+def _foot_contact(r: YamlReader) -> FootContact:
+    default = FootContact()
+    sole = r.get("sole", default.sole, allowed={"sole", "grid", "radius_m", "upper_collisions"}).data
+    if sole not in SOLE_CONTACT_SHAPES:
+        raise r.get("sole").fail(f"unknown sole contact '{sole}'", f"use one of {', '.join(SOLE_CONTACT_SHAPES)}")
+    grid_r = r.get("grid", list(default.grid))
+    grid = _pair(grid_r, 2)
+    if any(n != int(n) or not 1 <= n <= 8 for n in grid):
+        raise grid_r.fail(f"bad grid {list(grid)}", "give two whole numbers from 1 to 8 (along x, along y)")
+    upper = r.get("upper_collisions", default.upper_collisions).data
+    if not isinstance(upper, bool):
+        raise r.get("upper_collisions").fail(f"expected true or false, got {upper!r}", "write true or false")
+    return FootContact(sole=sole, grid=(int(grid[0]), int(grid[1])),
+                       radius_m=r.get("radius_m", default.radius_m).float(min_value=1e-4, max_value=0.05),
+                       upper_collisions=upper)
+
+
 def _check_timeconst(r: YamlReader, solref: tuple[float, ...], timestep: float) -> None:
     if solref[0] < 2 * timestep:
         raise r.fail(f"timeconst {solref[0]} is below twice the timestep {timestep}",
@@ -132,13 +178,14 @@ def load_params(path: str | Path | None = None) -> VariantParams:
         _check_timeconst(full.get(key), getattr(settings, key), settings.timestep)
     simplified = top.get("simplified")
     simplified.get("timestep", allowed={"timestep"})
-    variants, lifts = {}, {}
+    variants, lifts, contacts = {}, {}, {}
     for variant, names in _JOINTS.items():
         r = top.get(variant)
-        extra = {"split_x", "sole_range", "sole_lift_m"} if variant == "aof" else {"sole_lift_m"}
+        extra = {"sole_lift_m", "contact"} | ({"split_x", "sole_range"} if variant == "aof" else set())
         r.get(names[0], allowed=set(names) | extra)
         variants[variant] = {n: _passive(r.get(n)) for n in names}
         lifts[variant] = r.get("sole_lift_m", 0.0).float(min_value=0.0, max_value=0.05)
+        contacts[variant] = _foot_contact(r.get("contact", {}))
     aof = top.get("aof")
     sole_range = _pair(aof.get("sole_range"), 2)
     if sole_range[0] >= sole_range[1]:
@@ -161,6 +208,7 @@ def load_params(path: str | Path | None = None) -> VariantParams:
         simplified_timestep=simplified.get("timestep").float(min_value=1e-6),
         aff=variants["aff"], aof=variants["aof"],
         aof_split_x=aof.get("split_x").float(), aof_sole_range=sole_range, sole_lift_m=lifts,
+        foot_contact=contacts,
         rig_payload_mass=rig.get("payload_mass").float(min_value=0.0),
         rig_slider_damping=rig.get("slider_damping", 0.0).float(min_value=0.0),
         contact_solref=contact_solref, contact_solimp=solimp, contact_cone=cone,

@@ -20,13 +20,18 @@ FOOT_SIDECAR = REPO / "descriptions/softfoot_q/urdf/softfoot_q.sidecar.yaml"
 
 
 @pytest.fixture(scope="session")
-def built(tmp_path_factory):
+def coacd_cache(tmp_path_factory):
+    """The suite's own CoACD cache folder (a user's is neither read nor filled)."""
+    return tmp_path_factory.mktemp("coacd")
+
+
+@pytest.fixture(scope="session")
+def built(tmp_path_factory, coacd_cache):
     """All four variants built once into a session folder: {variant: (out_dir, report)}."""
     from footforge.build import VARIANTS, BuildOptions, build
 
     root = tmp_path_factory.mktemp("build")
-    cache = tmp_path_factory.mktemp("coacd")
-    return {v: (root / v, build(BuildOptions(variant=v, out_dir=root / v, cache_dir=cache))) for v in VARIANTS}
+    return {v: (root / v, build(BuildOptions(variant=v, out_dir=root / v, cache_dir=coacd_cache))) for v in VARIANTS}
 
 
 _FLOAT64_STANCE = """

@@ -127,7 +127,8 @@ def _fit(pool, cases, full: dict, params, variant: str, foot, options, tick) -> 
         return value
 
     x0 = _vector(params, variant)
-    max_lift_cm = 100.0 * (params.sole_lift_m[variant] + foot.info["sole_clearance_m"] - 0.0011)
+    clearance = foot.info["sole_clearance_m"]  # None when only the sole collides (params.FootContact)
+    max_lift_cm = np.inf if clearance is None else 100.0 * (params.sole_lift_m[variant] + clearance - 0.0011)
     bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [
         (LIFT_CM[0], max(LIFT_CM[0], min(LIFT_CM[1], max_lift_cm)))]
     lower, upper = [b[0] for b in bounds], [b[1] for b in bounds]
