@@ -282,7 +282,7 @@ class EnvConfig:
     --contact-models fast stance`). On flat ground the adaptive feet meet the stance target
     (sinking < 10 mm, slip < 5 mm in 10 s) with float64_physics (`--float64-physics`); in float32
     they creep about 1.3 mm/s, a twelfth of fast's. On the rough terrain's heightfield float64
-    holds ball feet; AFF and AOF still slide about 6 mm in 10 s there (benchmarks/stance_env.py,
+    holds ball feet; AFF and AOF still slide 5.2-5.8 mm in 10 s there (benchmarks/stance_env.py,
     benchmarks/RESULTS.md, 2026-11-25)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
