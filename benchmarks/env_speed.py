@@ -65,6 +65,10 @@ def main() -> None:
                         "builds from different parameter files are measured in one run")
     args = p.parse_args()
     roots = [tuple(r.split("=", 1)) if "=" in r else ("", r) for r in args.build_roots]
+    if len(roots) > 1:  # every build its own keys: an unlabelled one is named after its folder
+        roots = [(label or Path(root).name, root) for label, root in roots]
+        if len({label for label, _ in roots}) < len(roots):
+            p.error("--build-roots: two builds with one label; name them LABEL=DIR")
     go1 = None
     if args.playground:
         sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/playground_go1.py

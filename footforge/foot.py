@@ -10,11 +10,12 @@
   `sole_back` bodies, each on a hinge about its roll link's transversal (y) axis at its pivot.
 Every derived body's mass, centre of mass and inertia are the composite (Pinocchio) of the links
 it replaces at the reference pose, so the derived foot at q = 0 has exactly the mass
-distribution of the closed chain at its reference pose. Derived bodies collide through the boxes
-that enclose the replaced links' collision geometry at that pose (one per arch and roll link, one
-per sole body), or, as the parameter file's `contact` chooses (params.FootContact), through
-spheres or capsules on each sole box's bottom face and nothing above the sole: the contact geometry
-MJX collides cheapest with planes and heightfields. They carry the replaced links' visual meshes.
+distribution of the closed chain at its reference pose. What collides is the parameter file's
+`collision` (params.FootContact), two independent choices: each sole body collides through the
+box that encloses the replaced links' collision geometry at that pose, or through spheres or
+capsules on that box's bottom face (what MJX collides cheapest with heightfields); and the parts
+above the sole (the ankle's own geometry, one box per arch and roll link) collide too, or not
+(shipped: the sole box alone). They carry the replaced links' visual meshes.
 """
 
 from __future__ import annotations
@@ -259,7 +260,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
                 if contact.radius_m > min(half[:2]):
                     raise InputError(f"radius_m {contact.radius_m:g} m is wider than the {variant} {group_name} "
                                      f"plate (half sizes {half[0]:.4f} x {half[1]:.4f} m)",
-                                     file=str(params.source), element=f"{variant}.contact.radius_m",
+                                     file=str(params.source), element=f"{variant}.collision.radius_m",
                                      fix=f"give at most {min(half[:2]):.4f} m")
                 for i, shape in enumerate(sole_primitives(center, half, contact)):
                     body.add("geom", name=f"{group_name}_{i}_collision", dclass="collision", **shape)
@@ -331,7 +332,7 @@ def sole_primitives(center, half, contact: FootContact) -> list[dict]:
 def sole_clearance(root: mjcf.RootElement) -> float:
     """How far the lowest collision point of the foot's other bodies lies above the sole's, at
     the reference pose (m): the most a sole lift can add before the sole stops being the part
-    that touches the ground."""
+    that touches the ground; inf when only the sole collides."""
     model = compile_model(root)
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)

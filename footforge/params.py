@@ -47,7 +47,8 @@ class FootContact:
     and inside its footprint, so on flat ground the plate stands where the box would."""
     grid: tuple[int, int] = (2, 2)
     """Spheres per sole plate along the foot's length (x) and width (y); for capsules, segments
-    along x and rows along y. The outer ones reach the box's edges."""
+    along x and rows along y. With more than one along an axis the outer ones reach the box's
+    edges; with one they sit on its centre line."""
     radius_m: float = 0.01
     """Sphere or capsule radius, m."""
     upper_collisions: bool = True
@@ -87,7 +88,8 @@ class VariantParams:
     chain's lowest point at the slack reference pose, m. Under load the chain flattens and the
     ankle sinks; a lift lets the rigid sole stand at the loaded chain's height (calibrated)."""
     foot_contact: dict[str, FootContact]
-    """Per derived variant (aff, aof): its collision geometry."""
+    """Per derived variant (aff, aof): its collision geometry (the file's `aff.collision`,
+    `aof.collision`; the top-level `contact` block is the contact model)."""
     rig_payload_mass: float
     """kg."""
     rig_slider_damping: float
@@ -139,6 +141,11 @@ def _foot_contact(r: YamlReader) -> FootContact:
     grid = _pair(grid_r, 2)
     if any(n != int(n) or not 1 <= n <= 8 for n in grid):
         raise grid_r.fail(f"bad grid {list(grid)}", "give two whole numbers from 1 to 8 (along x, along y)")
+    if sole == "box":
+        for key in ("grid", "radius_m"):
+            if key in r.mapping():
+                raise r.get(key).fail("a box sole has no grid or radius",
+                                      "remove it, or choose sole: spheres or capsules")
     upper = r.get("upper_collisions", default.upper_collisions).data
     if not isinstance(upper, bool):
         raise r.get("upper_collisions").fail(f"expected true or false, got {upper!r}", "write true or false")
@@ -181,11 +188,11 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     variants, lifts, contacts = {}, {}, {}
     for variant, names in _JOINTS.items():
         r = top.get(variant)
-        extra = {"sole_lift_m", "contact"} | ({"split_x", "sole_range"} if variant == "aof" else set())
+        extra = {"sole_lift_m", "collision"} | ({"split_x", "sole_range"} if variant == "aof" else set())
         r.get(names[0], allowed=set(names) | extra)
         variants[variant] = {n: _passive(r.get(n)) for n in names}
         lifts[variant] = r.get("sole_lift_m", 0.0).float(min_value=0.0, max_value=0.05)
-        contacts[variant] = _foot_contact(r.get("contact", {}))
+        contacts[variant] = _foot_contact(r.get("collision", {}))
     aof = top.get("aof")
     sole_range = _pair(aof.get("sole_range"), 2)
     if sole_range[0] >= sole_range[1]:

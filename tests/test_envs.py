@@ -270,7 +270,8 @@ def test_the_adaptive_feet_s_stance_diverges_under_actions_with_fewer_iterations
     """Why 'stance' needs 16 Newton iterations on AFF feet (STANCE_CONTACT_MIN_ITERATIONS): under an
     untrained policy's random actions (footforge.envs.stability, CPU MuJoCo, float64) an
     unconverged solve of its stiff friction (solimp 0.99/0.999, float64_physics's) throws AFF
-    robots within a fraction of a second at 8/16 iterations, and none diverge at 16/16."""
+    robots at 8/16 iterations (with every foot box colliding, 7 of 8 within 0.35 s; with the sole
+    alone, 3 of 8 within 8 s), and none diverge at 16/16."""
     from footforge.envs import anymal
     from footforge.envs.stability import divergence_times
 
@@ -280,7 +281,7 @@ def test_the_adaptive_feet_s_stance_diverges_under_actions_with_fewer_iterations
     minimum = anymal.STANCE_CONTACT_MIN_ITERATIONS
     try:  # the refusal lifted, to show what it prevents
         anymal.STANCE_CONTACT_MIN_ITERATIONS = minimum | {"aff": (8, 16)}
-        fewer = divergence_times(replace(stance, solver_iterations=8), robots=4, seconds=1.0, seed=0)
+        fewer = divergence_times(replace(stance, solver_iterations=8), robots=8, seconds=8.0, seed=0)
     finally:
         anymal.STANCE_CONTACT_MIN_ITERATIONS = minimum
     assert sum(t is not None for t in fewer) >= 2, fewer

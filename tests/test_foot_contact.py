@@ -1,7 +1,10 @@
-"""The derived feet's contact geometry (params.FootContact): box soles, or spheres and capsules on
-the box's bottom face with nothing above the sole colliding."""
+"""The derived feet's collision geometry (params.FootContact, the parameter file's `collision`):
+the sole as a box or as spheres or capsules on the box's bottom face, with or without the parts
+above the sole colliding."""
 
 from pathlib import Path
+
+import json
 
 import mujoco
 import numpy as np
@@ -13,6 +16,7 @@ from footforge.foot import sole_primitives
 from footforge.params import FootContact, default_params_path, load_params
 
 SHAPES = {"box": {"sole": "box", "upper_collisions": True},
+          "box_sole_only": {"sole": "box", "upper_collisions": False},
           "spheres": {"sole": "spheres", "grid": [2, 2], "radius_m": 0.01, "upper_collisions": False},
           "capsules": {"sole": "capsules", "grid": [1, 2], "radius_m": 0.01, "upper_collisions": False}}
 
@@ -20,8 +24,8 @@ SHAPES = {"box": {"sole": "box", "upper_collisions": True},
 def _params_with(tmp_path: Path, contact: dict, variants=("aff", "aof")) -> Path:
     data = yaml.safe_load(default_params_path().read_text())
     for v in variants:
-        data[v]["contact"] = contact
-    path = tmp_path / f"params_{abs(hash(str(contact)))}.yaml"
+        data[v]["collision"] = contact
+    path = tmp_path / f"params_{len(list(tmp_path.glob('params_*.yaml')))}.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
 
@@ -64,7 +68,7 @@ def test_primitives_lie_on_the_box_bottom_face(shape):
     np.testing.assert_allclose(pts[:, :2].max(0), center[:2] + half[:2], atol=1e-12)
 
 
-@pytest.mark.parametrize("shape", ["spheres", "capsules"])
+@pytest.mark.parametrize("shape", ["box_sole_only", "spheres", "capsules"])
 def test_only_the_sole_collides_and_mass_is_unchanged(builds, shape):
     for variant in ("aff", "aof"):
         box = mujoco.MjModel.from_xml_path(str(builds[variant, "box"] / "robot.xml"))
@@ -73,11 +77,16 @@ def test_only_the_sole_collides_and_mass_is_unchanged(builds, shape):
         np.testing.assert_array_equal(new.body_inertia, box.body_inertia)
         colliding = [new.geom(g).name for g in range(new.ngeom) if new.geom_contype[g] or new.geom_conaffinity[g]]
         foot = [n for n in colliding if "_foot/" in n]
-        expected_type = mujoco.mjtGeom.mjGEOM_SPHERE if shape == "spheres" else mujoco.mjtGeom.mjGEOM_CAPSULE
+        expected_type = {"box_sole_only": mujoco.mjtGeom.mjGEOM_BOX, "spheres": mujoco.mjtGeom.mjGEOM_SPHERE,
+                         "capsules": mujoco.mjtGeom.mjGEOM_CAPSULE}[shape]
         assert foot and all(n.split("/")[1].startswith("sole") for n in foot), foot
         assert all(new.geom_type[new.geom(n).id] == expected_type for n in foot)
-        per_foot = 4 if shape == "spheres" else 2
-        assert len(foot) == 4 * per_foot * (1 if variant == "aff" else 2)
+        per_plate = {"box_sole_only": 1, "spheres": 4, "capsules": 2}[shape]
+        assert len(foot) == 4 * per_plate * (1 if variant == "aff" else 2)
+        report = json.loads((builds[variant, shape] / "build_report.json").read_text())
+        assert report["foot"]["sole_clearance_m"] is None  # nothing else collides
+        assert report["foot"]["contact"]["sole"] == SHAPES[shape]["sole"]
+        assert report["foot"]["contact"]["upper_collisions"] is False
         # The leg's own colliders (shanks, thighs, base) are those of the box build.
         legs = lambda m: sorted(m.geom(g).name for g in range(m.ngeom)
                                 if (m.geom_contype[g] or m.geom_conaffinity[g]) and "_foot/" not in m.geom(g).name)
@@ -115,24 +124,28 @@ def test_sole_stands_where_the_box_stands(builds, variant, shape):
 
 def test_shipped_parameters_read(tmp_path):
     params = load_params()
-    for variant in ("aff", "aof"):
-        assert params.foot_contact[variant].sole in ("box", "spheres", "capsules")
-    # A file without `contact` keeps the box soles, everything colliding (files written before it).
+    for variant in ("aff", "aof"):  # the sole box alone (benchmarks/RESULTS.md, 2026-11-25)
+        assert params.foot_contact[variant] == FootContact(sole="box", upper_collisions=False)
+    # A file without `collision` keeps the box soles, everything colliding (files written before it).
     data = yaml.safe_load(default_params_path().read_text())
     for v in ("aff", "aof"):
-        data[v].pop("contact", None)
+        data[v].pop("collision")
     path = tmp_path / "old.yaml"
     path.write_text(yaml.safe_dump(data))
-    assert load_params(path).foot_contact["aof"] == FootContact()
+    old = FootContact(sole="box", grid=(2, 2), radius_m=0.01, upper_collisions=True)
+    assert load_params(path).foot_contact == {"aff": old, "aof": old}
 
 
 @pytest.mark.parametrize("contact, key, message", [
-    ({"sole": "cubes"}, "aff.contact.sole", "unknown sole contact 'cubes'"),
-    ({"sole": "spheres", "grid": [0, 2]}, "aff.contact.grid", "bad grid"),
-    ({"sole": "spheres", "grid": [2.5, 2]}, "aff.contact.grid", "bad grid"),
-    ({"sole": "spheres", "radius_m": -1}, "aff.contact.radius_m", "below"),
-    ({"sole": "spheres", "upper_collisions": "no"}, "aff.contact.upper_collisions", "true or false"),
-    ({"sole": "spheres", "size": 3}, "aff.contact", "unknown keys ['size']"),
+    ({"sole": "cubes"}, "aff.collision.sole", "unknown sole contact 'cubes'"),
+    ({"sole": "spheres", "grid": [0, 2]}, "aff.collision.grid", "bad grid"),
+    ({"sole": "spheres", "grid": [2.5, 2]}, "aff.collision.grid", "bad grid"),
+    ({"sole": "spheres", "grid": "2x2"}, "aff.collision.grid", "expected a list of 2 numbers"),
+    ({"sole": "spheres", "radius_m": -1}, "aff.collision.radius_m", "below"),
+    ({"sole": "spheres", "upper_collisions": "no"}, "aff.collision.upper_collisions", "true or false"),
+    ({"sole": "spheres", "size": 3}, "aff.collision", "unknown keys ['size']"),
+    ({"sole": "box", "grid": [2, 2]}, "aff.collision.grid", "a box sole has no grid or radius"),
+    ("box", "aff.collision", "expected a mapping"),
 ])
 def test_bad_contact_parameters_name_the_key(tmp_path, contact, key, message):
     with pytest.raises(InputError) as e:
@@ -150,5 +163,37 @@ def test_radius_wider_than_the_plate_is_refused(tmp_path, coacd_cache, capsys):
                  "--cache-dir", str(coacd_cache)])
     captured = capsys.readouterr()
     text = " ".join((captured.out + captured.err).split())  # rich wraps long lines
-    assert code == 2 and "aof.contact.radius_m" in text and "Traceback" not in text
+    assert code == 2 and "aof.collision.radius_m" in text and "Traceback" not in text
     assert not out.exists()
+
+
+@pytest.mark.parametrize("shape", ["spheres", "capsules"])
+def test_a_calibration_trial_s_sole_lift_moves_the_contacts(builds, shape):
+    """A calibration trial lowers the sole (Case.patch's sole_lift_delta_m) of a rig whose sole
+    body holds several colliding geoms: 0.5 mm above the floor it touches nothing, lowered by 1 mm
+    it touches with every primitive (moved in the compiled model, the body's stale bounding box
+    hid them all)."""
+    from footforge.validate.simulate import compile_case
+
+    folder = builds["aff", shape]
+    xml = (folder / "foot_rig.xml").read_text()
+    assets = {f.name: f.read_bytes() for f in (folder / "assets").iterdir()}
+    model = compile_case(xml, assets, None)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("reference").id)
+    mujoco.mj_kinematics(model, data)
+    soles = [model.body(b).name for b in range(model.nbody) if model.body(b).name.startswith("foot/sole")]
+    from footforge.foot import collision_points
+
+    lowest = collision_points(model, data, soles)[:, 2].min()
+    slider = model.jnt_qposadr[model.joint("slider").id]
+    touching = {}
+    for delta in (0.0, -0.001):
+        model = compile_case(xml, assets, {"sole_lift_delta_m": delta})
+        data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, data, model.key("reference").id)
+        data.qpos[slider] -= lowest - 0.0005  # the sole's bottom 0.5 mm above the floor
+        mujoco.mj_forward(model, data)
+        touching[delta] = data.ncon
+    # AFF: 4 spheres, one contact each, or 2 capsules, two each.
+    assert touching == {0.0: 0, -0.001: 4}

@@ -158,13 +158,22 @@ def test_calibration_writes_the_parameter_file_and_reports_before_after(tmp_path
 
 
 def test_a_sole_lift_above_the_other_collision_boxes_is_refused(tmp_path, capsys):
+    """Where the ankle, arch and roll boxes collide too (collision.upper_collisions), a sole
+    lifted above them is refused; where only the sole collides there is nothing to rise above."""
     params = tmp_path / "params.yaml"
     shutil.copy(PARAMS, params)
     write_params(params, "aff", {}, 0.04)
+    text = params.read_text()
+    assert "  collision: {sole: box, upper_collisions: false}\n" in text
+    params.write_text(text.replace("  collision: {sole: box, upper_collisions: false}\n",
+                                   "  collision: {sole: box, upper_collisions: true}\n", 1))
     assert main(["build", "--variant", "aff", "--params", str(params), "--out", str(tmp_path / "b")]) == 2
     err = capsys.readouterr().err
     assert "sole_lift_m 0.04 m raises the aff sole" in err and "keep sole_lift_m below" in err
     assert not (tmp_path / "b").exists()
+    params.write_text(text)  # the shipped geometry: only the sole collides
+    assert main(["build", "--variant", "aff", "--format", "mjcf", "--params", str(params),
+                 "--out", str(tmp_path / "c")]) == 0
 
 
 # Forces at the physics rate, obstacles that are hit, and the project's headline claim (issue 15).

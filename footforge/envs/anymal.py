@@ -50,7 +50,7 @@ STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (30, 3
 """Newton and line-search iterations 'stance' needs per feet (2.5 ms). Below them an unconverged
 solve of its stiff friction diverges under a policy's actions: ball at 6 Newton iterations (MJX,
 float32: 1 of 8 robots fell at rest, 1 diverged acting); AFF at 8/16 (CPU MuJoCo, 7 of 8 robots
-within 0.35 s of random actions); AOF at 16/50 (5 of 8 within 8 s). The light passive links of the
+within 0.35 s of random actions; with only the sole colliding, 3 of 8 within 8 s); AOF at 16/50 (5 of 8 within 8 s). The light passive links of the
 adaptive feet couple many stiff friction rows, which take more iterations to converge
 (benchmarks/RESULTS.md, 2026-11-25, the seventh look). Those figures are at solimp 0.99/0.999
 (float64_physics's); at the adaptive feet's softer float32 impedance (0.95/0.99) AFF at 8/16 and

@@ -34,7 +34,8 @@ LOG_DAMPING = (-4.0, 1.3)
 """log10 bounds, N m s/rad (1e-4 .. 20)."""
 LIFT_CM = (0.0, 3.0)
 """Sole lift bounds, cm (the optimiser works in cm to keep the simplex balanced); the upper bound
-is lowered to keep the sole 1 mm below the foot's other collision boxes (foot.sole_clearance)."""
+is lowered to keep the sole 1 mm below the foot's other collision boxes (foot.sole_clearance), where they
+collide (params.FootContact.upper_collisions)."""
 
 
 def _vector(params, variant: str) -> np.ndarray:

@@ -42,24 +42,35 @@ class RigCase:
     `foot/` prefix; none for the ball."""
     patch: dict | None = None
     """Calibration trial values applied to the compiled model: {"joints": {name: {"stiffness":
-    N m/rad, "damping": N m s/rad}}, "sole_lift_delta_m": m added to the sole boxes' height}."""
+    N m/rad, "damping": N m s/rad}}, "sole_lift_delta_m": m added to the sole collision geoms' height}."""
 
 
-def apply_patch(model: mujoco.MjModel, patch: dict | None) -> None:
-    if not patch:
-        return
-    for name, values in patch.get("joints", {}).items():
+def compile_case(xml: str, assets: dict, patch: dict | None) -> mujoco.MjModel:
+    """The case's model with a calibration trial's values (`patch`, Case.patch) applied. The sole
+    lift moves the sole collision geoms before compiling: moved in a compiled model, a body with
+    several colliding geoms keeps its compiled bounding box, and MuJoCo's midphase then misses
+    contacts of the moved geoms (spheres or capsules lowered 1 mm into a plane found none)."""
+    delta = (patch or {}).get("sole_lift_delta_m", 0.0)
+    if delta:
+        spec = mujoco.MjSpec.from_string(xml, assets=assets)
+        for geom in spec.geoms:
+            if geom.name.startswith("foot/sole") and geom.name.endswith("_collision"):
+                # Sole body frames are aligned with the mount; a capsule given by fromto moves by it.
+                if np.isnan(geom.fromto[0]):
+                    geom.pos[2] += delta
+                else:
+                    geom.fromto[2] += delta
+                    geom.fromto[5] += delta
+        model = spec.compile()
+    else:
+        model = mujoco.MjModel.from_xml_string(xml, assets)
+    for name, values in (patch or {}).get("joints", {}).items():
         joint = model.joint(f"foot/{name}")
         if "stiffness" in values:
             model.jnt_stiffness[joint.id] = values["stiffness"]
         if "damping" in values:
             model.dof_damping[joint.dofadr[0]] = values["damping"]
-    delta = patch.get("sole_lift_delta_m", 0.0)
-    if delta:
-        for g in range(model.ngeom):
-            name = model.geom(g).name
-            if name.startswith("foot/sole") and name.endswith("_collision"):
-                model.geom_pos[g][2] += delta  # sole body frames are aligned with the mount
+    return model
 
 
 def _foot_mask(model: mujoco.MjModel) -> np.ndarray:
@@ -153,8 +164,7 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     that variants' speeds compare the physics, not this function's bookkeeping.
     """
     scenario = case.scenario
-    model = mujoco.MjModel.from_xml_string(case.xml, case.assets)
-    apply_patch(model, case.patch)
+    model = compile_case(case.xml, case.assets, case.patch)
     model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("reference").id)
