@@ -6,7 +6,8 @@ figures of one run are comparable with each other (ratios), not with another mac
 
 Usage: python benchmarks/env_speed.py [--batches 16 64 256] [--steps 20] [--feet ball aff aof]
            [--tasks flat rough] [--policies B P BH PH] [--contact-models fast stance]
-           [--float64-physics] [--shank-collisions on off] [--playground]
+           [--float64-physics] [--shank-collisions on off] [--playground] [--mjx-impl jax|warp]
+           [--build-roots [LABEL=]DIR ...]
 
 Keys: <task>_<feet>_<policy>_b<batch> for 'fast' (the key of the measurements before the
 environments' default became 'stance'), with _stance before _b<batch> for 'stance'; each model at
@@ -59,11 +60,22 @@ def main() -> None:
     p.add_argument("--playground", action="store_true",
                    help="also MuJoCo Playground's Go1 joystick for each task and batch size (keys "
                         "playground_go1_<task>_b<batch>; needs the bench extra)")
+    p.add_argument("--mjx-impl", choices=["jax", "warp"], default="jax",
+                   help="MJX's backend (EnvConfig.mjx_impl): warp needs MuJoCo Warp and an NVIDIA GPU")
     p.add_argument("--build-roots", nargs="+", default=[""], metavar="[LABEL=]DIR",
                    help="builds to measure, each holding <DIR>/<feet>/ (default: the environments' own, build/); "
                         "a LABEL is added to the keys (<task>_<feet>_<policy>_<LABEL>..._b<batch>), so that "
                         "builds from different parameter files are measured in one run")
     args = p.parse_args()
+    if args.mjx_impl != "jax":  # refused before any compiling, as a usage error (exit 2)
+        from footforge.envs.anymal import check_mjx_impl
+        from footforge.envs.config import EnvConfig
+        from footforge.errors import InputError
+
+        try:
+            check_mjx_impl(EnvConfig(mjx_impl=args.mjx_impl))
+        except InputError as e:
+            p.error(f"--mjx-impl {args.mjx_impl}: {e}")
     roots = [tuple(r.split("=", 1)) if "=" in r else ("", r) for r in args.build_roots]
     if len(roots) > 1:  # every build its own keys: an unlabelled one is named after its folder
         roots = [(label or Path(root).name, root) for label, root in roots]
@@ -82,6 +94,7 @@ def main() -> None:
 
     cache = compile_cache.enable(not args.no_compile_cache)
     figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,
+               "mjx_impl": args.mjx_impl,
                "compile_cache": str(cache) if cache else None, "float64_physics": args.float64_physics}
     if go1:
         figures["playground"] = go1.version()
@@ -99,7 +112,7 @@ def main() -> None:
                                                           for r in roots):
                 config = envs.default_config(task, feet, policy, contact)
                 env = envs.from_config(replace(config, float64_physics=args.float64_physics,
-                                               shank_collisions=shank == "on",
+                                               shank_collisions=shank == "on", mjx_impl=args.mjx_impl,
                                                build_dir=f"{root}/{feet}" if root else config.build_dir))
                 name = (f"{task}_{feet}_{policy}" + (f"_{label}" if label else "")
                         + ("" if contact == "fast" else f"_{contact}") + ("" if shank == "on" else "_noshank"))

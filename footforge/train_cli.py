@@ -46,6 +46,8 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                    help="the MJX contact model (EnvConfig.contact_model) with the step and solver iterations it "
                         "needs: stance (default) holds a standing robot (2.5 ms step); fast is 2-3x cheaper on the "
                         "CPU but a robot at rest creeps about 22 cm (ball feet at 5 ms)")
+    p.add_argument("--mjx-impl", choices=["jax", "warp"],
+                   help="MJX's backend (EnvConfig.mjx_impl; default jax): warp needs MuJoCo Warp and an NVIDIA GPU")
     p.add_argument("--float64-physics", action="store_const", const=True,
                    help="step MJX in float64 (EnvConfig.float64_physics): the adaptive feet's stance holds only in "
                         "float64; the networks stay float32")
@@ -98,6 +100,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
             from footforge.envs import enable_float64_physics
 
             enable_float64_physics(env_config)  # before any JAX array
+            from footforge.envs.anymal import check_mjx_impl
+
+            check_mjx_impl(env_config)  # before the run folder is written and JAX compiles
             compile_cache.enable(not args.no_compile_cache)
             with _Reporter(console, task, ppo.num_timesteps) as report:
                 metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
@@ -131,7 +136,8 @@ _SETTINGS = (("--feet", "feet", ("env", "feet")), ("--policy", "policy", ("env",
              ("--checkpoint-every", "checkpoint_every", ("ppo", "checkpoint_every_steps")),
              ("--eval-envs", "eval_envs", ("ppo", "num_eval_envs")),
              ("--contact-model", "contact_model", ("env", "contact_model")),
-             ("--float64-physics", "float64_physics", ("env", "float64_physics")))
+             ("--float64-physics", "float64_physics", ("env", "float64_physics")),
+             ("--mjx-impl", "mjx_impl", ("env", "mjx_impl")))
 
 
 def _new_configs(task: str, args):
@@ -144,6 +150,8 @@ def _new_configs(task: str, args):
         env_config = replace(env_config, terrain=_override(env_config.terrain, args.terrain))
     if args.float64_physics:
         env_config = replace(env_config, float64_physics=True)
+    if args.mjx_impl:
+        env_config = replace(env_config, mjx_impl=args.mjx_impl)
     overrides = {field: getattr(args, attr) for _, attr, (section, field) in _SETTINGS
                  if section == "ppo" and getattr(args, attr) is not None}
     if args.timesteps is not None:

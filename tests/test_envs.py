@@ -481,3 +481,25 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)
     evaluation._policy_and_env("policy", "aof", 1.0, None)
     assert (built_configs[0].feet, built_configs[0].sim_dt, built_configs[0].decimation) == ("aof", 0.0025, 8)
+
+
+def test_the_warp_backend_is_refused_where_it_cannot_run(built, tmp_path, capsys):
+    """EnvConfig.mjx_impl 'warp' needs MuJoCo Warp and an NVIDIA GPU: here (no warp, a CPU) the
+    environment refuses it with the fix named, and training exits 2 before writing its run."""
+    import importlib.util
+
+    import jax
+
+    if importlib.util.find_spec("mujoco_warp") is not None and jax.default_backend() == "gpu":
+        pytest.skip("MuJoCo Warp runs here")
+    config = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]), mjx_impl="warp")
+    with pytest.raises(InputError, match="warp") as e:
+        envs.from_config(config)
+    assert "jax" in e.value.fix
+    from footforge.train_cli import main
+
+    run = tmp_path / "run"
+    code = main("flat", "", ["--feet", "ball", "--build-root", str(built["ball"][0].parent), "--out", str(run),
+                             "--mjx-impl", "warp", "--timesteps", "100"])
+    assert code == 2 and "mjx_impl 'warp'" in " ".join(capsys.readouterr().err.split())
+    assert not run.exists()

@@ -268,6 +268,26 @@ def check_contact_model(config: EnvConfig) -> None:
             fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}, or contact_model='fast'")
 
 
+def check_mjx_impl(config: EnvConfig) -> None:
+    """Raises InputError where config.mjx_impl cannot run here: 'warp' needs MuJoCo Warp
+    (mujoco-mjx's warp extra) and JAX on an NVIDIA GPU."""
+    if config.mjx_impl == "jax":
+        return
+    if config.mjx_impl != "warp":
+        raise InputError(f"unknown mjx_impl '{config.mjx_impl}'", fix="use jax or warp")
+    import importlib.util
+
+    import jax
+
+    if importlib.util.find_spec("warp") is None or importlib.util.find_spec("mujoco_warp") is None:
+        raise InputError("mjx_impl 'warp' needs MuJoCo Warp, which is not installed",
+                         fix="pip install 'mujoco-mjx[warp]' (with the project's constraints) on a machine "
+                             "with an NVIDIA GPU, or use mjx_impl jax")
+    if jax.default_backend() != "gpu":
+        raise InputError(f"mjx_impl 'warp' runs on NVIDIA GPUs only; JAX's device here is "
+                         f"{jax.default_backend()}", fix="use mjx_impl jax (--mjx-impl jax) on this machine")
+
+
 def foot_sites(model: mujoco.MjModel) -> list[int]:
     """Each leg's foot touchdown site (LF, RF, LH, RH): an adaptive foot's or the ball foot's.
 

@@ -15,6 +15,7 @@ from footforge.errors import InputError
 PolicyType = Literal["B", "BH", "P", "PH"]
 Feet = Literal["ball", "aff", "aof"]
 ContactModel = Literal["stance", "fast", "build"]
+MjxImpl = Literal["jax", "warp"]
 """EnvConfig.contact_model's choices, the default first."""
 
 
@@ -293,6 +294,11 @@ class EnvConfig:
     training wrapper hand observations, rewards, metrics and info over in float32
     (envs.wrappers.policy_side), and the networks' parameters are made float32
     (train.network_factory). The adaptive feet's stance needs it (contact_model)."""
+    mjx_impl: MjxImpl = "jax"
+    """MJX's backend (mujoco.mjx.put_model's impl): "jax", MJX in JAX on any device (the default,
+    and everything measured so far); "warp", MuJoCo Warp's kernels, NVIDIA GPUs only, with
+    mujoco-mjx's `warp` extra installed (warp-lang, mujoco_warp). Refused with a clear error
+    where it cannot run (envs.anymal.check_mjx_impl); not yet measured on a GPU."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardScales = field(default_factory=RewardScales)
     observations: ObservationConfig = field(default_factory=ObservationConfig)

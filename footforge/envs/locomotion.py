@@ -21,7 +21,7 @@ from mujoco import mjx
 
 from footforge import constants as C
 from footforge.envs import observations, rewards
-from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, load_robot
+from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, check_mjx_impl, load_robot
 from footforge.envs.config import EnvConfig, check_feet_and_policy
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
@@ -45,10 +45,11 @@ class LocomotionEnv(Env):
             raise InputError("float64_physics needs JAX's x64 mode, which is off in this process",
                              fix="call footforge.envs.enable_float64_physics(config) (or set JAX_ENABLE_X64=1) "
                                  "before JAX makes its first array")
+        check_mjx_impl(config)
         self.config = config
         self.robot = robot or load_robot(config)
         r = self.robot
-        self.sys = mjx.put_model(r.model)
+        self.sys = mjx.put_model(r.model, impl=config.mjx_impl)
         self._n_passive = len(r.passive_qpos)
         self._obs_size = observations.size(config, self._n_passive)
         # Privileged (critic-only) observations: true base velocity (3), each foot's normal
