@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from footforge.errors import InputError
-from footforge.foot import sole_primitives
+from footforge.foot import collision_points, sole_primitives
 from footforge.params import FootContact, default_params_path, load_params
 
 SHAPES = {"box": {"sole": "box", "upper_collisions": True},
@@ -183,8 +183,6 @@ def test_a_calibration_trial_s_sole_lift_moves_the_contacts(builds, shape):
     mujoco.mj_resetDataKeyframe(model, data, model.key("reference").id)
     mujoco.mj_kinematics(model, data)
     soles = [model.body(b).name for b in range(model.nbody) if model.body(b).name.startswith("foot/sole")]
-    from footforge.foot import collision_points
-
     lowest = collision_points(model, data, soles)[:, 2].min()
     slider = model.jnt_qposadr[model.joint("slider").id]
     touching = {}
