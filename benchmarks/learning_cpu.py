@@ -30,6 +30,10 @@ def main(argv=None) -> int:
     p.add_argument("--eval-every", type=int, default=500_000, help="env steps between evaluations")
     p.add_argument("--eval-envs", type=int, default=64)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-minutes", type=float, help="stop at the checkpoint before this wall time (train's max_wall_s)")
+    p.add_argument("--no-pd-targets", action="store_true",
+                   help="leave the PD targets out of the observation (ObservationConfig.pd_targets), as before "
+                        "2026-11-25's fifth session")
     p.add_argument("--build-dir", type=Path, help="footforge build of the feet (default build/<feet>)")
     args = p.parse_args(argv)
     if args.out.exists():
@@ -41,28 +45,32 @@ def main(argv=None) -> int:
 
     cfg = envs.default_config("flat", args.feet, "B")
     cfg = replace(cfg, build_dir=str(args.build_dir) if args.build_dir else None,
-                  commands=replace(cfg.commands, lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-0.5, 0.5)))
+                  commands=replace(cfg.commands, lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-0.5, 0.5)),
+                  observations=replace(cfg.observations, pd_targets=not args.no_pd_targets))
     ppo = train.default_ppo("flat", num_envs=args.num_envs, num_timesteps=args.timesteps, unroll_length=24,
                             batch_size=args.num_envs // 2, num_minibatches=4, checkpoint_every_steps=args.eval_every,
                             num_eval_envs=args.eval_envs, seed=args.seed)
     t0 = time.time()
-    print("env steps | wall s | episode length (policy steps) | forward error m/s | return", flush=True)
+    print("env steps | wall s | episode length (policy steps) | forward error m/s | return | base height m", flush=True)
 
     def progress(step, total, metrics, evaluation):
         if not evaluation or "eval/episode_reward" not in metrics:
             return
         print(f"{step:>9,} | {time.time() - t0:6.0f} | {metrics['eval/avg_episode_length']:6.1f} | "
-              f"{metrics['eval/episode_error/lin_vel_x_per_step']:.3f} | {metrics['eval/episode_reward']:.3f}",
+              f"{metrics['eval/episode_error/lin_vel_x_per_step']:.3f} | {metrics['eval/episode_reward']:.3f} | "
+              f"{metrics.get('eval/episode_base_height_m_per_step', float('nan')):.3f}",
               flush=True)
 
-    train.train(cfg, ppo, args.out, progress=progress)
+    train.train(cfg, ppo, args.out, progress=progress,
+                max_wall_s=args.max_minutes * 60 if args.max_minutes else None)
     curve = [{"env_steps": e["global_step"], "wall_s": round(e["wall_s"], 1),
               "episode_length": e["eval/avg_episode_length"],
-              "forward_error_mps": e["eval/episode_error/lin_vel_x_per_step"], "return": e["eval/episode_reward"]}
+              "forward_error_mps": e["eval/episode_error/lin_vel_x_per_step"], "return": e["eval/episode_reward"],
+              "base_height_m": e.get("eval/episode_base_height_m_per_step")}
              for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines())
              if "eval/episode_reward" in e]
     print(json.dumps({"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(), "jax_devices": jax.device_count(),
-                      "feet": args.feet, "timesteps": args.timesteps, "num_envs": args.num_envs,
+                      "feet": args.feet, "pd_targets": cfg.observations.pd_targets, "timesteps": args.timesteps, "num_envs": args.num_envs,
                       "wall_s": round(time.time() - t0, 1), "curve": curve}))
     return 0
 

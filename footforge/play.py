@@ -153,7 +153,8 @@ def _config_from_metadata(meta: dict, path: Path):
     a, o = meta["action"], meta["observation"]
     config = replace(config, action=a["model"], action_scale=a["scale"], action_clip=a["clip"], sim_dt=meta["sim_dt_s"],
                      decimation=meta["decimation"],
-                     observations=replace(config.observations, clip=o["clip"], noise=o["noise_in_training"]))
+                     observations=replace(config.observations, clip=o["clip"], noise=o["noise_in_training"],
+                                          pd_targets=any(s["name"] == "pd_target" for s in o["layout"])))
     ours = [(name, width, np.ravel(observations.scale(config, name)).tolist())
             for name, width in observations.layout(config, o["passive_foot_joints"])]
     theirs = [(s["name"], s["size"], np.ravel(s["scale"]).tolist()) for s in o["layout"]]

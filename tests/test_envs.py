@@ -39,6 +39,12 @@ def test_observation_layout_is_documented_and_sized():
     assert observations.size(b, 16) == 48  # the baseline's 48
     assert observations.size(bh, 8) == 48 + 16 and observations.size(bh, 16) == 48 + 32
     assert [name for name, _ in observations.layout(bh, 16)][-2:] == ["foot_joint_pos", "foot_joint_vel"]
+    # The flat task's velocity actions add the 12 PD targets (ObservationConfig.pd_targets); the
+    # rough task's position targets are default + scale x the observed last action already.
+    flat, rough = envs.default_config("flat", "aof", "BH"), envs.default_config("rough", "aof", "PH")
+    assert flat.observations.pd_targets and not rough.observations.pd_targets
+    assert observations.layout(flat, 16)[7] == ("pd_target", 12) and observations.size(flat, 16) == 48 + 12 + 32
+    assert "pd_target" not in dict(observations.layout(rough, 16))
     assert all(len(entry) == 3 and entry[2] for entry in observations.LAYOUT)
 
 
@@ -89,6 +95,20 @@ def test_reset_and_step_every_registered_env(rollouts, built):
         quiet = replace(env.config.observations, noise=False)
         full = LocomotionEnv(replace(env.config, observations=quiet), env.robot)._observe(
             states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
+        # The PD targets' slice (velocity actions, ObservationConfig.pd_targets) holds the targets
+        # integrated from the actions, default + sum of clip(a) x 13.5 x dt within the joint
+        # ranges, which the joint angles do not reveal: they lag them by torque / kp.
+        layout = observations.layout(env.config, n_passive)
+        start = sum(w for _, w in layout[:[n for n, _ in layout].index("pd_target")])
+        target = np.asarray(env.robot.default_q, np.float64)
+        lo, hi = env.robot.q_limits[:, 0], env.robot.q_limits[:, 1]
+        for k in jax.random.split(jax.random.PRNGKey(1), 3):  # the fixture's actions
+            action = np.clip(np.asarray(jax.random.normal(k, (env.action_size,))), -1.0, 1.0)
+            target = np.clip(target + env.config.action_scale * action * env.config.policy_dt, lo, hi)
+        np.testing.assert_allclose(states[-1].info["target"], target, atol=1e-5)
+        np.testing.assert_allclose(full[start:start + 12], target - env.robot.default_q, atol=1e-5)
+        q = np.asarray(states[-1].pipeline_state.qpos[env.robot.actuated_qpos])
+        assert np.abs(target - q).max() > 0.05
         for task, f, policy in envs.registry():
             if task == "flat" and f == feet:
                 other = LocomotionEnv(replace(envs.default_config("flat", feet, policy), observations=quiet,
@@ -321,7 +341,7 @@ def test_privileged_critic_observations(built):
     env = envs.make("flat", "ball", "B", build_dir=str(built["ball"][0]), privileged_critic=True,
                     pushes=replace(config.pushes, enabled=False))
     n = env.observation_size["state"][0]
-    assert n == 48 and env.observation_size["privileged_state"] == (n + 3 + 4 + 140 + 1,)
+    assert n == 48 + 12 and env.observation_size["privileged_state"] == (n + 3 + 4 + 140 + 1,)  # + PD targets
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     step = jax.jit(env.step)
     for _ in range(25):  # 0.5 s standing

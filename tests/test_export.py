@@ -72,8 +72,8 @@ def _metadata(path):
 
 
 CASES = {  # (task, feet, policy, privileged critic, observation size of the policy)
-    "flat_ball_B": ("flat", "ball", "B", False, 48),
-    "flat_aof_BH": ("flat", "aof", "BH", False, 48 + 2 * 16),
+    "flat_ball_B": ("flat", "ball", "B", False, 48 + 12),  # + the PD targets of velocity actions
+    "flat_aof_BH": ("flat", "aof", "BH", False, 48 + 12 + 2 * 16),
     "rough_aff_PH_privileged": ("rough", "aff", "PH", True, 48 + 140 + 2 * 8),
 }
 
@@ -115,7 +115,7 @@ def test_onnx_matches_the_jax_policy_on_random_observations(tmp_path, capsys, ca
     assert meta["pd_gains"]["kp_nm_per_rad"] == C.KP_NM_PER_RAD and meta["pd_gains"]["kd_nms_per_rad"] == C.KD_NMS_PER_RAD
     assert meta["control_period_s"] == pytest.approx(env_config.sim_dt * env_config.decimation)
     layout = meta["observation"]["layout"]
-    n_passive = (size - 48 - (140 if env_config.perceptive else 0)) // 2
+    n_passive = (size - observations.size(env_config, 0)) // 2
     assert [(s["name"], s["size"]) for s in layout] == observations.layout(env_config, n_passive)
     assert [s["start"] for s in layout] == list(np.cumsum([0] + [s["size"] for s in layout])[:-1])
     assert meta["observation"]["size"] == size and meta["observation"]["clip"] == env_config.observations.clip
@@ -141,7 +141,7 @@ def test_onnx_matches_the_jax_policy_on_a_recorded_rollout(tmp_path, ball_build)
     env_config = replace(envs.default_config("flat", "ball", "B"), build_dir=str(ball_build),
                          pushes=replace(envs.default_config("flat", "ball", "B").pushes, interval_s=0.2))
     ppo = PPOConfig(policy_hidden_layers=(64, 32), value_hidden_layers=(8,))
-    policy_dir = _perturbed_policy(env_config, ppo, tmp_path / "policy", 48, seed=5)
+    policy_dir = _perturbed_policy(env_config, ppo, tmp_path / "policy", observations.size(env_config, 0), seed=5)
     out = tmp_path / "deploy" / "anymal.onnx"
     out.parent.mkdir()
     assert main(["export", str(policy_dir), "--out", str(out)]) == 0
@@ -167,7 +167,7 @@ def test_onnx_matches_the_jax_policy_on_a_recorded_rollout(tmp_path, ball_build)
 def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, capsys, monkeypatch):
     env_config = envs.default_config("flat", "ball", "B")
     policy_dir = train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
-                                      tmp_path / "policy", 48)
+                                      tmp_path / "policy", observations.size(env_config, 0))
     (tmp_path / "not_a_policy").mkdir()
     (tmp_path / "a_file").write_text("x")
     (tmp_path / "a_folder").mkdir()

@@ -15,6 +15,7 @@ import pytest
 from conftest import REPO
 
 from footforge import envs
+from footforge.envs import observations
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 from footforge.train import (
@@ -121,7 +122,7 @@ def test_saved_policy_loads_for_inference(resumed):
     out, _ = resumed
     policy, env_config, ppo = load_policy(out / "policy")
     assert env_config.feet == "ball" and env_config.policy == "B" and ppo.num_envs == 8
-    action, _ = policy(jp.zeros(48), jax.random.PRNGKey(0))
+    action, _ = policy(jp.zeros(observations.size(env_config, 0)), jax.random.PRNGKey(0))
     assert action.shape == (12,) and bool(jp.isfinite(action).all())
     with pytest.raises(InputError, match="not a footforge policy"):
         load_policy(out / "checkpoints")
@@ -180,13 +181,14 @@ def test_initial_policy_of_a_privileged_critic_loads_and_acts(tmp_path):
 
     cfg = replace(envs.default_config("flat", "ball", "B"), privileged_critic=True)
     ppo = PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,))
-    sizes = {"state": (48,), "privileged_state": (48 + 148,)}
+    n = observations.size(cfg, 0)
+    sizes = {"state": (n,), "privileged_state": (n + 148,)}
     train.initial_policy(cfg, ppo, tmp_path / "policy", observation_size=sizes)
     policy, env_config, _ = load_policy(tmp_path / "policy")
     assert env_config.privileged_critic
-    obs = {"state": jp.ones(48), "privileged_state": jp.zeros(48 + 148)}
+    obs = {"state": jp.ones(n), "privileged_state": jp.zeros(n + 148)}
     action, _ = policy(obs, jax.random.PRNGKey(0))
-    other, _ = policy({"state": jp.ones(48), "privileged_state": jp.ones(48 + 148)}, jax.random.PRNGKey(0))
+    other, _ = policy({"state": jp.ones(n), "privileged_state": jp.ones(n + 148)}, jax.random.PRNGKey(0))
     assert action.shape == (12,)
     np.testing.assert_array_equal(action, other)  # the critic's slice does not reach the policy
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import get_args
 
-from footforge.envs.config import (CommandConfig, ContactModel, EnvConfig, ResetConfig, RewardScales,
-                                   check_feet_and_policy)
+from footforge.envs.config import (CommandConfig, ContactModel, EnvConfig, ObservationConfig, ResetConfig,
+                                   RewardScales, check_feet_and_policy)
 from footforge.errors import InputError
 
 TASKS = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
@@ -40,8 +40,10 @@ def default_config(task: str, feet: str, policy: str, contact_model: str | None 
         # The flat baseline's published scales where it has them (the rest: the rough baseline's).
         # Its reset puts the joints at the defaults (only their velocities are drawn).
         flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
+        # Velocity actions integrate onto a PD target the policy must see (ObservationConfig.pd_targets).
         config = EnvConfig(task="flat", feet=feet, policy=policy, action="velocity", rewards=flat_rewards,
-                           reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)))
+                           reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
+                           observations=ObservationConfig(pd_targets=True))
     else:
         # The rough baseline: position targets default + 0.5 a, planar commands in [-1, 1] m/s with
         # slow ones zeroed.

@@ -97,6 +97,18 @@ class ObservationConfig:
     height_offset_m: float = 0.5
     height_clip_m: float = 1.0
     height_noise_m: float = 0.06
+    pd_targets: bool = False
+    """Observe the actuated joints' PD targets (minus the defaults, rad, noiseless: the controller
+    knows them). envs.default_config turns it on for the flat task's velocity actions, off elsewhere
+    (and in configurations saved before it existed, whose networks do not read it). Why: under
+    velocity actions the target is the integral of every past action (EnvConfig.action), a state of
+    the controller that neither q nor the last action reveals. OmniIsaacGymEnvs' flat Anymal needs
+    no such input because its drive is so stiff (about 22.9k N m/rad) that q equals the target; at
+    ANYmal C's kp 80 N m/rad the two differ by torque / kp, 0.11-0.21 rad standing at the `stand`
+    keyframe and up to 1 rad at the 80 N m limit, so a policy that cannot see the target is
+    partially blind to its own torques. Under position actions (rough task) the target,
+    default + scale x last action, is observed already. Measured in benchmarks/RESULTS.md
+    (2026-11-25, fifth session): the CPU learning run with and without it."""
     noise: bool = True
     """Add the uniform noise (off for evaluation of the noiseless state)."""
     clip: float = 5.0

@@ -313,6 +313,7 @@ class LocomotionEnv(Env):
                           cfg.joint_pos_noise * cfg.joint_pos_scale),
             "joint_vel": (data.qvel[r.actuated_dof] * cfg.joint_vel_scale, cfg.joint_vel_noise * cfg.joint_vel_scale),
             "last_action": (info["last_action"], 0.0),
+            "pd_target": (info["target"] - self._default_q, 0.0),
             "foot_joint_pos": (data.qpos[r.passive_qpos] * cfg.foot_joint_pos_scale,
                                cfg.foot_joint_pos_noise * cfg.foot_joint_pos_scale),
             "foot_joint_vel": (data.qvel[r.passive_dof] * cfg.foot_joint_vel_scale,

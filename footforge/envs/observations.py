@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from footforge.envs.config import EnvConfig
 
-# name, width (None: one per passive foot joint; "P": one per height-scan point), content
+# name, width (None: one per passive foot joint; "P": one per height-scan point; "T": 12 where
+# ObservationConfig.pd_targets), content
 LAYOUT = (
     ("base_lin_vel", 3, "base linear velocity in the base frame, m/s x lin_vel_scale"),
     ("base_ang_vel", 3, "base angular velocity in the base frame, rad/s x ang_vel_scale"),
@@ -13,6 +14,8 @@ LAYOUT = (
     ("joint_pos", 12, "actuated joint angles minus the defaults, rad"),
     ("joint_vel", 12, "actuated joint velocities, rad/s x joint_vel_scale"),
     ("last_action", 12, "the previous policy output"),
+    ("pd_target", "T", "with ObservationConfig.pd_targets (the flat task's velocity actions): the "
+     "actuated joints' PD targets minus the defaults, rad"),
     ("height_scan", "P", "P/PH only: clip(base z - 0.5 m - terrain height, +-1 m) x 5 at the scan points, "
      "x-major (EnvConfig.height_scan)"),
     ("foot_joint_pos", None, "BH/PH only: passive foot joint angles, rad"),
@@ -30,6 +33,9 @@ def layout(config: EnvConfig, n_passive: int) -> list[tuple[str, int]]:
         elif width == "P":
             if config.perceptive:
                 out.append((name, config.height_scan.num_points))
+        elif width == "T":
+            if config.observations.pd_targets:
+                out.append((name, 12))
         else:
             out.append((name, width))
     return out
@@ -46,7 +52,7 @@ def scale(config: EnvConfig, name: str) -> float | tuple[float, ...]:
     o = config.observations
     return {"base_lin_vel": o.lin_vel_scale, "base_ang_vel": o.ang_vel_scale, "projected_gravity": 1.0,
             "command": tuple(o.command_scale), "joint_pos": o.joint_pos_scale, "joint_vel": o.joint_vel_scale,
-            "last_action": 1.0, "height_scan": o.height_scale, "foot_joint_pos": o.foot_joint_pos_scale,
+            "last_action": 1.0, "pd_target": 1.0, "height_scan": o.height_scale, "foot_joint_pos": o.foot_joint_pos_scale,
             "foot_joint_vel": o.foot_joint_vel_scale}[name]
 
 
