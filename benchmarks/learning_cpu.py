@@ -4,9 +4,12 @@ Ball feet, flat task, the paper's networks and PPO settings, with a command rang
 steps can reach (forward -1..1 m/s, lateral -0.5..0.5 m/s, heading-driven yaw rate; the task's
 default is -2..2 m/s forward, which takes the GPU budget). Prints one line per evaluation
 (deterministic policy, --eval-envs robots, whole 20 s episodes): env steps, wall time, mean
-episode length, forward tracking error, return; then one JSON line with the whole curve.
+episode length, forward tracking error, return, mean base height; then one JSON line with the
+whole curve. The observation holds the PD targets, as the flat task's default
+(ObservationConfig.pd_targets); --no-pd-targets leaves them out, as before 2026-11-25.
 
-    python benchmarks/learning_cpu.py --out /tmp/learning --timesteps 5000000
+    python benchmarks/learning_cpu.py --out /tmp/learning --timesteps 5000000 --max-minutes 90
+    python benchmarks/learning_cpu.py --out /tmp/learning --timesteps 5000000 --resume   # goes on
 """
 
 from __future__ import annotations
@@ -23,7 +26,9 @@ from pathlib import Path
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--out", type=Path, required=True, help="run folder (a new one)")
+    p.add_argument("--out", type=Path, required=True, help="run folder (a new one, or the run to --resume)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint "
+                   "(parameters only: Brax restarts Adam and the adaptive learning rate)")
     p.add_argument("--feet", default="ball", choices=("ball", "aff", "aof"))
     p.add_argument("--timesteps", type=int, default=5_000_000)
     p.add_argument("--num-envs", type=int, default=128)
@@ -36,8 +41,8 @@ def main(argv=None) -> int:
                         "2026-11-25's fifth session")
     p.add_argument("--build-dir", type=Path, help="footforge build of the feet (default build/<feet>)")
     args = p.parse_args(argv)
-    if args.out.exists():
-        p.error(f"--out {args.out} exists; give a new folder")
+    if args.out.exists() and not args.resume:
+        p.error(f"--out {args.out} exists; give a new folder, or --resume")
 
     import jax
 
@@ -61,7 +66,7 @@ def main(argv=None) -> int:
               f"{metrics.get('eval/episode_base_height_m_per_step', float('nan')):.3f}",
               flush=True)
 
-    train.train(cfg, ppo, args.out, progress=progress,
+    train.train(cfg, ppo, args.out, progress=progress, resume=args.resume,
                 max_wall_s=args.max_minutes * 60 if args.max_minutes else None)
     curve = [{"env_steps": e["global_step"], "wall_s": round(e["wall_s"], 1),
               "episode_length": e["eval/avg_episode_length"],

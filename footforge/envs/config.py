@@ -264,15 +264,16 @@ class EnvConfig:
       campaign's policies trained with it (their saved configuration keeps it).
     - stance (default, every feet): a pyramidal cone with impratio 10 and the build's solimp
       0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; the adaptive feet in
-      float32: 0.95/0.99/0.001), semi-implicit Euler integration, at sim_dt <= 2.5 ms with at
+      float32: 0.97/0.995/0.001, anymal.STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE), semi-implicit Euler integration, at sim_dt <= 2.5 ms with at
       least the feet's Newton and line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with
       fewer its friction diverges under a policy's actions). Zero-action robots in MJX, 10 s from
-      the reset's random velocities (benchmarks/stance_mjx.py; benchmarks/RESULTS.md,
-      2026-11-25), sinking / sliding: ball 2.1 / 2.5 mm (float32); AFF 1.2 / 1.3 mm and AOF
-      1.6 / 2.3 mm with float64_physics; in float32 AFF 6.7 / 14.7 mm and AOF 7.1 / 12.2 mm
-      (fast: 150 / 174 and 169 / 182 mm). None diverged under random actions. In MJX's float32
-      the adaptive feet's many stiff friction rows on light links are solved too inexactly to
-      hold still; CPU MuJoCo (float64) and float64 MJX hold them. Cost per robot and policy step on
+      the reset's random velocities (benchmarks/stance_mjx.py, benchmarks/stance_env.py;
+      benchmarks/RESULTS.md, 2026-11-25), sinking / sliding: ball 2.1 / 2.5 mm (float32); in one
+      robot's 10 s on flat ground in float32 AFF 1.2 / 2.6 mm and AOF 1.8 / 4.1 mm, with
+      float64_physics 0.4 / 0.9 and 0.5 / 1.0 mm (fast: 150 / 174 and 169 / 182 mm). The adaptive
+      feet hold in float32 since their passive joints carry an armature of 1e-3 kg m^2 (the
+      parameter file's; with 1e-5 the light links' ill-conditioned mass matrix let MJX's float32
+      solve creep about 1.3 mm/s: AFF 6.3 / 13.0 mm, AOF 6.6 / 11.2 mm). None diverged under random actions. Cost per robot and policy step on
       this CPU, against fast at the same step: ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
       AOF 1.8x (float32) and 2.5x (float64). It needs a friction coefficient of about 0.7 or
       more (the models' contacts have 1.0, the ground's, as the baseline: MuJoCo takes the larger
@@ -293,10 +294,11 @@ class EnvConfig:
     where the baselines' PhysX does, at their ground friction of 1.0. Its price is the 2.5 ms step
     and the solver iterations (above; on a GPU not yet measured: `benchmarks/env_speed.py
     --contact-models fast stance`). On flat ground the adaptive feet meet the stance target
-    (sinking < 10 mm, slip < 5 mm in 10 s) with float64_physics (`--float64-physics`); in float32
-    they creep about 1.3 mm/s, a twelfth of fast's. On the rough terrain's heightfield float64
-    holds ball feet; AFF and AOF still slide 5.2-5.8 mm in 10 s there (benchmarks/stance_env.py,
-    benchmarks/RESULTS.md, 2026-11-25)."""
+    (sinking < 10 mm, slip < 5 mm in 10 s) in float32 and in float64 (`--float64-physics`). On the
+    rough terrain's level 0 float64 holds every feet (ball 0.8 / 1.3 mm, AFF 0.8 / 1.5, AOF
+    0.7 / 2.2); in float32 the heightfield's contacts are solved less exactly: AFF holds
+    (2.1 / 4.7 mm), AOF slides 7.7 mm and a ball robot has a slip event after about 2 s
+    (benchmarks/stance_env.py, benchmarks/RESULTS.md, 2026-11-25, fifth session)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
     whole process, set before JAX makes its first array by
