@@ -262,14 +262,12 @@ def test_adaptive_feet_follow_the_closed_chain_closer_than_the_ball_on_obstacles
 @pytest.mark.slow  # the 26 scenarios, about 2.5 min on 2 cores
 def test_headline_claim_on_every_obstacle_scenario():
     """The same over all 17 obstacle scenarios that every variant engages, for every metric the
-    ball has, with one exception the README states: AFF's slip error (3.2 mm) is not below the
-    ball's (2.9 mm); its one-piece sole slides where the chain and AOF's two plates settle."""
+    ball has. AFF's slip error was the one exception (3.2 mm against the ball's 2.9 mm) until its
+    recalibration with the passive joints' armature of 1e-3 kg m^2 (2026-11-25: 1.8 mm)."""
     report = validate(ValidateOptions(scenarios=("all",), jobs=2))
     for metric in ("force_nrmse", "peak_force_rel", "final_height_mm", "cop_mm", "slip_mm"):
         means = _obstacle_means(report, metric)
-        assert means["aof"] < means["ball"], (metric, means)
-        if metric != "slip_mm":
-            assert means["aff"] < means["ball"], (metric, means)
+        assert means["aof"] < means["ball"] and means["aff"] < means["ball"], (metric, means)
 
 
 def test_the_report_names_what_failed(quick):
