@@ -460,22 +460,32 @@ def test_evaluation_reports_robots_whose_simulation_diverged(built, monkeypatch)
     assert f"({zero} diverged)" in evaluation.comparison_markdown([result])
 
 
-def test_adaptive_feet_train_at_a_physics_step_that_survives_a_policy_s_actions(built):
+def test_adaptive_feet_train_at_a_physics_step_that_survives_a_policy_s_actions(built, coacd_cache, tmp_path):
     """An untrained policy's random actions (footforge.envs.stability, CPU MuJoCo on the
-    environment's model, contact_model 'fast') on AOF feet: at the baselines' 5 ms step its physics diverges (as 29-37%
-    of the H100 campaign's AOF training episodes did; 23 of 32 robots in 10 s measured), at the
-    adaptive feet's own step (2.5 ms x 8, the same 50 Hz policy) no robot diverges. Ball feet keep
-    the baselines' 5 ms x 4."""
+    environment's model, contact_model 'fast') on AOF feet. With the passive joints' old armature
+    of 1e-5 kg m^2 its physics diverged at the baselines' 5 ms step (as 29-37% of the H100
+    campaign's AOF training episodes did; 23 of 32 robots in 10 s measured), which is why the
+    adaptive feet step at 2.5 ms x 8 (the same 50 Hz policy). With the parameter file's 1e-3 no
+    robot diverges at either step: the armature, not the step, was the cause. Ball feet keep the
+    baselines' 5 ms x 4."""
+    from footforge.build import BuildOptions, build
     from footforge.envs.stability import divergence_times
+    from footforge.params import default_params_path
 
     aof = envs.default_config("flat", "aof", "B", "fast")
     assert (aof.sim_dt, aof.decimation) == (0.0025, 8) and aof.policy_dt == pytest.approx(0.02)
     ball = envs.default_config("rough", "ball", "B", "fast")
     assert (ball.sim_dt, ball.decimation) == (0.005, 4)
-    aof = replace(aof, build_dir=str(built["aof"][0]))
-    at_5ms = divergence_times(replace(aof, sim_dt=0.005, decimation=4), robots=12, seconds=10.0, seed=0)
-    assert sum(t is not None for t in at_5ms) >= 3, at_5ms
-    assert divergence_times(aof, robots=12, seconds=10.0, seed=0) == [None] * 12
+    at_5ms = replace(aof, sim_dt=0.005, decimation=4, build_dir=str(built["aof"][0]))
+    assert divergence_times(at_5ms, robots=12, seconds=10.0, seed=0) == [None] * 12
+    assert divergence_times(replace(aof, build_dir=str(built["aof"][0])), robots=12, seconds=10.0, seed=0) == [None] * 12
+    text = default_params_path().read_text()
+    assert text.count("armature: 1.0e-3") == 6  # AFF's two passive joints and AOF's four
+    old = tmp_path / "params.yaml"
+    old.write_text(text.replace("armature: 1.0e-3", "armature: 1.0e-5"))
+    build(BuildOptions(variant="aof", out_dir=tmp_path / "aof", params=old, cache_dir=coacd_cache, formats=("mjcf",)))
+    light = divergence_times(replace(at_5ms, build_dir=str(tmp_path / "aof")), robots=12, seconds=10.0, seed=0)
+    assert sum(t is not None for t in light) >= 3, light
 
 
 def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(monkeypatch):
