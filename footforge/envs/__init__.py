@@ -70,7 +70,10 @@ def physics(feet: str, contact_model: str) -> dict:
     (benchmarks/action_stability.py, 32 robots, 10 s, 'fast': 30 AOF episodes diverged in MJX, 19
     of 32 robots, CPU MuJoCo 23 of 32, at 5 ms and none at 2.5 ms; in the H100 campaign 29-37% of
     AOF and up to 3% of AFF training episodes diverged at 5 ms; benchmarks/RESULTS.md,
-    2026-11-24). Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground trains at 1-4),
+    2026-11-24). That was with the passive joints' armature of 1e-5 kg m^2; with the parameter
+    file's 1e-3 (2026-11-25) no AOF robot diverged at 5 ms either (CPU MuJoCo, 12 robots, 10 s,
+    tests/test_envs.py), so 'fast' could step the adaptive feet at 5 ms once MJX confirms it; the
+    2.5 ms step stays until then. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground trains at 1-4),
     'stance' and 'build' anymal.min_solver_iterations.
 
     Raises:
