@@ -569,7 +569,9 @@ def test_training_with_float64_physics_keeps_the_networks_float32(built, tmp_pat
         "saved = load_policy_parameters(sys.argv[sys.argv.index('--out') + 1] + '/policy').params\n"
         "leaves = jax.tree_util.tree_leaves(saved[1:])  # policy and value networks (saved[0]: the normaliser)\n"
         "print('PARAMS', sorted({str(x.dtype) for x in leaves}))\n"
-        "action = policy(jax.numpy.zeros(48, jax.numpy.float32), jax.random.PRNGKey(0))[0]\n"
+        "from footforge.envs import observations\n"
+        "n = observations.size(config, 0)  # 48 + the flat task's 12 PD targets\n"
+        "action = policy(jax.numpy.zeros(n, jax.numpy.float32), jax.random.PRNGKey(0))[0]\n"
         "print('ACTION', action.shape, bool(jax.numpy.isfinite(action).all()))\n")
     run = subprocess.run(
         [sys.executable, "-W", "error:scatter inputs have incompatible types:FutureWarning", "-c", script,
