@@ -35,7 +35,8 @@ def main(argv=None) -> int:
     p.add_argument("--eval-every", type=int, default=500_000, help="env steps between evaluations")
     p.add_argument("--eval-envs", type=int, default=64)
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--max-minutes", type=float, help="stop at the checkpoint before this wall time (train's max_wall_s)")
+    p.add_argument("--max-minutes", type=float,
+                   help="stop at the checkpoint before this wall time (train's max_wall_s)")
     p.add_argument("--no-pd-targets", action="store_true",
                    help="leave the PD targets out of the observation (ObservationConfig.pd_targets), as before "
                         "2026-11-25's fifth session")
@@ -43,6 +44,10 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.out.exists() and not args.resume:
         p.error(f"--out {args.out} exists; give a new folder, or --resume")
+    if args.resume and not args.out.is_dir():
+        p.error(f"--resume: --out {args.out} holds no run to continue")
+    if args.max_minutes is not None and args.max_minutes <= 0:
+        p.error(f"--max-minutes must be positive, got {args.max_minutes:g}")
 
     import jax
 
@@ -75,7 +80,8 @@ def main(argv=None) -> int:
              for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines())
              if "eval/episode_reward" in e]
     print(json.dumps({"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(), "jax_devices": jax.device_count(),
-                      "feet": args.feet, "pd_targets": cfg.observations.pd_targets, "timesteps": args.timesteps, "num_envs": args.num_envs,
+                      "feet": args.feet, "pd_targets": cfg.observations.pd_targets, "timesteps": args.timesteps,
+                      "num_envs": args.num_envs,
                       "wall_s": round(time.time() - t0, 1), "curve": curve}))
     return 0
 

@@ -478,7 +478,8 @@ def test_adaptive_feet_train_at_a_physics_step_that_survives_a_policy_s_actions(
     assert (ball.sim_dt, ball.decimation) == (0.005, 4)
     at_5ms = replace(aof, sim_dt=0.005, decimation=4, build_dir=str(built["aof"][0]))
     assert divergence_times(at_5ms, robots=12, seconds=10.0, seed=0) == [None] * 12
-    assert divergence_times(replace(aof, build_dir=str(built["aof"][0])), robots=12, seconds=10.0, seed=0) == [None] * 12
+    at_own_step = replace(aof, build_dir=str(built["aof"][0]))
+    assert divergence_times(at_own_step, robots=12, seconds=10.0, seed=0) == [None] * 12
     text = default_params_path().read_text()
     assert text.count("armature: 1.0e-3") == 6  # AFF's two passive joints and AOF's four
     old = tmp_path / "params.yaml"

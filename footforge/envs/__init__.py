@@ -73,8 +73,8 @@ def physics(feet: str, contact_model: str) -> dict:
     2026-11-24). That was with the passive joints' armature of 1e-5 kg m^2; with the parameter
     file's 1e-3 (2026-11-25) no AOF robot diverged at 5 ms either (CPU MuJoCo, 12 robots, 10 s,
     tests/test_envs.py), so 'fast' could step the adaptive feet at 5 ms once MJX confirms it; the
-    2.5 ms step stays until then. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground trains at 1-4),
-    'stance' and 'build' anymal.min_solver_iterations.
+    2.5 ms step stays until then. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground
+    trains at 1-4), 'stance' and 'build' anymal.min_solver_iterations.
 
     Raises:
       InputError: an unknown contact model.

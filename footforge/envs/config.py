@@ -107,8 +107,8 @@ class ObservationConfig:
     ANYmal C's kp 80 N m/rad the two differ by torque / kp, 0.11-0.21 rad standing at the `stand`
     keyframe and up to 1 rad at the 80 N m limit, so a policy that cannot see the target is
     partially blind to its own torques. Under position actions (rough task) the target,
-    default + scale x last action, is observed already. Measured in benchmarks/RESULTS.md
-    (2026-11-25, fifth session): the CPU learning run with and without it."""
+    default + scale x last action, is observed already. benchmarks/RESULTS.md (2026-11-25, fifth
+    session): the CPU learning run with it, beside the earlier run without it."""
     noise: bool = True
     """Add the uniform noise (off for evaluation of the noiseless state)."""
     clip: float = 5.0
@@ -264,8 +264,8 @@ class EnvConfig:
       campaign's policies trained with it (their saved configuration keeps it).
     - stance (default, every feet): a pyramidal cone with impratio 10 and the build's solimp
       0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; the adaptive feet in
-      float32: 0.97/0.995/0.001, anymal.STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE), semi-implicit Euler integration, at sim_dt <= 2.5 ms with at
-      least the feet's Newton and line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with
+      float32: 0.97/0.995/0.001, anymal.STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE), semi-implicit
+      Euler integration, at sim_dt <= 2.5 ms with at least the feet's Newton and line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with
       fewer its friction diverges under a policy's actions). Zero-action robots in MJX, 10 s from
       the reset's random velocities (benchmarks/stance_mjx.py, benchmarks/stance_env.py;
       benchmarks/RESULTS.md, 2026-11-25), sinking / sliding: ball 2.1 / 2.5 mm (float32); in one
@@ -273,8 +273,8 @@ class EnvConfig:
       float64_physics 0.4 / 0.9 and 0.5 / 1.0 mm (fast: 150 / 174 and 169 / 182 mm). The adaptive
       feet hold in float32 since their passive joints carry an armature of 1e-3 kg m^2 (the
       parameter file's; with 1e-5 the light links' ill-conditioned mass matrix let MJX's float32
-      solve creep about 1.3 mm/s: AFF 6.3 / 13.0 mm, AOF 6.6 / 11.2 mm). None diverged under random actions. Cost per robot and policy step on
-      this CPU, against fast at the same step: ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
+      solve creep about 1.3 mm/s: AFF 6.3 / 13.0 mm, AOF 6.6 / 11.2 mm). None diverged under
+      random actions. Cost per robot and policy step on this CPU, against fast at the same step: ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
       AOF 1.8x (float32) and 2.5x (float64). It needs a friction coefficient of about 0.7 or
       more (the models' contacts have 1.0, the ground's, as the baseline: MuJoCo takes the larger
       of two geoms'): a pyramidal cone bounds the sideways force by |fx| + |fy| <= mu fn, so

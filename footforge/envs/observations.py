@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from footforge import constants as C
 from footforge.envs.config import EnvConfig
 
-# name, width (None: one per passive foot joint; "P": one per height-scan point; "T": 12 where
-# ObservationConfig.pd_targets), content
+# name, width (None: one per passive foot joint; "P": one per height-scan point; "T": one per
+# actuated joint where ObservationConfig.pd_targets), content
 LAYOUT = (
     ("base_lin_vel", 3, "base linear velocity in the base frame, m/s x lin_vel_scale"),
     ("base_ang_vel", 3, "base angular velocity in the base frame, rad/s x ang_vel_scale"),
@@ -35,7 +36,7 @@ def layout(config: EnvConfig, n_passive: int) -> list[tuple[str, int]]:
                 out.append((name, config.height_scan.num_points))
         elif width == "T":
             if config.observations.pd_targets:
-                out.append((name, 12))
+                out.append((name, len(C.ACTUATED_JOINTS)))
         else:
             out.append((name, width))
     return out
@@ -52,7 +53,8 @@ def scale(config: EnvConfig, name: str) -> float | tuple[float, ...]:
     o = config.observations
     return {"base_lin_vel": o.lin_vel_scale, "base_ang_vel": o.ang_vel_scale, "projected_gravity": 1.0,
             "command": tuple(o.command_scale), "joint_pos": o.joint_pos_scale, "joint_vel": o.joint_vel_scale,
-            "last_action": 1.0, "pd_target": 1.0, "height_scan": o.height_scale, "foot_joint_pos": o.foot_joint_pos_scale,
+            "last_action": 1.0, "pd_target": 1.0, "height_scan": o.height_scale,
+            "foot_joint_pos": o.foot_joint_pos_scale,
             "foot_joint_vel": o.foot_joint_vel_scale}[name]
 
 
