@@ -10,7 +10,7 @@ import pytest
 
 from conftest import float64_stance
 from footforge import envs
-from footforge.envs import observations, rewards
+from footforge.envs import anymal, observations, rewards
 from footforge.envs.anymal import GEOM_BASE
 from footforge.envs.config import EnvConfig
 from footforge.envs.locomotion import LocomotionEnv, ground_contacts
@@ -275,12 +275,15 @@ def test_contact_models_are_refused_where_they_diverge(built):
         assert "decimation=8" in e.value.fix
         model = load_robot(stance).model
         assert model.opt.cone == 0 and model.opt.impratio == 10.0  # pyramidal
-        # Euler; the adaptive feet's float32 impedance is softer (STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE)
+        # Euler; the float32 impedance is softer for the adaptive feet (STANCE_CONTACT_SOLIMP_FLOAT32)
         solimp = (0.99, 0.999, 0.001) if feet == "ball" else (0.97, 0.995, 0.001)
         assert model.opt.integrator == 0 and np.allclose(model.geom_solimp[:, :3], solimp)
+        # ... and for every feet on a heightfield, whose MJX contacts exist only while penetrating.
+        assert anymal.stance_contact_solimp(stance, on_heightfield=True) == (0.97, 0.995, 0.001)
+        stiff = replace(stance, float64_physics=True)
+        assert anymal.stance_contact_solimp(stiff, on_heightfield=True) == (0.99, 0.999, 0.001)
         if feet != "ball":
-            stiff = load_robot(replace(stance, float64_physics=True)).model
-            assert np.allclose(stiff.geom_solimp[:, :3], (0.99, 0.999, 0.001))
+            assert np.allclose(load_robot(stiff).model.geom_solimp[:, :3], (0.99, 0.999, 0.001))
     # Finer settings than stance needs are kept.
     fine = replace(EnvConfig(feet="ball"), sim_dt=0.001, decimation=20, solver_iterations=50, solver_ls_iterations=50)
     kept = envs.with_contact_model(fine, "stance")

@@ -37,9 +37,10 @@ STANCE_CONTACT_SOLIMP = (0.99, 0.999, 0.001)
 """Contact impedance of EnvConfig.contact_model 'stance' (the build's): 99-99.9% of the constraint
 force is kept, so the friction's regularisation, and with it the creep speed, is about 1/20 of
 MuJoCo's default (0.9-0.95)."""
-STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE = (0.97, 0.995, 0.001)
-"""'stance' impedance of the adaptive feet in float32 MJX, where their stiff friction rows on light
-links are solved less exactly than in float64. With the passive joints' armature of 1e-5 kg m^2
+STANCE_CONTACT_SOLIMP_FLOAT32 = (0.97, 0.995, 0.001)
+"""'stance' impedance in float32 MJX (stance_contact_solimp says where): for the adaptive feet, whose
+stiff friction rows on light links are solved less exactly than in float64, and for every feet
+on a heightfield. With the passive joints' armature of 1e-5 kg m^2
 (before 2026-11-25's fifth session) zero-action robots in 10 s (MJX, 4 robots) sank / slid
 16.8 / 28.8 mm (AFF) and 37.4 / 72.7 mm (AOF) at 0.99/0.999 and 6.7 / 14.7 and 7.1 / 12.2 mm at
 0.95/0.99, the best of 16 settings then. With the armature of 1e-3 (the parameter file's, which
@@ -47,7 +48,18 @@ conditions the light links' mass matrix) one robot on flat ground, 10 s (benchma
 and a patched copy of this constant): AFF 1.2 / 2.6 mm at 0.97/0.995, 2.1 / 4.4 at 0.95/0.99;
 AOF 1.8 / 4.1 at 0.97/0.995, 2.7 / 5.5 at 0.95/0.99, 5.3 / 10.6 at 0.9/0.95 and 6.8 / 20.5 at
 0.99/0.999 (stiffer is solved less exactly, softer creeps by its regularisation). In float64
-(EnvConfig.float64_physics) the stiffer 0.99/0.999 holds them."""
+(EnvConfig.float64_physics) the stiffer 0.99/0.999 holds them.
+
+On a heightfield MJX finds a contact only where a geom penetrates a cell's prism (its sphere,
+capsule and box colliders return nothing once a separating axis exists, whatever the margin),
+and in float32 the prism's distance comes in steps of 0.12 um (heights near 1 m in the
+heightfield's frame). At 0.99/0.999 a standing ball foot rests 1.5 um deep; that noise lifts a
+foot out every so often, its contact vanishes, its leg kicks down within a step and the next
+contact throws the robot (MJX, float32, rough level 0, 6 robots on 6 tiles, 10 s: 3 fell, 2 slid
+315 and 534 mm; at 0.97/0.995 none fell and the tile (0, 0) robot slid 4.1 mm). On a plane the
+distance is exact and ball keeps the stiffer 0.99/0.999 (1.3 mm of slip against 3-9 mm at
+0.97/0.995, 6 robots, flat, float32). AOF's box corners flicker the same way and it still slides
+8-9 mm on level 0 in float32 (tiles 0, 1 and 5); float64_physics holds every feet there."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
 STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (30, 30)}
@@ -201,8 +213,7 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     elif config.contact_model == "stance":
         model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
         model.opt.impratio = STANCE_CONTACT_IMPRATIO
-        model.geom_solimp[:, :3] = (STANCE_CONTACT_SOLIMP if config.feet == "ball" or config.float64_physics
-                                    else STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE)
+        model.geom_solimp[:, :3] = stance_contact_solimp(config, on_heightfield=terrain is not None)
         # Semi-implicit Euler (joint damping still implicit: eulerdamp stays on), as MuJoCo
         # Playground's quadrupeds. implicitfast adds the actuators' velocity derivative (kv) to the
         # mass matrix after the constraint solve, so the contact forces, solved for the plain
@@ -245,6 +256,15 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int), passive_names=tuple(passive),
         geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id,
         foot_sites=np.array(foot_sites(model)))
+
+
+def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[float, float, float]:
+    """Contact impedance (solimp's first three) of contact_model 'stance' for config's feet and
+    precision: the stiff STANCE_CONTACT_SOLIMP where MJX solves it exactly enough (float64; ball
+    feet on a plane), else STANCE_CONTACT_SOLIMP_FLOAT32 (whose docstring has the measurements)."""
+    if config.float64_physics or (config.feet == "ball" and not on_heightfield):
+        return STANCE_CONTACT_SOLIMP
+    return STANCE_CONTACT_SOLIMP_FLOAT32
 
 
 def min_solver_iterations(contact_model: str, feet: str) -> tuple[int, int] | None:

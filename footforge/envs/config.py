@@ -263,8 +263,8 @@ class EnvConfig:
       and foot slippage indices that compare the feet. For throughput studies; the first GPU
       campaign's policies trained with it (their saved configuration keeps it).
     - stance (default, every feet): a pyramidal cone with impratio 10 and the build's solimp
-      0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; the adaptive feet in
-      float32: 0.97/0.995/0.001, anymal.STANCE_CONTACT_SOLIMP_FLOAT32_ADAPTIVE), semi-implicit
+      0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; in float32 the adaptive
+      feet, and every feet on a heightfield: 0.97/0.995/0.001, anymal.stance_contact_solimp), semi-implicit
       Euler integration, at sim_dt <= 2.5 ms with at least the feet's Newton and line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with
       fewer its friction diverges under a policy's actions). Zero-action robots in MJX, 10 s from
       the reset's random velocities (benchmarks/stance_mjx.py, benchmarks/stance_env.py;
