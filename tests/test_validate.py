@@ -147,7 +147,11 @@ def test_calibration_writes_the_parameter_file_and_reports_before_after(tmp_path
     assert code == (0 if report["passed"] else 1)
     cal = report["calibration"]["aff"]
     assert cal["train"] == ["flat_2cm", "step_toe"] and cal["held_out"] == ["rock_front"]
-    assert cal["objective_after"] <= cal["objective_before"]
+    # The fit's own bookkeeping (objective_after is the best of its history) proves nothing; the
+    # feet rebuilt from the written file and run again must beat the runs before calibration on
+    # the scenarios it trained on, each side computed from its own simulations.
+    before, after_runs = cal["series_errors_before"], cal["series_errors_after"]
+    assert after_runs["train"]["objective"] < before["train"]["objective"], (before, after_runs)
     written = load_params(params)
     after = cal["parameters_after"]
     assert written.aff["ankle_pitch"].stiffness == after["joints"]["ankle_pitch"]["stiffness"]
