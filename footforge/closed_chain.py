@@ -18,8 +18,9 @@ chain also its closure drift: MuJoCo's residual of every equality constraint at 
 step (the loop closures: distance between the two anchors, m; the roll coupling back = -front:
 rad), as the mean over time of the worst constraint and its maximum.
 
-Only blind (B) and perceptive (P) policies run on other feet: haptic ones (BH, PH) read the
-passive joints of the feet they were trained on.
+Blind (B) and perceptive (P) policies run on any feet. Haptic ones (BH, PH) read the passive
+joints of the AFF or AOF feet they were trained on; on the closed chain they read those joints'
+estimates from the foot's IMUs (footforge.foot_imu), and on other derived feet they are refused.
 """
 
 from __future__ import annotations
@@ -35,11 +36,11 @@ import mujoco
 import numpy as np
 
 from footforge.envs.anymal import Robot, ensure_built, load_robot
-from footforge.envs.config import check_policy_on_feet
 from footforge.envs.stability import diverged
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
 from footforge.evaluate import INDICES
+from footforge.foot_imu import IMU_BODIES, FootImuEstimator
 
 FULL = "full"
 TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, platform_m=1.0, border_m=20.0,
@@ -73,13 +74,12 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
     MuJoCo) and "traces" (robot-by-step arrays for plots, NaN once a robot fell).
 
     Raises:
-      InputError: a haptic policy, non-positive seconds or robots, or a policy step that is not a
+      InputError: non-positive seconds or robots, or a policy step that is not a
         whole number of the closed chain's physics steps.
     """
     from footforge.train import load_policy
 
     policy, config, _ = load_policy(policy_dir)
-    check_policy_on_feet(config, FULL, str(policy_dir))
     if seconds <= 0 or num_robots < 1:
         raise InputError(f"seconds ({seconds}) and robots ({num_robots}) must be positive", fix="e.g. 10 s, 4 robots")
     env, trained = policy_environment(config, build_root, terrain_tiles)
@@ -93,9 +93,13 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
                   "config": asdict(terrain.config), "difficulty": terrain.config.difficulty(terrain.config.num_levels - 1),
                   "robot_tiles": [terrain.column_kinds[i % terrain.config.num_columns] for i in range(num_robots)]},
               "feet": {}}
+    imu = FootImuEstimator(full.model, trained.passive_names) if config.haptic else None
+    result["passive_joints_on_full"] = None if imu is None else {
+        "estimated_from": "IMUs (footforge.foot_imu)", "imu_bodies": list(IMU_BODIES), "joints": list(trained.passive_names)}
     for feet, robot in ((config.feet, trained), (FULL, full)):
         result["feet"][feet] = run(env, robot, policy, steps=steps, num_robots=num_robots, seed=seed, terrain=terrain,
-                                   progress=(lambda done, f=feet: progress(f, done, steps)) if progress else None)
+                                   progress=(lambda done, f=feet: progress(f, done, steps)) if progress else None,
+                                   imu=imu if feet == FULL else None)
     return result
 
 
@@ -139,17 +143,33 @@ def cpu_robot(config, feet: str, build_root: Path | None, terrain: Terrain | Non
 
 
 def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, terrain: Terrain | None = None,
-        progress: Callable[[int], None] | None = None) -> dict:
+        progress: Callable[[int], None] | None = None, imu: FootImuEstimator | None = None) -> dict:
     """One column: `num_robots` robots on `robot`'s model for `steps` policy steps (see the module
     docstring). `env` is the policy's environment (LocomotionEnv on flat ground, RoughEnv on
-    `terrain`), whose observation, command and base-height functions the robots go through."""
+    `terrain`), whose observation, command and base-height functions the robots go through.
+    `imu`: a haptic policy's passive joints estimated on the closed chain (`robot`)."""
     config, model = env.config, robot.model
     decimation = int(round(config.policy_dt / model.opt.timestep))
-    control = Controller(env, robot, policy)
+    if imu is not None:
+        # The estimates travel as extra coordinates after qpos and qvel, where the policy's side
+        # reads the passive joints through the robot's index tables.
+        n = len(imu.names)
+        observed = replace(robot, passive_qpos=np.arange(model.nq, model.nq + n),
+                           passive_dof=np.arange(model.nv, model.nv + n), passive_names=tuple(imu.names))
+    control = Controller(env, robot if imu is None else observed, policy)
+
+    def states(datas) -> tuple[np.ndarray, np.ndarray]:
+        qpos, qvel = _stack(datas, "qpos"), _stack(datas, "qvel")
+        if imu is None:
+            return qpos, qvel
+        estimates = [imu(d) for d in datas]
+        return (np.concatenate([qpos, np.stack([e[0] for e in estimates])], axis=1),
+                np.concatenate([qvel, np.stack([e[1] for e in estimates])], axis=1))
+
     datas = [mujoco.MjData(model) for _ in range(num_robots)]
     for i, d in enumerate(datas):
         place_at_start(robot, d, terrain, i)
-    info, obs = control.start(_stack(datas, "qpos"), _stack(datas, "qvel"), seed)
+    info, obs = control.start(*states(datas), seed)
     equality = _EqualityResiduals(model) if model.neq else None
     alive, ok = np.ones(num_robots, bool), np.ones(num_robots, bool)
     fall_step = np.full(num_robots, -1)
@@ -163,7 +183,7 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     for t in range(steps):
         if not alive.any():  # all fell: nothing left to simulate
             break
-        action, targets, push_now, push, info, keys = control.act(obs, _stack(datas, "qpos"), info)
+        action, targets, push_now, push, info, keys = control.act(obs, states(datas)[0], info)
         for i in np.flatnonzero(alive):
             d = datas[i]
             d.ctrl[robot.actuator_ids] = targets[i]
@@ -179,8 +199,7 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
                         totals[k] += (value, 1)
             ok[i] = not diverged(d, config.diverged_speed)
         fallen = control.touching(*padded_contacts(datas)) | ~ok
-        info, obs, row = control.settle(_stack(datas, "qpos"), _stack(datas, "qvel"), info, keys, action,
-                                        _stack(datas, "actuator_force"))
+        info, obs, row = control.settle(*states(datas), info, keys, action, _stack(datas, "actuator_force"))
         fall_step[alive & fallen] = t
         alive &= ~fallen
         live[:, t] = alive  # like footforge.evaluate: the step a robot falls on is not counted

@@ -99,9 +99,31 @@ def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
     assert "ball (trained)" in table and "full (zero-shot)" in table
 
 
-def test_haptic_policies_and_bad_inputs_are_refused(untrained):
-    with pytest.raises(InputError, match="passive joints") as error:
-        evaluate_closed_chain(untrained["BH"], seconds=0.1, num_robots=1)
-    assert "blind (B) or perceptive (P)" in error.value.fix
+def test_a_haptic_policy_runs_on_the_closed_chain_through_the_foot_imus(built, untrained, monkeypatch):
+    """A BH policy trained on AOF reads its 16 passive joints on the closed chain from the feet's
+    IMU estimates (footforge.foot_imu), which reach the observation where AOF's joints would."""
+    from footforge import closed_chain
+
+    seen = []
+    original = closed_chain.FootImuEstimator.__call__
+
+    def recording(self, data):
+        angles, rates = original(self, data)
+        seen.append((angles, rates))
+        return angles, rates
+
+    monkeypatch.setattr(closed_chain.FootImuEstimator, "__call__", recording)
+    result = evaluate_closed_chain(untrained["BH"], seconds=0.1, num_robots=1, build_root=built["full"][0].parent)
+    assert list(result["feet"]) == ["aof", "full"]
+    assert result["passive_joints_on_full"]["joints"][:4] == ["LF_foot/ankle_pitch", "LF_foot/ankle_roll",
+                                                               "LF_foot/sole_back", "LF_foot/sole_front"]
+    assert all(column["finite"] for column in result["feet"].values())
+    assert seen and all(a.shape == (16,) and r.shape == (16,) and np.isfinite(a).all() and np.isfinite(r).all()
+                        for a, r in seen)
+    # The robot starts at `stand` and settles: its feet deform, so the estimates move off zero.
+    assert max(np.abs(a).max() for a, _ in seen) > math.radians(0.5)
+
+
+def test_bad_inputs_are_refused(untrained):
     with pytest.raises(InputError, match="must be positive"):
         evaluate_closed_chain(untrained["B"], seconds=0.0)
