@@ -150,21 +150,10 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     `imu`: a haptic policy's passive joints estimated on the closed chain (`robot`)."""
     config, model = env.config, robot.model
     decimation = int(round(config.policy_dt / model.opt.timestep))
-    if imu is not None:
-        # The estimates travel as extra coordinates after qpos and qvel, where the policy's side
-        # reads the passive joints through the robot's index tables.
-        n = len(imu.names)
-        observed = replace(robot, passive_qpos=np.arange(model.nq, model.nq + n),
-                           passive_dof=np.arange(model.nv, model.nv + n), passive_names=tuple(imu.names))
-    control = Controller(env, robot if imu is None else observed, policy)
+    control = Controller(env, observed_robot(robot, imu), policy)
 
     def states(datas) -> tuple[np.ndarray, np.ndarray]:
-        qpos, qvel = _stack(datas, "qpos"), _stack(datas, "qvel")
-        if imu is None:
-            return qpos, qvel
-        estimates = [imu(d) for d in datas]
-        return (np.concatenate([qpos, np.stack([e[0] for e in estimates])], axis=1),
-                np.concatenate([qvel, np.stack([e[1] for e in estimates])], axis=1))
+        return observed_states(datas, imu)
 
     datas = [mujoco.MjData(model) for _ in range(num_robots)]
     for i, d in enumerate(datas):
@@ -230,6 +219,27 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
             "simulated_s": simulated, "wall_s": wall, "physics_wall_s": physics_wall,
             "real_time_factor": simulated / physics_wall if physics_wall > 0 else float("nan"),
             "closure": closure, "traces": traces}
+
+
+def observed_robot(robot: Robot, imu: FootImuEstimator | None) -> Robot:
+    """`robot` as the policy's side reads it. With `imu` (a haptic policy on the closed chain)
+    the passive joints' estimates travel as extra coordinates after qpos and qvel
+    (observed_states), where the robot's index tables now point."""
+    if imu is None:
+        return robot
+    model, n = robot.model, len(imu.names)
+    return replace(robot, passive_qpos=np.arange(model.nq, model.nq + n), passive_dof=np.arange(model.nv, model.nv + n),
+                   passive_names=tuple(imu.names))
+
+
+def observed_states(datas, imu: FootImuEstimator | None) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos, qvel) of the robots in `datas`, stacked, as observed_robot's tables index them."""
+    qpos, qvel = _stack(datas, "qpos"), _stack(datas, "qvel")
+    if imu is None:
+        return qpos, qvel
+    estimates = [imu(d) for d in datas]
+    return (np.concatenate([qpos, np.stack([e[0] for e in estimates])], axis=1),
+            np.concatenate([qvel, np.stack([e[1] for e in estimates])], axis=1))
 
 
 def place_at_start(robot: Robot, data: mujoco.MjData, terrain: Terrain | None = None, i: int = 0) -> None:

@@ -17,7 +17,8 @@ as an episode ends in training.
 Feet: the policy's own (the environment's physics step and solver), or another of ball, aff, aof
 and full (the 34-joint closed chain), stepped at its build's own physics (step, solver, contacts),
 as footforge.closed_chain runs the closed chain. Only blind (B) and perceptive (P) policies walk on
-feet they were not trained on: haptic ones (BH, PH) read the passive joints of their own feet.
+feet they were not trained on: haptic ones (BH, PH) read the passive joints of their own feet, or
+on the closed chain those joints' estimates (footforge.foot_imu).
 """
 
 from __future__ import annotations
@@ -173,15 +174,16 @@ def check_feet(policy: OnnxPolicy, feet: str | None) -> str:
     """The feet to walk on (default the policy's own).
 
     Raises:
-      InputError: unknown feet, or a haptic policy on feet it was not trained on (the rule of
-        footforge.closed_chain.evaluate_closed_chain).
+      InputError: unknown feet, or a haptic policy on derived feet it was not trained on (on the
+        closed chain it reads its passive joints' estimates, footforge.foot_imu).
     """
     from footforge.envs.config import check_policy_on_feet
 
     feet = feet or policy.config.feet
     if feet not in FEET:
         raise InputError(f"unknown feet '{feet}'", fix=f"use one of {', '.join(FEET)}")
-    check_policy_on_feet(policy.config, feet, str(policy.source))
+    if feet != "full":
+        check_policy_on_feet(policy.config, feet, str(policy.source))
     return feet
 
 
@@ -192,7 +194,8 @@ class Player:
     def __init__(self, policy: OnnxPolicy, config: PlayConfig = PlayConfig()):
         import mujoco
 
-        from footforge.closed_chain import TERRAIN_TILES, Controller, cpu_robot, policy_environment
+        from footforge.closed_chain import TERRAIN_TILES, Controller, cpu_robot, observed_robot, policy_environment
+        from footforge.foot_imu import FootImuEstimator
 
         feet = check_feet(policy, config.feet)
         # The user commands and pushes (the viewer's mouse); the environment's pushes are off.
@@ -210,18 +213,20 @@ class Player:
         # The commands the policy was trained on; play keeps the user's within them.
         self.command_low = np.array([limits.lin_vel_x_range[0], limits.lin_vel_y_range[0], -limits.yaw_rate_limit])
         self.command_high = np.array([limits.lin_vel_x_range[1], limits.lin_vel_y_range[1], limits.yaw_rate_limit])
-        self._control = Controller(env, self.robot, policy.jax_policy())
+        # A haptic policy on the closed chain reads its passive joints' estimates (footforge.foot_imu).
+        self._imu = (FootImuEstimator(self.model, own.passive_names) if policy.config.haptic and feet == "full"
+                     else None)
+        self._control = Controller(env, observed_robot(self.robot, self._imu), policy.jax_policy())
         self.resets = 0
         self.reset(np.zeros(3))
 
     def reset(self, command) -> None:
         """The robot at its start (standing, at rest), the policy's memory (last action) cleared."""
-        from footforge.closed_chain import place_at_start
+        from footforge.closed_chain import observed_states, place_at_start
 
         place_at_start(self.robot, self.data, self.terrain, 0)
-        d = self.data
-        self._info, self._obs = self._control.start(d.qpos[None], d.qvel[None], self.config.seed + self.resets,
-                                                    self._command(command))
+        self._info, self._obs = self._control.start(*observed_states([self.data], self._imu),
+                                                    self.config.seed + self.resets, self._command(command))
         self.resets += 1
 
     def warm_up(self) -> None:
@@ -239,16 +244,17 @@ class Player:
         (base frame, m/s and rad/s), "command"}; after a fall the robot is back at its start."""
         import mujoco
 
-        from footforge.closed_chain import padded_contacts
+        from footforge.closed_chain import observed_states, padded_contacts
         from footforge.envs.stability import diverged
 
         d, command = self.data, self._command(command)
-        action, targets, _, _, self._info, keys = self._control.act(self._obs, d.qpos[None], self._info)
+        action, targets, _, _, self._info, keys = self._control.act(self._obs, observed_states([d], self._imu)[0],
+                                                                    self._info)
         d.ctrl[self.robot.actuator_ids] = targets[0]
         for _ in range(self.decimation):
             mujoco.mj_step(self.model, d)
         fell = diverged(d, self.policy.config.diverged_speed) or bool(self._control.touching(*padded_contacts([d]))[0])
-        self._info, self._obs, row = self._control.settle(d.qpos[None], d.qvel[None], self._info, keys, action,
+        self._info, self._obs, row = self._control.settle(*observed_states([d], self._imu), self._info, keys, action,
                                                           d.actuator_force[None], command)
         record = {"fell": fell, "base_height_m": float(row["base_height"][0]), "vx": float(row["vx"][0]),
                   "vy": float(row["vy"][0]), "yaw_rate": float(row["yaw_rate"][0]), "command": command[0].tolist()}

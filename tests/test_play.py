@@ -124,13 +124,16 @@ def test_onnx_file_and_policy_folder_act_alike(tmp_path):
     assert "Page Up" in key_map_text() and "yaw rate" in key_map_text()
 
 
-def test_haptic_policies_keep_their_own_feet():
+def test_haptic_policies_keep_their_own_feet_or_the_closed_chain():
+    """A BH policy of AOF walks on AOF, or on the closed chain through its sensors' estimates
+    (footforge.foot_imu); AFF's passive joints are not AOF's."""
     from footforge.play import OnnxPolicy, check_feet
 
     bh = OnnxPolicy(POLICY, None, {}, replace(envs.default_config("flat", "aof", "BH")))
     assert check_feet(bh, None) == "aof"
+    assert check_feet(bh, "full") == "full"
     with pytest.raises(InputError, match="passive joints") as error:
-        check_feet(bh, "full")
+        check_feet(bh, "aff")
     assert "blind (B) or perceptive (P)" in error.value.fix
     b = OnnxPolicy(POLICY, None, {}, envs.default_config("flat", "ball", "B"))
     assert check_feet(b, "aof") == "aof"
