@@ -4,10 +4,6 @@ import ctypes as _ctypes
 import os as _os
 import sys as _sys
 
-# footforge authors models with dm_control.mjcf and never renders through dm_control; without this
-# dm_control probes for an X display (GLFW) at import and warns on headless machines.
-_os.environ.setdefault("MUJOCO_GL", "disable")
-
 # MuJoCo loads the OpenGL backend named by MUJOCO_GL when it is imported, and with
 # MUJOCO_GL=osmesa (or egl) on a machine without that library `import mujoco` itself fails deep in
 # PyOpenGL ("'NoneType' object has no attribute 'glGetError'"). So the library is looked for the
@@ -31,11 +27,27 @@ def _missing_gl_library(backend: str) -> "str | None":
     return f"lib{name} was not found by the dynamic loader"
 
 
-if "mujoco" not in _sys.modules:  # once MuJoCo is imported, its backend is settled
-    _backend = _os.environ["MUJOCO_GL"].lower()
-    _reason = _missing_gl_library(_backend)
-    if _reason is not None:
-        GL_UNAVAILABLE = (_backend, _reason)
+def _check_gl_backend() -> None:
+    global GL_UNAVAILABLE
+    if "mujoco" in _sys.modules or "MUJOCO_GL" not in _os.environ:  # settled, or MuJoCo's own default
+        return
+    backend = _os.environ["MUJOCO_GL"].lower()
+    reason = _missing_gl_library(backend)
+    if reason is not None:  # `import mujoco` would fail: import it without rendering instead
+        GL_UNAVAILABLE = (backend, reason)
         _os.environ["MUJOCO_GL"] = "disable"
+
+
+def headless_by_default() -> None:
+    """For footforge's command lines, before anything imports MuJoCo: MUJOCO_GL=disable where it
+    is unset. footforge authors models with dm_control.mjcf and renders only where asked (and
+    then says which backend to set); without a backend named, dm_control probes for an X display
+    (GLFW) at import and warns on headless machines. Importing footforge as a library leaves
+    MUJOCO_GL as the user's script has it."""
+    _os.environ.setdefault("MUJOCO_GL", "disable")
+    _check_gl_backend()
+
+
+_check_gl_backend()
 
 __version__ = "0.1.0"

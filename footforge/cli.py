@@ -12,6 +12,10 @@ import sys
 import traceback
 from pathlib import Path
 
+import footforge
+
+footforge.headless_by_default()  # before any import of MuJoCo
+
 from footforge.errors import EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError
 from footforge.mesh_simplify import DEFAULT_FACE_BUDGET
 

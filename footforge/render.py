@@ -2,8 +2,10 @@
 
 MuJoCo chooses its OpenGL backend from the environment variable MUJOCO_GL when `mujoco` is first
 imported (egl: headless, GPU or Mesa; osmesa: software; glfw: needs a display; disable: none),
-so it must be set before Python starts; importing footforge sets it to disable where it is unset,
-and where the library it names is missing (footforge.GL_UNAVAILABLE says why).
+so it must be set before Python starts; footforge's command lines set it to disable where it is
+unset (footforge.headless_by_default; importing footforge as a library leaves it alone), and
+importing footforge sets it to disable where the library it names is missing, which would
+otherwise fail `import mujoco` (footforge.GL_UNAVAILABLE says why).
 Frames are RGB uint8 arrays of shape (height, width, 3); the camera is a free camera that follows
 the base (qpos[:3], a free joint).
 """

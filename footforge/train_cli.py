@@ -8,6 +8,10 @@ import time
 from dataclasses import fields, replace
 from pathlib import Path
 
+import footforge
+
+footforge.headless_by_default()  # before any import of MuJoCo
+
 from footforge.errors import EXIT_INPUT_ERROR, InputError
 
 

@@ -27,6 +27,9 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
+    import footforge
+
+    footforge.headless_by_default()  # before any import of MuJoCo
     from footforge.envs import FEET
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])

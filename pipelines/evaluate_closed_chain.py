@@ -21,6 +21,9 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
+    import footforge
+
+    footforge.headless_by_default()  # before any import of MuJoCo
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--policy", type=Path, nargs="+", required=True, help="policy/ folders of training runs")
     p.add_argument("--seconds", type=float, default=10.0, help="simulated time per robot (default 10)")

@@ -25,6 +25,9 @@ PROG = "play"
 
 
 def main(argv: list[str] | None = None) -> int:
+    import footforge
+
+    footforge.headless_by_default()  # before any import of MuJoCo
     p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("policy", type=Path, metavar="POLICY", help="policy/ folder of a training run, or an .onnx file")
     p.add_argument("--feet", help="ball, aff, aof or full (the 34-joint closed chain); default: the policy's own")

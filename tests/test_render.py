@@ -84,3 +84,20 @@ def test_evaluate_video_without_renderer_exits_2_before_any_work(tmp_path):
     assert proc.returncode == 2
     assert "MUJOCO_GL=disable" in proc.stderr and "Traceback" not in proc.stderr
     assert not out.exists()
+
+
+def test_importing_footforge_leaves_mujoco_gl_as_the_user_has_it():
+    """A library must not change global state on import: a user's own mujoco.Renderer keeps
+    MuJoCo's default backend. footforge's command lines default to MUJOCO_GL=disable (they render
+    only where asked); a backend the user named is kept."""
+    import subprocess
+    import sys
+
+    probe = "import os, {module}; print(os.environ.get('MUJOCO_GL'))"
+    unset = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    for module, env, expected in (("footforge", unset, "None"), ("footforge.cli", unset, "disable"),
+                                  ("footforge.train_cli", unset, "disable"),
+                                  ("footforge.cli", {**unset, "MUJOCO_GL": "glfw"}, "glfw")):
+        run = subprocess.run([sys.executable, "-c", probe.format(module=module)], env=env, capture_output=True,
+                             text=True, timeout=300)
+        assert run.returncode == 0 and run.stdout.strip().splitlines()[-1] == expected, (module, run.stdout, run.stderr)
