@@ -40,7 +40,9 @@ def extra():
 
 def test_quick_run_writes_every_output(quick):
     code, report, out = quick
-    assert code == (0 if report["passed"] else 1)
+    # The ball has no sole to stand on: its settled height misses the closed chain's by about 4 cm,
+    # far past the 5 mm threshold, so the quick set cannot pass and the exit code says so.
+    assert report["fidelity"]["ball"]["summary"]["passed"] is False and not report["passed"] and code == 1
     for name in ("report.md", "report.html", "report.json", "series.npz"):
         assert (out / name).is_file()
     assert sorted(p.stem for p in (out / "plots").iterdir()) == sorted(QUICK)
