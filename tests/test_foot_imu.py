@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from footforge.errors import InputError
-from footforge.foot_imu import ESTIMATED, FootImuEstimator
+from footforge.foot_imu import ESTIMATED, FootImuEstimator, _rot_x, _rot_y
 
 LF = [f"LF_foot/{j}" for j in ESTIMATED]
 
@@ -113,3 +113,62 @@ def test_names_and_models_it_cannot_estimate_are_refused(built, full):
     aof = mujoco.MjModel.from_xml_path(str(built["aof"][0] / "scene.xml"))
     with pytest.raises(InputError, match="not a closed-chain SoftFoot-Q robot"):
         FootImuEstimator(aof, LF)
+
+
+def _on_a_step(model_path, under: str, height_m: float = 0.02) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The robot settled 1 s at `stand` with a box `height_m` high and 20 cm long under the front
+    or back half of LF's sole: its edge 1 cm ahead of LF's mount, about under the chain's middle
+    once the foot settles (the foot is pitched under the leg, its sole's middle ahead of the
+    mount), the box ahead of the edge or behind it."""
+    spec = mujoco.MjSpec.from_file(str(model_path))
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("stand").id)
+    mujoco.mj_forward(model, data)
+    mount = data.xpos[model.body("LF_foot/mount").id]
+    side = 1.0 if under == "front" else -1.0
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, height_m / 2],
+                            pos=[mount[0] + 0.01 + side * 0.1, mount[1], height_m / 2])
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("stand").id)
+    data.qpos[2] += height_m
+    for _ in range(int(round(1.0 / model.opt.timestep))):
+        mujoco.mj_step(model, data)
+    return model, data
+
+
+@pytest.mark.parametrize("under", ["front", "back"])
+def test_the_half_of_the_sole_resting_on_a_step_reads_flat(built, under):
+    """A 2 cm step under one half of LF's sole: that half lies on the step's flat top, so the
+    plate it stands for, composed from the estimates (the mount's orientation, the ankle pitch
+    and roll, that half's hinge), is level in the world within 1 degree, while the pivot line is
+    pitched by about 20 degrees. Also computed the other way, from positions: the pitch of the
+    line between the roll pivots, and each half's chord between its pins."""
+    model, data = _on_a_step(built["full"][0] / "scene.xml", under)
+    imu = FootImuEstimator(model, LF)
+    pitch, roll, front, back = imu(data)[0]
+    assert abs(pitch) > math.radians(10)  # the step tilts the foot: a level plate is no accident
+    mount = data.xmat[model.body("LF_foot/mount").id].reshape(3, 3)
+    sole = mount @ _rot_y(pitch) @ _rot_x(roll)
+    # AOF's front plate reaches back from its hinge (-x), turned about +y; the back plate reaches
+    # forward (+x), turned about -y.
+    plate = sole @ (_rot_y(front) @ [-1.0, 0.0, 0.0] if under == "front" else _rot_y(-back) @ [1.0, 0.0, 0.0])
+    assert abs(plate[2]) < math.sin(math.radians(1.0)), (under, np.degrees([pitch, roll, front, back]))
+
+    def in_mount(body):
+        return mount.T @ (data.xpos[model.body(f"LF_foot/{body}").id] - data.xpos[model.body("LF_foot/mount").id])
+
+    reference = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, reference, model.key("home").id)
+    mujoco.mj_kinematics(model, reference)
+    ref_mount = reference.xmat[model.body("LF_foot/mount").id].reshape(3, 3)
+    line = in_mount("front_roll") - in_mount("back_roll")
+    ref_line = ref_mount.T @ (reference.xpos[model.body("LF_foot/front_roll").id]
+                              - reference.xpos[model.body("LF_foot/back_roll").id])
+    assert pitch == pytest.approx(math.atan2(-line[2], line[0]) - math.atan2(-ref_line[2], ref_line[0]), abs=1e-9)
+    to_sole = (_rot_y(pitch) @ _rot_x(roll)).T
+    chord_front = to_sole @ (in_mount("chain_middle_5") - in_mount("chain_middle_2"))  # pins 2 to 5: links 2-4
+    chord_back = to_sole @ (in_mount("chain_middle_6") - in_mount("chain_middle_9"))   # pins 9 to 6: links 8-6
+    assert front == pytest.approx(math.atan2(chord_front[2], -chord_front[0]), abs=1e-9)
+    assert back == pytest.approx(math.atan2(chord_back[2], chord_back[0]), abs=1e-9)
