@@ -408,7 +408,8 @@ def comparison_markdown(results: list[dict]) -> str:
     for r in results:
         for feet, c in r["feet"].items():
             cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"],
-                     f"{feet} ({'trained' if feet == r['trained_on'] else 'zero-shot'})"]
+                     f"{feet} ({'trained' if feet == r['trained_on'] else 'zero-shot'}"
+                     f"{', passive joints from its sensors' if feet == FULL and r.get('passive_joints_on_full') else ''})"]
             cells += [f"{c['indices'][k]['mean']:.3f} ± {c['indices'][k]['std']:.3f}"
                       for k in ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "base_height")]
             falls = [f"{t:.2f}" for t in c["fall_times_s"] if t is not None]
