@@ -151,14 +151,10 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     config, model = env.config, robot.model
     decimation = int(round(config.policy_dt / model.opt.timestep))
     control = Controller(env, observed_robot(robot, imu), policy)
-
-    def states(datas) -> tuple[np.ndarray, np.ndarray]:
-        return observed_states(datas, imu)
-
     datas = [mujoco.MjData(model) for _ in range(num_robots)]
     for i, d in enumerate(datas):
         place_at_start(robot, d, terrain, i)
-    info, obs = control.start(*states(datas), seed)
+    info, obs = control.start(*observed_states(datas, imu), seed)
     equality = _EqualityResiduals(model) if model.neq else None
     alive, ok = np.ones(num_robots, bool), np.ones(num_robots, bool)
     fall_step = np.full(num_robots, -1)
@@ -172,7 +168,7 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     for t in range(steps):
         if not alive.any():  # all fell: nothing left to simulate
             break
-        action, targets, push_now, push, info, keys = control.act(obs, states(datas)[0], info)
+        action, targets, push_now, push, info, keys = control.act(obs, _stack(datas, "qpos"), info)
         for i in np.flatnonzero(alive):
             d = datas[i]
             d.ctrl[robot.actuator_ids] = targets[i]
@@ -188,7 +184,8 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
                         totals[k] += (value, 1)
             ok[i] = not diverged(d, config.diverged_speed)
         fallen = control.touching(*padded_contacts(datas)) | ~ok
-        info, obs, row = control.settle(*states(datas), info, keys, action, _stack(datas, "actuator_force"))
+        info, obs, row = control.settle(*observed_states(datas, imu), info, keys, action,
+                                        _stack(datas, "actuator_force"))
         fall_step[alive & fallen] = t
         alive &= ~fallen
         live[:, t] = alive  # like footforge.evaluate: the step a robot falls on is not counted

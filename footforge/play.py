@@ -248,8 +248,7 @@ class Player:
         from footforge.envs.stability import diverged
 
         d, command = self.data, self._command(command)
-        action, targets, _, _, self._info, keys = self._control.act(self._obs, observed_states([d], self._imu)[0],
-                                                                    self._info)
+        action, targets, _, _, self._info, keys = self._control.act(self._obs, d.qpos[None], self._info)
         d.ctrl[self.robot.actuator_ids] = targets[0]
         for _ in range(self.decimation):
             mujoco.mj_step(self.model, d)
