@@ -468,21 +468,21 @@ def test_adaptive_feet_train_at_a_physics_step_that_survives_a_policy_s_actions(
     environment's model, contact_model 'fast') on AOF feet. With the passive joints' old armature
     of 1e-5 kg m^2 its physics diverged at the baselines' 5 ms step (as 29-37% of the H100
     campaign's AOF training episodes did; 23 of 32 robots in 10 s measured), which is why the
-    adaptive feet step at 2.5 ms x 8 (the same 50 Hz policy). With the parameter file's 1e-3 no
-    robot diverges at either step: the armature, not the step, was the cause. Ball feet keep the
-    baselines' 5 ms x 4."""
+    adaptive feet stepped at 2.5 ms x 8 until 2026-11-25. With the parameter file's 1e-3 no
+    robot diverges at 5 ms or at 2.5 ms: the armature, not the step, was the cause, and 'fast'
+    now steps every feet at the baselines' 5 ms x 4."""
     from footforge.build import BuildOptions, build
     from footforge.envs.stability import divergence_times
     from footforge.params import default_params_path
 
     aof = envs.default_config("flat", "aof", "B", "fast")
-    assert (aof.sim_dt, aof.decimation) == (0.0025, 8) and aof.policy_dt == pytest.approx(0.02)
+    assert (aof.sim_dt, aof.decimation) == (0.005, 4) and aof.policy_dt == pytest.approx(0.02)
     ball = envs.default_config("rough", "ball", "B", "fast")
     assert (ball.sim_dt, ball.decimation) == (0.005, 4)
-    at_5ms = replace(aof, sim_dt=0.005, decimation=4, build_dir=str(built["aof"][0]))
+    at_5ms = replace(aof, build_dir=str(built["aof"][0]))
     assert divergence_times(at_5ms, robots=12, seconds=10.0, seed=0) == [None] * 12
-    at_own_step = replace(aof, build_dir=str(built["aof"][0]))
-    assert divergence_times(at_own_step, robots=12, seconds=10.0, seed=0) == [None] * 12
+    at_2_5ms = replace(at_5ms, sim_dt=0.0025, decimation=8)
+    assert divergence_times(at_2_5ms, robots=12, seconds=10.0, seed=0) == [None] * 12
     text = default_params_path().read_text()
     assert text.count("armature: 1.0e-3") == 6  # AFF's two passive joints and AOF's four
     old = tmp_path / "params.yaml"
@@ -493,29 +493,31 @@ def test_adaptive_feet_train_at_a_physics_step_that_survives_a_policy_s_actions(
 
 
 def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(monkeypatch):
-    """A ball policy trained with 'fast' (5 ms x 4) evaluated on AOF feet must step AOF at 2.5 ms x 8, where a policy's
-    actions do not make it diverge (the test above), and still act every 20 ms; an AOF policy on
-    ball feet keeps its finer 2.5 ms. evaluate() builds its environment through on_feet."""
+    """A policy evaluated on other feet keeps its contact model and 20 ms policy step, at the
+    physics step and solver iterations that model needs on those feet; a policy trained at a
+    finer step than the other feet need keeps its own. evaluate() builds its environment
+    through on_feet."""
     from footforge import evaluate as evaluation
 
     ball = envs.default_config("flat", "ball", "B", "fast")
     on_aof = envs.on_feet(ball, "aof")
-    assert (on_aof.feet, on_aof.sim_dt, on_aof.decimation) == ("aof", 0.0025, 8)
+    assert (on_aof.feet, on_aof.sim_dt, on_aof.decimation) == ("aof", 0.005, 4)  # 'fast': 5 ms on every feet
     assert on_aof.policy_dt == pytest.approx(ball.policy_dt)
-    on_ball = envs.on_feet(envs.default_config("flat", "aof", "B", "fast"), "ball")
+    fine = replace(envs.default_config("flat", "aof", "B", "fast"), sim_dt=0.0025, decimation=8)
+    on_ball = envs.on_feet(fine, "ball")
     assert (on_ball.feet, on_ball.sim_dt, on_ball.decimation) == ("ball", 0.0025, 8)
     # A policy step the feet's step does not divide keeps the policy's own physics.
     odd = envs.on_feet(replace(ball, sim_dt=0.006, decimation=3), "aof")
     assert (odd.feet, odd.sim_dt, odd.decimation) == ("aof", 0.006, 3)
-    # A stance policy gets the iterations the stance needs on the other feet (ball 8/16, AOF 30/30).
+    # A stance policy gets the step and iterations the stance needs on the other feet (AOF 30/30).
     stance_on_aof = envs.on_feet(envs.with_contact_model(ball, "stance"), "aof")
-    assert (stance_on_aof.contact_model, stance_on_aof.solver_iterations, stance_on_aof.solver_ls_iterations) == \
-        ("stance", 30, 30)
+    assert (stance_on_aof.contact_model, stance_on_aof.solver_iterations, stance_on_aof.solver_ls_iterations,
+            stance_on_aof.sim_dt, stance_on_aof.decimation) == ("stance", 30, 30, 0.0025, 8)
     built_configs = []
     monkeypatch.setattr("footforge.train.load_policy", lambda d: (None, ball, None))
     monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)
     evaluation._policy_and_env("policy", "aof", 1.0, None)
-    assert (built_configs[0].feet, built_configs[0].sim_dt, built_configs[0].decimation) == ("aof", 0.0025, 8)
+    assert (built_configs[0].feet, built_configs[0].sim_dt, built_configs[0].decimation) == ("aof", 0.005, 4)
 
 
 def test_the_warp_backend_is_refused_where_it_cannot_run(built, tmp_path, capsys, monkeypatch):

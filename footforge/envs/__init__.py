@@ -63,17 +63,16 @@ def physics(feet: str, contact_model: str) -> dict:
     """EnvConfig's sim_dt, decimation, solver_iterations and solver_ls_iterations for `contact_model`
     on `feet` at the 50 Hz policy step (what envs.default_config sets).
 
-    Step: 2.5 ms x 8, except ball feet with 'fast', which keep the baselines' 5 ms x 4. 'stance'
-    and 'build' hold a stance only at 2.5 ms (anymal.STANCE_CONTACT_MAX_SIM_DT; the build's
-    contact slid 51 mm in 10 s at 5 ms, 2.9 mm at 2.5 ms). The adaptive feet's light passive links
-    (AOF's sole halves, the ankle links) make any 5 ms step diverge under a policy's actions
-    (benchmarks/action_stability.py, 32 robots, 10 s, 'fast': 30 AOF episodes diverged in MJX, 19
-    of 32 robots, CPU MuJoCo 23 of 32, at 5 ms and none at 2.5 ms; in the H100 campaign 29-37% of
-    AOF and up to 3% of AFF training episodes diverged at 5 ms; benchmarks/RESULTS.md,
-    2026-11-24). That was with the passive joints' armature of 1e-5 kg m^2; with the parameter
-    file's 1e-3 (2026-11-25) no AOF robot diverged at 5 ms either (CPU MuJoCo, 12 robots, 10 s,
-    tests/test_envs.py), so 'fast' could step the adaptive feet at 5 ms once MJX confirms it; the
-    2.5 ms step stays until then. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground
+    Step: 'fast' the baselines' 5 ms x 4 on every feet; 'stance' and 'build' 2.5 ms x 8, the
+    step at which they hold a stance (anymal.STANCE_CONTACT_MAX_SIM_DT; the build's contact slid
+    51 mm in 10 s at 5 ms, 2.9 mm at 2.5 ms). The adaptive feet stepped at 2.5 ms under 'fast'
+    too until 2026-11-25: with their passive joints' armature of 1e-5 kg m^2, 5 ms diverged under
+    a policy's actions (benchmarks/action_stability.py, 32 robots, 10 s: 30 AOF episodes in MJX,
+    19 of 32 robots, CPU MuJoCo 23 of 32; in the H100 campaign 29-37% of AOF and up to 3% of AFF
+    training episodes). With the parameter file's 1e-3 none diverges at 5 ms (CPU MuJoCo, 12 AOF
+    robots, tests/test_envs.py; MJX, 16 robots each, 10 s of random actions, 0 AFF and 0 AOF;
+    benchmarks/RESULTS.md, 2026-11-25, sixth session), which halves their physics cost under
+    'fast'. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground
     trains at 1-4), 'stance' and 'build' anymal.min_solver_iterations.
 
     Raises:
@@ -83,7 +82,7 @@ def physics(feet: str, contact_model: str) -> dict:
 
     if contact_model not in CONTACT_MODELS:
         raise InputError(f"unknown contact model '{contact_model}'", fix=f"use one of {', '.join(CONTACT_MODELS)}")
-    sim_dt = 0.005 if (feet, contact_model) == ("ball", "fast") else STANCE_CONTACT_MAX_SIM_DT
+    sim_dt = 0.005 if contact_model == "fast" else STANCE_CONTACT_MAX_SIM_DT
     iterations, ls_iterations = min_solver_iterations(contact_model, feet) or (4, 8)
     return {"sim_dt": sim_dt, "decimation": int(round(POLICY_DT / sim_dt)), "solver_iterations": iterations,
             "solver_ls_iterations": ls_iterations}
@@ -93,8 +92,9 @@ def on_feet(config, feet: str):
     """`config` (a policy's training configuration) moved to `feet`: the same policy step and
     contact model, at the physics step `feet` need with it (physics()) unless the policy's own is
     finer, and with at least the solver iterations its contact model needs on `feet`
-    (with_contact_model). A ball policy trained with 'fast' (5 ms x 4) evaluated on AOF feet thus
-    steps AOF at 2.5 ms, where its light links do not diverge, and still acts every 20 ms."""
+    (with_contact_model). A ball policy trained with 'stance' (2.5 ms x 8, 8/16 iterations)
+    evaluated on AOF feet thus steps AOF at 2.5 ms with 30/30 iterations, and still acts every
+    20 ms; a policy trained at a finer step than its feet need keeps its own."""
     sim_dt = min(config.sim_dt, physics(feet, config.contact_model)["sim_dt"])
     decimation = config.policy_dt / sim_dt
     if abs(decimation - round(decimation)) > 1e-6:  # a policy step the feet's step does not divide

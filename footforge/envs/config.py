@@ -256,7 +256,7 @@ class EnvConfig:
     crouch. PhysX, the baselines' engine, has true static friction and does not creep.
 
     - fast (`--contact-model fast`): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp
-      0.9/0.95/0.001, implicitfast, 4 Newton / 8 line-search iterations, ball feet at the
+      0.9/0.95/0.001, implicitfast, 4 Newton / 8 line-search iterations, every feet at the
       baselines' 5 ms x 4: stable from any start (MuJoCo Playground trains at 1-4 iterations) and
       cheap, at the price of that creep: a robot holding still slides and sinks about 22 cm in
       10-20 s (AFF: 150 mm of sinking and 174 mm of slip in 10 s), which corrupts the base height
