@@ -36,6 +36,7 @@ import mujoco
 import numpy as np
 
 from footforge.envs.anymal import Robot, ensure_built, load_robot
+from footforge.envs.config import check_policy_on_feet
 from footforge.envs.stability import diverged
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
@@ -80,6 +81,7 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
     from footforge.train import load_policy
 
     policy, config, _ = load_policy(policy_dir)
+    check_policy_on_feet(config, FULL, str(policy_dir))  # any policy: haptic ones read the sensors' estimates
     if seconds <= 0 or num_robots < 1:
         raise InputError(f"seconds ({seconds}) and robots ({num_robots}) must be positive", fix="e.g. 10 s, 4 robots")
     env, trained = policy_environment(config, build_root, terrain_tiles)

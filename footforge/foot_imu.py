@@ -38,6 +38,7 @@ from collections.abc import Sequence
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from footforge import constants as C
 from footforge.errors import InputError
@@ -57,19 +58,9 @@ def _angle_about_y(rotation: np.ndarray) -> float:
     return float(np.arctan2(rotation[0, 2], rotation[0, 0]))
 
 
-def _roll_and_pitch(rotation: np.ndarray) -> tuple[float, float]:
-    """(rho, beta) of a rotation R_x(rho) R_y(beta)."""
-    return float(np.arctan2(rotation[2, 1], rotation[1, 1])), float(np.arctan2(rotation[0, 2], rotation[0, 0]))
-
-
-def _rot_y(theta: float) -> np.ndarray:
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _rot_x(theta: float) -> np.ndarray:
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+def _roll(rotation: np.ndarray) -> float:
+    """rho of a rotation R_x(rho) R_y(beta) (3x3)."""
+    return float(np.arctan2(rotation[2, 1], rotation[1, 1]))
 
 
 class FootImuEstimator:
@@ -109,42 +100,39 @@ class FootImuEstimator:
         mujoco.mj_resetDataKeyframe(model, data, key)
         mujoco.mj_kinematics(model, data)
         # Each IMU's orientation in its mount's frame at the reference pose.
-        self._reference = np.array([[self._in_mount(data, i, k) for k in range(1, 1 + len(IMU_BODIES))]
-                                    for i in range(len(C.LEGS))])
-
-    def _in_mount(self, data: mujoco.MjData, leg: int, k: int) -> np.ndarray:
-        mount = data.xmat[self._bodies[leg, 0]].reshape(3, 3)
-        return mount.T @ data.xmat[self._bodies[leg, k]].reshape(3, 3)
+        self._reference = np.array([[data.xmat[bodies[0]].reshape(3, 3).T @ data.xmat[b].reshape(3, 3)
+                                     for b in bodies[1:]] for bodies in self._bodies])
 
     def leg_estimates(self, data: mujoco.MjData, leg: int) -> tuple[np.ndarray, np.ndarray]:
         """(angles, rates) of ESTIMATED for one leg (index into constants.LEGS), rad and rad/s,
         from data's body orientations and angular velocities (after mj_forward or mj_step)."""
         n_front = len(FRONT_LINKS)
-        turned = [self._in_mount(data, leg, k) @ self._reference[leg, k - 1].T for k in range(1, 1 + len(IMU_BODIES))]
+        mount = data.xmat[self._bodies[leg, 0]].reshape(3, 3)
+        oriented = [mount.T @ data.xmat[b].reshape(3, 3) for b in self._bodies[leg, 1:]]  # in the mount's frame
+        turned = [r @ ref.T for r, ref in zip(oriented, self._reference[leg])]  # since the reference pose
         pitch = 0.5 * (_angle_about_y(turned[0]) + _angle_about_y(turned[1]))
-        pitched = _rot_y(pitch)
-        links = turned[2:]
-        roll = float(np.mean([_roll_and_pitch(pitched.T @ link)[0] for link in links]))
-        sole = pitched @ _rot_x(roll)  # V, in the mount's frame
-        directions = [sole.T @ self._in_mount(data, leg, k)[:, 2] for k in range(3, 1 + len(IMU_BODIES))]
-        front, back = np.sum(directions[:n_front], axis=0), np.sum(directions[n_front:], axis=0)
+        pitched = pin.utils.rotate("y", pitch)  # P
+        roll = float(np.mean([_roll(pitched.T @ link) for link in turned[2:]]))
+        sole = pitched @ pin.utils.rotate("x", roll)  # V, in the mount's frame
+        z = [r[:, 2] for r in oriented[2:]]  # the links' lengths (local z, front to back)
+        halves = (slice(0, n_front), slice(n_front, None))
+        front, back = (sole.T @ np.sum(z[h], axis=0) for h in halves)
         angles = np.array([pitch, roll, np.arctan2(front[2], -front[0]), np.arctan2(-back[2], -back[0])])
 
         # Rates: the gyroscopes' angular velocities relative to the mount, in the mount's frame.
-        mount = data.xmat[self._bodies[leg, 0]].reshape(3, 3)
         omega = [mount.T @ (data.cvel[b, :3] - data.cvel[self._bodies[leg, 0], :3]) for b in self._bodies[leg, 1:]]
+        y_axis = np.array([0.0, 1.0, 0.0])
         pitch_rate = 0.5 * (omega[0][1] + omega[1][1])
         x_p = pitched[:, 0]  # P's x axis, in the mount's frame
-        relative = [w - pitch_rate * np.array([0.0, 1.0, 0.0]) for w in omega[2:]]  # the links against P
-        roll_rate = float(np.mean([w @ x_p for w in relative]))
+        roll_rate = float(np.mean([(w - pitch_rate * y_axis) @ x_p for w in omega[2:]]))  # the links against P
         # Each half's chord d = sum of the link directions z_i turns as d' = sum of omega_i x z_i;
         # seen from V, which turns at pitch_rate about y and roll_rate about x_p, and through atan2.
-        omega_v = pitch_rate * np.array([0.0, 1.0, 0.0]) + roll_rate * x_p
+        omega_v = pitch_rate * y_axis + roll_rate * x_p
+        links = list(zip(omega[2:], z))
         rates = []
-        for part, sign in ((slice(0, n_front), 1.0), (slice(n_front, None), -1.0)):
-            z = [self._in_mount(data, leg, k)[:, 2] for k in range(3, 1 + len(IMU_BODIES))][part]
-            d = np.sum(z, axis=0)
-            d_dot = np.sum([np.cross(w, zi) for w, zi in zip(omega[2:][part], z)], axis=0) - np.cross(omega_v, d)
+        for h, sign in zip(halves, (1.0, -1.0)):
+            d = np.sum(z[h], axis=0)
+            d_dot = np.sum([np.cross(w, zi) for w, zi in links[h]], axis=0) - np.cross(omega_v, d)
             d, d_dot = sole.T @ d, sole.T @ d_dot
             rates.append(sign * (d[2] * d_dot[0] - d[0] * d_dot[2]) / (d[0] ** 2 + d[2] ** 2))
         return angles, np.array([pitch_rate, roll_rate, rates[0], rates[1]])

@@ -182,8 +182,7 @@ def check_feet(policy: OnnxPolicy, feet: str | None) -> str:
     feet = feet or policy.config.feet
     if feet not in FEET:
         raise InputError(f"unknown feet '{feet}'", fix=f"use one of {', '.join(FEET)}")
-    if feet != "full":
-        check_policy_on_feet(policy.config, feet, str(policy.source))
+    check_policy_on_feet(policy.config, feet, str(policy.source))
     return feet
 
 

@@ -6,10 +6,11 @@ import math
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from footforge.errors import InputError
-from footforge.foot_imu import ESTIMATED, FootImuEstimator, _rot_x, _rot_y
+from footforge.foot_imu import ESTIMATED, FootImuEstimator
 
 LF = [f"LF_foot/{j}" for j in ESTIMATED]
 
@@ -150,10 +151,11 @@ def test_the_half_of_the_sole_resting_on_a_step_reads_flat(built, under):
     pitch, roll, front, back = imu(data)[0]
     assert abs(pitch) > math.radians(10)  # the step tilts the foot: a level plate is no accident
     mount = data.xmat[model.body("LF_foot/mount").id].reshape(3, 3)
-    sole = mount @ _rot_y(pitch) @ _rot_x(roll)
+    sole = mount @ pin.utils.rotate("y", pitch) @ pin.utils.rotate("x", roll)
     # AOF's front plate reaches back from its hinge (-x), turned about +y; the back plate reaches
     # forward (+x), turned about -y.
-    plate = sole @ (_rot_y(front) @ [-1.0, 0.0, 0.0] if under == "front" else _rot_y(-back) @ [1.0, 0.0, 0.0])
+    plate = sole @ (pin.utils.rotate("y", front) @ [-1.0, 0.0, 0.0] if under == "front"
+                     else pin.utils.rotate("y", -back) @ [1.0, 0.0, 0.0])
     assert abs(plate[2]) < math.sin(math.radians(1.0)), (under, np.degrees([pitch, roll, front, back]))
 
     def in_mount(body):
@@ -167,7 +169,7 @@ def test_the_half_of_the_sole_resting_on_a_step_reads_flat(built, under):
     ref_line = ref_mount.T @ (reference.xpos[model.body("LF_foot/front_roll").id]
                               - reference.xpos[model.body("LF_foot/back_roll").id])
     assert pitch == pytest.approx(math.atan2(-line[2], line[0]) - math.atan2(-ref_line[2], ref_line[0]), abs=1e-9)
-    to_sole = (_rot_y(pitch) @ _rot_x(roll)).T
+    to_sole = (pin.utils.rotate("y", pitch) @ pin.utils.rotate("x", roll)).T
     chord_front = to_sole @ (in_mount("chain_middle_5") - in_mount("chain_middle_2"))  # pins 2 to 5: links 2-4
     chord_back = to_sole @ (in_mount("chain_middle_6") - in_mount("chain_middle_9"))   # pins 9 to 6: links 8-6
     assert front == pytest.approx(math.atan2(chord_front[2], -chord_front[0]), abs=1e-9)

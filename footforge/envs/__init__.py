@@ -72,8 +72,8 @@ def physics(feet: str, contact_model: str) -> dict:
     training episodes). With the parameter file's 1e-3 none diverges at 5 ms (CPU MuJoCo, 12 AOF
     robots, tests/test_envs.py; MJX, 16 robots each, 10 s of random actions, 0 AFF and 0 AOF;
     benchmarks/RESULTS.md, 2026-11-25, sixth session), which halves their physics cost under
-    'fast'. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground
-    trains at 1-4), 'stance' and 'build' anymal.min_solver_iterations.
+    'fast'. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground trains at 1-4),
+    'stance' and 'build' anymal.min_solver_iterations.
 
     Raises:
       InputError: an unknown contact model.

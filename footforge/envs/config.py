@@ -264,9 +264,10 @@ class EnvConfig:
       campaign's policies trained with it (their saved configuration keeps it).
     - stance (default, every feet): a pyramidal cone with impratio 10 and the build's solimp
       0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; in float32 the adaptive
-      feet, and every feet on a heightfield: 0.97/0.995/0.001, anymal.stance_contact_solimp), semi-implicit
-      Euler integration, at sim_dt <= 2.5 ms with at least the feet's Newton and line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with
-      fewer its friction diverges under a policy's actions). Zero-action robots in MJX, 10 s from
+      feet, and every feet on a heightfield: 0.97/0.995/0.001, anymal.stance_contact_solimp),
+      semi-implicit Euler integration, at sim_dt <= 2.5 ms with at least the feet's Newton and
+      line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with fewer its friction diverges
+      under a policy's actions). Zero-action robots in MJX, 10 s from
       the reset's random velocities (benchmarks/stance_mjx.py, benchmarks/stance_env.py;
       benchmarks/RESULTS.md, 2026-11-25), sinking / sliding: ball 2.1 / 2.5 mm (float32); in one
       robot's 10 s on flat ground in float32 AFF 1.2 / 2.6 mm and AOF 1.8 / 4.1 mm, with
@@ -274,7 +275,8 @@ class EnvConfig:
       feet hold in float32 since their passive joints carry an armature of 1e-3 kg m^2 (the
       parameter file's; with 1e-5 the light links' ill-conditioned mass matrix let MJX's float32
       solve creep about 1.3 mm/s: AFF 6.3 / 13.0 mm, AOF 6.6 / 11.2 mm). None diverged under
-      random actions. Cost per robot and policy step on this CPU, against fast at the same step: ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
+      random actions. Cost per robot and policy step on this CPU, against fast at the same step:
+      ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
       AOF 1.8x (float32) and 2.5x (float64). It needs a friction coefficient of about 0.7 or
       more (the models' contacts have 1.0, the ground's, as the baseline: MuJoCo takes the larger
       of two geoms'): a pyramidal cone bounds the sideways force by |fx| + |fy| <= mu fn, so
@@ -356,15 +358,16 @@ class EnvConfig:
 
 
 def check_policy_on_feet(config: EnvConfig, feet: str, source: str | None = None) -> None:
-    """Raises InputError for a haptic policy (BH, PH) on feet other than its own: it reads the
-    passive joints of the feet it was trained on, which other feet (the closed chain included) do
-    not have. Blind and perceptive policies run on any feet (zero-shot). `source`: the policy's
-    folder or file, named in the error."""
-    if config.haptic and feet != config.feet:
+    """Raises InputError for a haptic policy (BH, PH) on derived feet other than its own: it reads
+    the passive joints of the feet it was trained on, which other derived feet do not have. On the
+    closed chain (`full`) it reads those joints' estimates from the feet's sensors
+    (footforge.foot_imu). Blind and perceptive policies run on any feet (zero-shot). `source`:
+    the policy's folder or file, named in the error."""
+    if config.haptic and feet not in (config.feet, "full"):
         raise InputError(f"a {config.policy} policy reads the passive joints of the {config.feet} feet it was "
                          f"trained on; the {feet} feet have others", file=source,
-                         fix=f"run it on its own {config.feet} feet, or a blind (B) or perceptive (P) policy "
-                             "on other feet")
+                         fix=f"run it on its own {config.feet} feet or the closed chain (full), or a blind (B) "
+                             "or perceptive (P) policy on other feet")
 
 
 def check_feet_and_policy(feet: str, policy: str) -> None:
