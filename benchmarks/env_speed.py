@@ -56,7 +56,7 @@ def main() -> None:
                    help="rough task: shank tubes colliding with the terrain (EnvConfig.shank_collisions); "
                         "'on off' measures both (keys of 'off' end in _noshank before _b<batch>)")
     p.add_argument("--no-compile-cache", action="store_true",
-                   help="measure cold compilation: without JAX's persistent cache (footforge/compile_cache.py)")
+                   help="measure cold compilation: without JAX's persistent cache (footforge/rl/compile_cache.py)")
     p.add_argument("--playground", action="store_true",
                    help="also MuJoCo Playground's Go1 joystick for each task and batch size (keys "
                         "playground_go1_<task>_b<batch>; needs the bench extra)")
@@ -90,7 +90,7 @@ def main() -> None:
             p.error(f"--playground: {go1.MISSING_MESSAGE}")  # exit code 2
     if args.float64_physics:  # before any JAX array
         jax.config.update("jax_enable_x64", True)
-    from footforge import compile_cache
+    from footforge.rl import compile_cache
 
     cache = compile_cache.enable(not args.no_compile_cache)
     figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,

@@ -51,7 +51,8 @@ def main(argv=None) -> int:
 
     import jax
 
-    from footforge import envs, train
+    from footforge import envs
+    from footforge.rl import train
 
     cfg = envs.default_config("flat", args.feet, "B")
     cfg = replace(cfg, build_dir=str(args.build_dir) if args.build_dir else None,

@@ -278,14 +278,14 @@ def main(argv=None) -> int:
     p.add_argument("--actions", default="zero", choices=["zero", "random"])
     p.add_argument("--impl", default="jax", choices=["jax", "warp"], help="MJX implementation (Playground's default: warp)")
     p.add_argument("--no-compile-cache", action="store_true",
-                   help="measure cold compilation: without JAX's persistent cache (footforge/compile_cache.py)")
+                   help="measure cold compilation: without JAX's persistent cache (footforge/rl/compile_cache.py)")
     args = p.parse_args(argv)
     if not available():
         print(MISSING_MESSAGE, file=sys.stderr)
         return 2
     import jax
 
-    from footforge import compile_cache
+    from footforge.rl import compile_cache
 
     cache = compile_cache.enable(not args.no_compile_cache)
     figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,

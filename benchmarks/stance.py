@@ -1,11 +1,11 @@
-"""Standing still in the built scenes: sink and slip of each variant over 10 s (footforge.stance).
+"""Standing still in the built scenes: sink and slip of each variant over 10 s (footforge.validate.stance).
 
 For each variant: from `stand` (the rest pose the build computes) and from `home` (the default
 angles, unloaded), the base height drop after the first 0.5 s and the largest foot slip, at the
 scene's own timestep and solver; `--pyramidal` also runs MuJoCo's default contact model on the
 same scene (pyramidal cone, impratio 1, solimp 0.9/0.95) for comparison; `--loads` also the
 stance's ground forces (each foot's horizontal over vertical force at `stand`) and where the robot
-comes to rest without friction (footforge.stance.foot_loads, frictionless_rest). One JSON line.
+comes to rest without friction (footforge.validate.stance.foot_loads, frictionless_rest). One JSON line.
 
     python benchmarks/stance.py --build-root build --pyramidal [--loads]
 """
@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     p.add_argument("--loads", action="store_true", help="also the stance's sideways loads and frictionless rest")
     args = p.parse_args(argv)
 
-    from footforge.stance import foot_loads, frictionless_rest, stand
+    from footforge.validate.stance import foot_loads, frictionless_rest, stand
 
     out = {"benchmark": "stance", "machine": platform.platform(), "mujoco": mujoco.__version__, "seconds": args.seconds}
     for variant in args.variants:

@@ -1,7 +1,7 @@
 """Issue 12's stance target in the training environments themselves: zero actions for --seconds
 from the task's start, per feet, at the environment's default physics (or --contact-model).
 
-The starts are footforge.stance.env_stance_start's (flat: the task's reset; rough: level 0 from
+The starts are footforge.validate.stance.env_stance_start's (flat: the task's reset; rough: level 0 from
 the `stand` keyframe; the randomised rough start is tests/test_rough.py's survival test). Figures
 after the first 0.5 s: the base's sinking and the largest foot slip; target < 10 mm and < 5 mm.
 One JSON line per (task, feet).
@@ -32,7 +32,7 @@ def main(argv=None) -> int:
     if args.seconds <= 0.5:
         p.error("--seconds must exceed the 0.5 s the robot is given to settle")
 
-    from footforge.stance import env_stance, env_stance_start
+    from footforge.validate.stance import env_stance, env_stance_start
 
     for task in args.tasks:
         for feet in args.feet:

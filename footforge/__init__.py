@@ -8,7 +8,7 @@ import sys as _sys
 # MUJOCO_GL=osmesa (or egl) on a machine without that library `import mujoco` itself fails deep in
 # PyOpenGL ("'NoneType' object has no attribute 'glGetError'"). So the library is looked for the
 # way PyOpenGL does (dlopen of libNAME.so, then libNAME.so.N); where it is missing, MuJoCo is
-# imported without rendering and footforge.render refuses with the reason and the fix.
+# imported without rendering and footforge.rl.render refuses with the reason and the fix.
 GL_UNAVAILABLE: "tuple[str, str] | None" = None
 """(backend asked for in MUJOCO_GL, why it cannot load), or None when nothing was switched off."""
 

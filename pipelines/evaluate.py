@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--force", action="store_true",
                    help="replace --out even if footforge did not write it (it may hold your files)")
     p.add_argument("--no-compile-cache", action="store_true",
-                   help="compile without JAX's persistent cache (on by default: footforge/compile_cache.py)")
+                   help="compile without JAX's persistent cache (on by default: footforge/rl/compile_cache.py)")
     args = p.parse_args(argv)
 
     from footforge.processes import sigterm_as_interrupt
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.num_envs < 1 or (args.seconds is not None and args.seconds <= 0) or (args.video is not None and args.video <= 0):
         print("evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
         return 2
-    from footforge import compile_cache
+    from footforge.rl import compile_cache
 
     compile_cache.enable(not args.no_compile_cache)
     with sigterm_as_interrupt():  # a terminated run cleans up as an interrupted one
@@ -65,15 +65,15 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args) -> int:
     from footforge.atomic import atomic_directory
     from footforge.errors import FootforgeError
-    from footforge.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
+    from footforge.rl.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
     from footforge.outputs import check_output_folder
-    from footforge.policy_card import card_name, policy_card
-    from footforge.train import load_policy_config
+    from footforge.rl.policy_card import card_name, policy_card
+    from footforge.rl.train import load_policy_config
 
     try:
         check_output_folder(args.out, force=args.force)  # before minutes of evaluation
         if args.video:
-            from footforge.render import check_renderer, render_frames, write_gif, write_strip
+            from footforge.rl.render import check_renderer, render_frames, write_gif, write_strip
 
             check_renderer()  # before minutes of evaluation
         for policy in args.policy:  # each one a policy folder, before the first one's minutes

@@ -51,10 +51,10 @@ def _run(args) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from footforge.atomic import atomic_directory
-    from footforge.closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
+    from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
     from footforge.errors import FootforgeError
     from footforge.outputs import check_output_folder
-    from footforge.train import load_policy_config
+    from footforge.rl.train import load_policy_config
 
     console = Console()
     try:

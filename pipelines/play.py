@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
 def _check_arguments(args) -> None:
     """Everything that can be checked in a second, before the policy is loaded and compiled."""
     from footforge.errors import InputError
-    from footforge.play import FEET
+    from footforge.rl.play import FEET
 
     if not args.headless and (args.video or args.log):
         raise InputError("--video and --log are for --headless runs", fix="add --headless (and --seconds, --command)")
@@ -81,7 +81,7 @@ def _check_arguments(args) -> None:
         if path is not None:
             _check_output(flag, path, suffix, args.force)
     if args.video:
-        from footforge.render import check_renderer
+        from footforge.rl.render import check_renderer
 
         check_renderer()  # before the policy's export and compilation
     if not args.headless and sys.platform.startswith("linux") and not (
@@ -106,7 +106,7 @@ def _check_output(flag: str, path: Path, suffix: str, force: bool) -> None:
 
 def _written_by_play(path: Path) -> bool:
     """Whether `path` is a GIF whose comment, or a JSON log whose "tool", is footforge play's."""
-    from footforge.play import TOOL
+    from footforge.rl.play import TOOL
 
     try:
         if path.suffix.lower() == ".gif":
@@ -122,7 +122,7 @@ def _written_by_play(path: Path) -> bool:
 def _run(args) -> int:
     import time
 
-    from footforge.play import Player, PlayConfig, check_feet, key_map_text, load_policy, play_headless
+    from footforge.rl.play import Player, PlayConfig, check_feet, key_map_text, load_policy, play_headless
 
     started = time.perf_counter()
     policy = load_policy(args.policy)
@@ -135,7 +135,7 @@ def _run(args) -> int:
         player.warm_up()  # the viewer warms up itself, before its window opens
     setup = time.perf_counter() - started
     if not args.headless:
-        from footforge.play import play_interactive
+        from footforge.rl.play import play_interactive
 
         print(f"{PROG}: keys (in the viewer window; commands are kept within the training ranges):\n{key_map_text()}")
         play_interactive(player)
@@ -150,10 +150,10 @@ def _run(args) -> int:
     print(f"{PROG}: setup {setup:.1f} s (export, build, compilation), run {result['wall_s']:.1f} s "
           f"(real-time factor {result['real_time_factor']:.2f})")
     from footforge.atomic import atomic_file
-    from footforge.play import TOOL
+    from footforge.rl.play import TOOL
 
     if args.video:
-        from footforge.render import render_frames, write_gif
+        from footforge.rl.render import render_frames, write_gif
 
         t0 = time.perf_counter()
         every = max(1, int(round(0.04 / result["policy_dt_s"])))  # 25 frames per simulated second

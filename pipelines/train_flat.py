@@ -9,14 +9,14 @@
 Writes <out>/config.json, checkpoints/<step>/, progress.json, metrics.jsonl, tensorboard/ (every
 reward term and tracking error, of evaluations and of training episodes) and policy/ (the final
 policy, with the environment and PPO configs in footforge.json; load it with
-footforge.train.load_policy).
+footforge.rl.train.load_policy).
 """
 
 from __future__ import annotations
 
 import sys
 
-from footforge.train_cli import main
+from footforge.cli.train import main
 
 if __name__ == "__main__":
     sys.exit(main("flat", __doc__.splitlines()[0]))

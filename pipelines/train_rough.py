@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import sys
 
-from footforge.train_cli import main
+from footforge.cli.train import main
 
 if __name__ == "__main__":
     sys.exit(main("rough", __doc__.splitlines()[0]))

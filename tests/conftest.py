@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 os.environ.setdefault("MUJOCO_GL", "disable")
-# The suite's compiled programs go to a compilation cache of its own (footforge/compile_cache.py),
+# The suite's compiled programs go to a compilation cache of its own (footforge/rl/compile_cache.py),
 # shared by its processes (the command-line tests compile the same tiny trainings several times)
 # and removed afterwards: a user's cache is neither read nor filled.
 _COMPILE_CACHE = tempfile.mkdtemp(prefix="footforge-test-jax-cache-")
@@ -37,7 +37,7 @@ def built(tmp_path_factory, coacd_cache):
 _FLOAT64_STANCE = """
 import dataclasses, json, sys
 import jax
-from footforge.stance import env_stance, env_stance_start
+from footforge.validate.stance import env_stance, env_stance_start
 task, feet, build_root = sys.argv[1], sys.argv[2], sys.argv[3]
 env, state = env_stance_start(task, feet, build_root + "/" + feet, float64_physics=True)
 step = jax.jit(env.step)
@@ -49,7 +49,7 @@ print(json.dumps(dataclasses.asdict(env_stance(env, state, seconds=10.0, step=st
 
 
 def float64_stance(task: str, feet: str, build_root) -> dict:
-    """footforge.stance.env_stance over 10 s in a subprocess with float64 physics (x64 is
+    """footforge.validate.stance.env_stance over 10 s in a subprocess with float64 physics (x64 is
     process-wide), and the dtypes the policy's side sees."""
     import json
     import subprocess

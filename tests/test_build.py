@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 from footforge import constants as C
-from footforge.description import default_robot_description, load_description
+from footforge.inputs.description import default_robot_description, load_description
 
 ADAPTIVE = ("full", "aof", "aff")
 
@@ -154,19 +154,19 @@ def test_passive_dof_counts_and_sensors(built, variant):
 def test_mjcf_on_disk_equals_model_in_memory(tmp_path):
     """dm_control's round trip: the written MJCF compiles to the same numbers as the model built."""
     from footforge.build import BuildOptions, build
-    from footforge import foot as foot_lib
-    from footforge.robot import build_robot
+    from footforge.mjcf import foot as foot_lib
+    from footforge.mjcf.robot import build_robot
 
     out = tmp_path / "aof"
     build(BuildOptions(variant="aof", out_dir=out, cache_dir=tmp_path / "cache"))
     disk = mujoco.MjModel.from_xml_path(str(out / "robot.xml"))
     # Rebuild in memory from the same inputs.
-    from footforge import kinematics
-    from footforge.collision import DecompositionConfig
-    from footforge.description import default_foot_description
-    from footforge.params import load_params
-    from footforge.sidecar import default_sidecar_path, load_sidecar
-    from footforge.urdf_import import parse_urdf
+    from footforge.models import kinematics
+    from footforge.models.collision import DecompositionConfig
+    from footforge.inputs.description import default_foot_description
+    from footforge.inputs.params import load_params
+    from footforge.inputs.sidecar import default_sidecar_path, load_sidecar
+    from footforge.models.urdf import parse_urdf
 
     desc = load_description(default_foot_description())
     parsed = parse_urdf(desc, floating=True)
@@ -187,7 +187,7 @@ def test_pinocchio_and_mujoco_agree_on_mass_and_com(built):
     """The whole robot with SoftFoot-Q feet expanded from the ANYmal C xacro (foot:=softfoot_q) in
     Pinocchio, against the closed-chain MJCF footforge wrote, at the same pose."""
     desc = load_description(default_robot_description(), args={"foot": "softfoot_q"})
-    from footforge.urdf_import import parse_urdf
+    from footforge.models.urdf import parse_urdf
 
     parsed = parse_urdf(desc, floating=True)
     model, data = parsed.model, parsed.model.createData()

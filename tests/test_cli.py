@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
-from footforge.cli import main
+from footforge.cli.main import main
 
 from conftest import FOOT_SIDECAR, FOOT_XACRO, REPO
 

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from mujoco import mjx
 
-from footforge import envs, train
-from footforge.closed_chain import Controller, comparison_markdown, evaluate_closed_chain
+from footforge import envs
+from footforge.rl import train
+from footforge.rl.evaluate_closed_chain import Controller, comparison_markdown, evaluate_closed_chain
 from footforge.envs import observations
 from footforge.envs import terrain as terrain_lib
 from footforge.envs.config import ObservationConfig
@@ -101,8 +102,8 @@ def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
 
 def test_a_haptic_policy_runs_on_the_closed_chain_through_the_foot_imus(built, untrained, monkeypatch):
     """A BH policy trained on AOF reads its 16 passive joints on the closed chain from the feet's
-    IMU estimates (footforge.foot_imu), which reach the observation where AOF's joints would."""
-    from footforge import closed_chain
+    IMU estimates (footforge.rl.foot_imu), which reach the observation where AOF's joints would."""
+    from footforge.rl import evaluate_closed_chain as closed_chain
 
     seen = []
     original = closed_chain.FootImuEstimator.__call__

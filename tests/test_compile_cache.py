@@ -1,4 +1,4 @@
-"""JAX's persistent compilation cache (footforge/compile_cache.py): where it lives, how it is
+"""JAX's persistent compilation cache (footforge/rl/compile_cache.py): where it lives, how it is
 turned off, and that a second process loads what the first compiled."""
 
 import os
@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from footforge import compile_cache
+from footforge.rl import compile_cache
 
 # A process that turns the cache on as the pipelines do, compiles one program (JAX's 1 s minimum
 # lowered to 0 so that a small program is kept) and prints how many compilations the cache served.
@@ -14,7 +14,7 @@ PROGRAM = """
 import jax, jax.numpy as jp
 hits = []
 jax.monitoring.register_event_listener(lambda name, **kw: hits.append(name) if name.endswith("cache_hits") else None)
-from footforge import compile_cache
+from footforge.rl import compile_cache
 print(compile_cache.enable({enabled}))
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
 jax.jit(lambda x: jp.sin(x) @ x.T + 3.0)(jp.ones((5, 5))).block_until_ready()

@@ -10,7 +10,7 @@ import tarfile
 import pytest
 from conftest import REPO
 
-from footforge.train import write_checkpoint_manifest
+from footforge.rl.train import write_checkpoint_manifest
 
 sys.path.insert(0, str(REPO / "scripts/device"))
 import kit  # noqa: E402

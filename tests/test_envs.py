@@ -184,8 +184,8 @@ def test_velocity_actions_integrate_onto_the_previous_target(rollouts):
 @pytest.fixture(scope="module")
 def zero_action_episodes(rollouts):
     """Per feet: a full 20 s flat episode of zero actions from reset in the default environment
-    (footforge.stance.env_stance: figures after the first 0.5 s)."""
-    from footforge.stance import env_stance
+    (footforge.validate.stance.env_stance: figures after the first 0.5 s)."""
+    from footforge.validate.stance import env_stance
 
     return {feet: env_stance(env, states[0], seconds=env.config.episode_length_s - env.config.policy_dt, step=step)
             for feet, (env, states, step) in rollouts.items()}
@@ -194,7 +194,7 @@ def zero_action_episodes(rollouts):
 @pytest.fixture(scope="module")
 def ten_second_stances(rollouts):
     """Per feet: issue 12's stance measure, 10 s of zero actions from the same reset."""
-    from footforge.stance import env_stance
+    from footforge.validate.stance import env_stance
 
     return {feet: env_stance(env, states[0], seconds=10.0, step=step) for feet, (env, states, step) in rollouts.items()}
 
@@ -244,7 +244,7 @@ def test_zero_action_robot_holds_its_stance_with_the_build_contact(built, feet):
     velocities, zero actions for 10 s; no fall, and after the first 0.5 s the base sinks less than
     10 mm and no foot slides more than 5 mm. (At 5 ms the ball robot slid 51 mm, and AOF diverged
     within 0.03 s.)"""
-    from footforge.stance import env_stance
+    from footforge.validate.stance import env_stance
 
     config = envs.default_config("flat", feet, RICHEST[feet], "build")
     assert (config.sim_dt, config.solver_iterations, config.solver_ls_iterations) == (0.0025, 16, 50)
@@ -435,8 +435,8 @@ def test_a_non_finite_reward_term_or_state_ends_the_episode_as_diverged(rollouts
 
 
 def test_evaluation_reports_robots_whose_simulation_diverged(built, monkeypatch):
-    """footforge.evaluate counts the diverged robots (among the falls) and comparison.md shows them."""
-    from footforge import evaluate as evaluation
+    """footforge.rl.evaluate counts the diverged robots (among the falls) and comparison.md shows them."""
+    from footforge.rl import evaluate as evaluation
 
     config = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]),
                      pushes=replace(envs.default_config("flat", "ball", "B").pushes, enabled=False))
@@ -473,7 +473,7 @@ def test_adaptive_feet_train_at_a_physics_step_that_survives_a_policy_s_actions(
     now steps every feet at the baselines' 5 ms x 4."""
     from footforge.build import BuildOptions, build
     from footforge.envs.stability import divergence_times
-    from footforge.params import default_params_path
+    from footforge.inputs.params import default_params_path
 
     aof = envs.default_config("flat", "aof", "B", "fast")
     assert (aof.sim_dt, aof.decimation) == (0.005, 4) and aof.policy_dt == pytest.approx(0.02)
@@ -497,7 +497,7 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     physics step and solver iterations that model needs on those feet; a policy trained at a
     finer step than the other feet need keeps its own. evaluate() builds its environment
     through on_feet."""
-    from footforge import evaluate as evaluation
+    from footforge.rl import evaluate as evaluation
 
     ball = envs.default_config("flat", "ball", "B", "fast")
     on_aof = envs.on_feet(ball, "aof")
@@ -514,7 +514,7 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     assert (stance_on_aof.contact_model, stance_on_aof.solver_iterations, stance_on_aof.solver_ls_iterations,
             stance_on_aof.sim_dt, stance_on_aof.decimation) == ("stance", 30, 30, 0.0025, 8)
     built_configs = []
-    monkeypatch.setattr("footforge.train.load_policy", lambda d: (None, ball, None))
+    monkeypatch.setattr("footforge.rl.train.load_policy", lambda d: (None, ball, None))
     monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)
     evaluation._policy_and_env("policy", "aof", 1.0, None)
     assert (built_configs[0].feet, built_configs[0].sim_dt, built_configs[0].decimation) == ("aof", 0.005, 4)
@@ -533,7 +533,7 @@ def test_the_warp_backend_is_refused_where_it_cannot_run(built, tmp_path, capsys
     with pytest.raises(InputError, match="warp") as e:
         envs.from_config(config)
     assert "jax" in e.value.fix
-    from footforge.train_cli import main
+    from footforge.cli.train import main
 
     run = tmp_path / "run"
     code = main("flat", "", ["--feet", "ball", "--build-root", str(built["ball"][0].parent), "--out", str(run),

@@ -14,10 +14,11 @@ import onnxruntime
 import pytest
 
 from footforge import constants as C
-from footforge import envs, train
-from footforge.cli import main
+from footforge import envs
+from footforge.rl import train
+from footforge.cli.main import main
 from footforge.envs import observations
-from footforge.train import PPOConfig, load_policy
+from footforge.rl.train import PPOConfig, load_policy
 
 TOLERANCE = 1e-5
 """Max abs difference of the actions, onnxruntime vs JAX (float32 rounding of a few hundred sums)."""

@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from footforge.errors import InputError
-from footforge.foot import collision_points, sole_primitives
-from footforge.params import FootContact, default_params_path, load_params
+from footforge.mjcf.foot import collision_points, sole_primitives
+from footforge.inputs.params import FootContact, default_params_path, load_params
 
 SHAPES = {"box": {"sole": "box", "upper_collisions": True},
           "box_sole_only": {"sole": "box", "upper_collisions": False},
@@ -162,7 +162,7 @@ def test_bad_contact_parameters_name_the_key(tmp_path, contact, key, message):
 
 
 def test_radius_wider_than_the_plate_is_refused(tmp_path, coacd_cache, capsys):
-    from footforge.cli import main
+    from footforge.cli.main import main
 
     path = _params_with(tmp_path, {"sole": "spheres", "radius_m": 0.04}, variants=("aof",))
     out = tmp_path / "out"

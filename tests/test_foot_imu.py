@@ -1,5 +1,5 @@
 """AFF's and AOF's passive joints estimated on the closed chain from its orientation sensors
-(footforge.foot_imu): exact on rigid poses of known angle, rates that are the angles' derivatives,
+(footforge.rl.foot_imu): exact on rigid poses of known angle, rates that are the angles' derivatives,
 and a standing closed chain read like a standing AOF."""
 
 import math
@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 
 from footforge.errors import InputError
-from footforge.foot_imu import ESTIMATED, FootImuEstimator
+from footforge.rl.foot_imu import ESTIMATED, FootImuEstimator
 
 LF = [f"LF_foot/{j}" for j in ESTIMATED]
 

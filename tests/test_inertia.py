@@ -1,9 +1,9 @@
-"""Tests of footforge.inertia: the physical-consistency criteria and balance_inertia."""
+"""Tests of footforge.inputs.inertia: the physical-consistency criteria and balance_inertia."""
 
 import numpy as np
 import pytest
 
-from footforge.inertia import (
+from footforge.inputs.inertia import (
     CODES,
     balance_inertia,
     inertia_defects,

@@ -1,4 +1,4 @@
-"""footforge.jax_compat: the device_put_replicated that Brax 0.14.2 needs on JAX >= 0.10, compared
+"""footforge.rl.jax_compat: the device_put_replicated that Brax 0.14.2 needs on JAX >= 0.10, compared
 with JAX 0.9's own (the pinned set) on values, dtypes, shapes, shardings and device placement."""
 
 import os
@@ -11,7 +11,7 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from footforge import jax_compat
+from footforge.rl import jax_compat
 
 
 def _real():
@@ -59,7 +59,7 @@ def test_install_adds_only_what_is_missing():
 
 SCRIPT = """
 import warnings, jax, jax.numpy as jp, numpy as np
-from footforge import jax_compat
+from footforge.rl import jax_compat
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     real = jax.device_put_replicated

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from footforge.atomic import atomic_directory, remove_stale_temporaries
-from footforge.cli import main
+from footforge.cli.main import main
 from footforge.errors import InputError
 from footforge.outputs import MARKER, check_output_folder, write_marker
 
@@ -48,8 +48,8 @@ def load_pipeline(name):
 # --- a folder with the user's files is refused, before the work, and left intact ---
 
 def test_build_refuses_folder_with_user_files(capsys, monkeypatch, user_folder):
-    monkeypatch.setattr("footforge.build.load_foot_source", never)
-    monkeypatch.setattr("footforge.build.load_params", never)
+    monkeypatch.setattr("footforge.build.pipeline.load_foot_source", never)
+    monkeypatch.setattr("footforge.build.pipeline.load_params", never)
     code, text = run(capsys, "build", "--variant", "aff", "--out", user_folder)
     assert code == 2, text
     assert str(user_folder) in text.replace("\n", "") and "--force" in text and "Traceback" not in text
@@ -65,7 +65,7 @@ def test_validate_refuses_folder_with_user_files(capsys, monkeypatch, user_folde
 
 
 def test_evaluate_pipeline_refuses_folder_with_user_files(capsys, monkeypatch, user_folder):
-    monkeypatch.setattr("footforge.evaluate.evaluate", never)
+    monkeypatch.setattr("footforge.rl.evaluate.evaluate", never)
     code = load_pipeline("evaluate").main(["--policy", str(user_folder / "policy"), "--feet", "aff",
                                             "--out", str(user_folder)])
     text = capsys.readouterr().err
@@ -75,7 +75,7 @@ def test_evaluate_pipeline_refuses_folder_with_user_files(capsys, monkeypatch, u
 
 
 def test_closed_chain_pipeline_refuses_folder_with_user_files(capsys, monkeypatch, user_folder):
-    monkeypatch.setattr("footforge.closed_chain.evaluate_closed_chain", never)
+    monkeypatch.setattr("footforge.rl.evaluate_closed_chain.evaluate_closed_chain", never)
     code = load_pipeline("evaluate_closed_chain").main(["--policy", str(user_folder / "policy"),
                                                         "--out", str(user_folder)])
     text = capsys.readouterr().err
@@ -86,7 +86,7 @@ def test_closed_chain_pipeline_refuses_folder_with_user_files(capsys, monkeypatc
 # --- bad paths: refused first, exit 2, one line naming the path ---
 
 def test_build_refuses_existing_file(capsys, monkeypatch, tmp_path):
-    monkeypatch.setattr("footforge.build.load_params", never)
+    monkeypatch.setattr("footforge.build.pipeline.load_params", never)
     target = tmp_path / "notes.txt"
     target.write_text("mine")
     code, text = run(capsys, "build", "--variant", "aff", "--out", target)
@@ -95,14 +95,14 @@ def test_build_refuses_existing_file(capsys, monkeypatch, tmp_path):
 
 
 def test_build_refuses_path_under_a_file(capsys, monkeypatch, tmp_path):
-    monkeypatch.setattr("footforge.build.load_params", never)
+    monkeypatch.setattr("footforge.build.pipeline.load_params", never)
     (tmp_path / "notes.txt").write_text("mine")
     code, text = run(capsys, "build", "--variant", "aff", "--out", tmp_path / "notes.txt" / "out")
     assert code == 2 and "notes.txt is a file" in text.replace("\n", "") and "Traceback" not in text
 
 
 def test_build_refuses_current_folder(capsys, monkeypatch, tmp_path):
-    monkeypatch.setattr("footforge.build.load_params", never)
+    monkeypatch.setattr("footforge.build.pipeline.load_params", never)
     monkeypatch.chdir(tmp_path)
     code, text = run(capsys, "build", "--variant", "aff", "--out", ".", "--force")
     assert code == 2 and "current folder" in text
@@ -110,7 +110,7 @@ def test_build_refuses_current_folder(capsys, monkeypatch, tmp_path):
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes anywhere: chmod cannot make a folder unwritable")
 def test_build_refuses_unwritable_parent(capsys, monkeypatch, tmp_path):
-    monkeypatch.setattr("footforge.build.load_params", never)
+    monkeypatch.setattr("footforge.build.pipeline.load_params", never)
     locked = tmp_path / "locked"
     locked.mkdir()
     locked.chmod(0o500)
@@ -271,7 +271,7 @@ def run_coacd(mesh, **kwargs):
 PARENT_WITH_COACD = """
 import trimesh
 from pathlib import Path
-from footforge.collision import DecompositionConfig, _run_coacd
+from footforge.models.collision import DecompositionConfig, _run_coacd
 _run_coacd(Path("fake.stl"), trimesh.creation.box(), DecompositionConfig(timeout_s=600))
 """
 
@@ -300,7 +300,7 @@ def test_sigterm_during_build_cleans_up_like_ctrl_c(capsys, monkeypatch, tmp_pat
         time.sleep(5)
         pytest.fail("SIGTERM did not interrupt")
 
-    monkeypatch.setattr("footforge.build.load_params", terminated)
+    monkeypatch.setattr("footforge.build.pipeline.load_params", terminated)
     before = signal.getsignal(signal.SIGTERM)
     code, text = run(capsys, "build", "--variant", "aff", "--out", tmp_path / "out")
     assert code == 2 and "interrupted" in text

@@ -99,9 +99,9 @@ def test_headless_on_the_closed_chain(built, tmp_path):
 def test_onnx_file_and_policy_folder_act_alike(tmp_path):
     """An exported .onnx file gives the policy folder's configuration where it matters and the
     same actions; the key map changes the command as printed."""
-    from footforge.export_onnx import export
-    from footforge.play import apply_key, key_map_text, load_policy
-    from footforge.train import load_policy_config
+    from footforge.rl.export_onnx import export
+    from footforge.rl.play import apply_key, key_map_text, load_policy
+    from footforge.rl.train import load_policy_config
 
     folder = load_policy(POLICY)
     onnx_file = load_policy(export(POLICY, tmp_path / "policy.onnx"))
@@ -126,8 +126,8 @@ def test_onnx_file_and_policy_folder_act_alike(tmp_path):
 
 def test_haptic_policies_keep_their_own_feet_or_the_closed_chain():
     """A BH policy of AOF walks on AOF, or on the closed chain through its sensors' estimates
-    (footforge.foot_imu); AFF's passive joints are not AOF's."""
-    from footforge.play import OnnxPolicy, check_feet
+    (footforge.rl.foot_imu); AFF's passive joints are not AOF's."""
+    from footforge.rl.play import OnnxPolicy, check_feet
 
     bh = OnnxPolicy(POLICY, None, {}, replace(envs.default_config("flat", "aof", "BH")))
     assert check_feet(bh, None) == "aof"
@@ -181,7 +181,7 @@ def test_viewer_loop_takes_keys_and_steps(built, monkeypatch):
     import mujoco
     import mujoco.viewer
 
-    from footforge.play import Player, PlayConfig, load_policy, play_interactive
+    from footforge.rl.play import Player, PlayConfig, load_policy, play_interactive
 
     player = Player(load_policy(POLICY), PlayConfig(build_root=built["ball"][0].parent))
     seen = []

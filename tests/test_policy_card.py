@@ -6,9 +6,9 @@ import json
 import re
 
 from footforge import envs
-from footforge.evaluate import INDICES
-from footforge.policy_card import card_name, policy_card
-from footforge.train import PPOConfig, to_dict
+from footforge.rl.evaluate import INDICES
+from footforge.rl.policy_card import card_name, policy_card
+from footforge.rl.train import PPOConfig, to_dict
 
 
 def _result(policy, feet, offset, trained_on="aof"):

@@ -15,13 +15,13 @@ import pytest
 import trimesh
 import yaml
 
-from footforge.cli import main
-from footforge.collision import DecompositionConfig, decompose
-from footforge.description import load_description
+from footforge.cli.main import main
+from footforge.models.collision import DecompositionConfig, decompose
+from footforge.inputs.description import load_description
 from footforge.errors import InputError
-from footforge.foot_root import select_foot_root
-from footforge.mesh_simplify import simplify_to_budget
-from footforge.urdf_check import check_urdf
+from footforge.inputs.foot_root import select_foot_root
+from footforge.models.mesh_simplify import simplify_to_budget
+from footforge.inputs.urdf_lint import check_urdf
 
 from conftest import REPO
 
@@ -220,7 +220,7 @@ def test_macro_file_alone_is_explained(capsys, tmp_path, public_pkg):
 
 
 def test_sidecar_beside_the_description_wins_over_the_shipped_one(public_pkg):
-    from footforge.sidecar import find_sidecar
+    from footforge.inputs.sidecar import find_sidecar
 
     rig = robot_file(public_pkg, "floating_softfoot.urdf.xacro")
     assert find_sidecar(rig) == PUBLIC_SIDECAR

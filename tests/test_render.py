@@ -15,7 +15,7 @@ from PIL import Image
 RENDER = """
 import json, sys
 from footforge.errors import InputError
-from footforge.render import render_frames, write_gif, write_strip  # before mujoco, as footforge's tools do
+from footforge.rl.render import render_frames, write_gif, write_strip  # before mujoco, as footforge's tools do
 import mujoco, numpy as np
 
 model = mujoco.MjModel.from_xml_string('''<mujoco>
@@ -68,7 +68,7 @@ def test_render_writes_gif_and_strip_or_names_the_fix(tmp_path, backend):
 
 
 def test_disabled_rendering_is_an_input_error():
-    code = ("from footforge.errors import InputError\nfrom footforge.render import check_renderer\n"
+    code = ("from footforge.errors import InputError\nfrom footforge.rl.render import check_renderer\n"
             "try:\n    check_renderer()\nexcept InputError as e:\n    print(e)\n")
     proc = _run(code, "disable")
     assert proc.returncode == 0 and not proc.stderr, proc.stderr
@@ -95,9 +95,9 @@ def test_importing_footforge_leaves_mujoco_gl_as_the_user_has_it():
 
     probe = "import os, {module}; print(os.environ.get('MUJOCO_GL'))"
     unset = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
-    for module, env, expected in (("footforge", unset, "None"), ("footforge.cli", unset, "disable"),
-                                  ("footforge.train_cli", unset, "disable"),
-                                  ("footforge.cli", {**unset, "MUJOCO_GL": "glfw"}, "glfw")):
+    for module, env, expected in (("footforge", unset, "None"), ("footforge.cli.main", unset, "disable"),
+                                  ("footforge.cli.train", unset, "disable"),
+                                  ("footforge.cli.main", {**unset, "MUJOCO_GL": "glfw"}, "glfw")):
         run = subprocess.run([sys.executable, "-c", probe.format(module=module)], env=env, capture_output=True,
                              text=True, timeout=300)
         assert run.returncode == 0 and run.stdout.strip().splitlines()[-1] == expected, (module, run.stdout, run.stderr)

@@ -219,7 +219,7 @@ def test_ball_robots_stand_on_level_0_in_float32(built):
     measurement of benchmarks/stance_env.py. At the stiffer impedance ball keeps on a plane
     (0.99/0.999), MJX's penetration-only heightfield contacts flickered: 3 of the 6 fell and two
     slid 315 and 534 mm (anymal.STANCE_CONTACT_SOLIMP_FLOAT32)."""
-    from footforge.stance import env_stance, env_stance_start
+    from footforge.validate.stance import env_stance, env_stance_start
 
     env, first = env_stance_start("rough", "ball", built["ball"][0])
     assert first.pipeline_state.qpos.dtype == jp.float32
@@ -292,8 +292,8 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
     """A perceptive ball-foot policy (freshly initialised) evaluated over every tile of a small
     terrain: indices per kind and level, and the Figure 9 table (zero-shot on other feet is the
     flat evaluation's test: the same code)."""
-    from footforge.evaluate import INDICES
-    from footforge.train import default_ppo, initial_policy
+    from footforge.rl.evaluate import INDICES
+    from footforge.rl.train import default_ppo, initial_policy
 
     config = replace(envs.default_config("rough", "ball", "P"), terrain=SMALL)
     initial_policy(config, default_ppo("rough"), tmp_path / "policy", observation_size=188)

@@ -1,11 +1,11 @@
 """Standing still in the built scenes: the `stand` keyframe is where `home` comes to rest, and
-from it a robot holding its targets neither sinks nor slides (footforge.stance)."""
+from it a robot holding its targets neither sinks nor slides (footforge.validate.stance)."""
 
 import mujoco
 import numpy as np
 import pytest
 
-from footforge.stance import stand
+from footforge.validate.stance import stand
 
 
 @pytest.mark.parametrize("variant", ["ball", "aff", "aof"])
@@ -38,7 +38,7 @@ def test_the_stance_rests_on_static_friction(built, variant):
     weight (the vertical ground forces sum to m g, computed from the contacts and from the masses)
     and push sideways against each other (horizontal forces cancelling in sum, each a large
     fraction of its foot's load); without friction the PD legs splay into a crouch."""
-    from footforge.stance import foot_loads, frictionless_rest
+    from footforge.validate.stance import foot_loads, frictionless_rest
 
     model = mujoco.MjModel.from_xml_path(str(built[variant][0] / "scene.xml"))
     loads = foot_loads(model)

@@ -18,7 +18,7 @@ from footforge import envs
 from footforge.envs import observations
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
-from footforge.train import (
+from footforge.rl.train import (
     PPOConfig,
     from_dict,
     latest_checkpoint,
@@ -56,7 +56,7 @@ def test_tiny_ppo_run_increases_the_return(built, tmp_path):
     """
     from dataclasses import replace
 
-    from footforge import train
+    from footforge.rl import train
     cfg = envs.default_config("flat", "ball", "B")
     cfg = replace(cfg, build_dir=str(built["ball"][0]), episode_length_s=2.0,
                   commands=replace(cfg.commands, lin_vel_x_range=(0.0, 0.0), lin_vel_y_range=(0.0, 0.0),
@@ -130,7 +130,7 @@ def test_saved_policy_loads_for_inference(resumed):
 
 @pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
 def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path):
-    from footforge.evaluate import INDICES
+    from footforge.rl.evaluate import INDICES
     out, _ = resumed
     report = tmp_path / "eval"
     code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(out / "policy"),
@@ -157,7 +157,7 @@ def test_privileged_critic_trains_and_its_policy_loads(built, tmp_path):
     environment's dict observations and on the policy's slice alone."""
     from dataclasses import replace
 
-    from footforge import train
+    from footforge.rl import train
 
     cfg = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]), episode_length_s=1.0,
                   privileged_critic=True)
@@ -177,7 +177,7 @@ def test_initial_policy_of_a_privileged_critic_loads_and_acts(tmp_path):
     them back, and the policy acts on the dict observation and its `state` slice only."""
     from dataclasses import replace
 
-    from footforge import train
+    from footforge.rl import train
 
     cfg = replace(envs.default_config("flat", "ball", "B"), privileged_critic=True)
     ppo = PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,))
@@ -220,7 +220,7 @@ def _params(seed: int, ppo: PPOConfig):
     """(normaliser, policy, value) parameters of a 48-input network, as Brax's PPO passes them."""
     from brax.training.acme import running_statistics, specs
 
-    from footforge import train
+    from footforge.rl import train
 
     nets = train.network_factory(ppo)(observation_size=48, action_size=12,
                                       preprocess_observations_fn=running_statistics.normalize)
@@ -244,7 +244,7 @@ def written_run(built, tmp_path):
     32 and 64: (run folder, env config, PPO config)."""
     from dataclasses import replace
 
-    from footforge import train
+    from footforge.rl import train
 
     cfg = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]))
     ppo = PPOConfig(**SMALL_PPO)
@@ -276,7 +276,7 @@ def _fake_ppo(calls):
 
 
 def test_checkpoints_carry_a_manifest_that_catches_damage(written_run):
-    from footforge import train
+    from footforge.rl import train
 
     run, _, _ = written_run
     (_, good), (_, newest) = train.checkpoints(run)
@@ -293,7 +293,7 @@ def test_checkpoints_carry_a_manifest_that_catches_damage(written_run):
 
 @pytest.mark.parametrize("damage", ["truncated data", "empty _METADATA"])
 def test_resume_skips_a_damaged_checkpoint_and_says_so(written_run, monkeypatch, capsys, damage):
-    from footforge import train
+    from footforge.rl import train
 
     run, cfg, ppo = written_run
     newest = train.latest_checkpoint(run)[1]
@@ -316,8 +316,8 @@ def test_resume_skips_a_damaged_checkpoint_and_says_so(written_run, monkeypatch,
 
 
 def test_resume_with_every_checkpoint_damaged_is_an_input_error(written_run, capsys):
-    from footforge import train
-    from footforge.train_cli import main
+    from footforge.rl import train
+    from footforge.cli.train import main
 
     run, _, _ = written_run
     for _, folder in train.checkpoints(run):
@@ -330,7 +330,7 @@ def test_resume_with_every_checkpoint_damaged_is_an_input_error(written_run, cap
 
 
 def test_an_existing_run_is_refused_without_resume_or_force(written_run, capsys):
-    from footforge.train_cli import main
+    from footforge.cli.train import main
 
     run, _, _ = written_run
     before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
@@ -344,7 +344,7 @@ def test_an_existing_run_is_refused_without_resume_or_force(written_run, capsys)
 
 
 def test_force_removes_only_what_footforge_wrote(written_run):
-    from footforge import train
+    from footforge.rl import train
     from footforge.outputs import MARKER
 
     run, _, _ = written_run
@@ -358,7 +358,7 @@ def test_force_removes_only_what_footforge_wrote(written_run):
 
 
 def test_a_folder_of_the_user_is_refused_and_never_emptied(tmp_path):
-    from footforge import train
+    from footforge.rl import train
 
     mine = tmp_path / "mine"
     mine.mkdir()
@@ -383,7 +383,7 @@ def test_an_evaluation_does_not_replace_a_run_folder(written_run):
 
 
 def _capture_train(monkeypatch):
-    from footforge import train
+    from footforge.rl import train
 
     seen = {}
 
@@ -395,7 +395,7 @@ def _capture_train(monkeypatch):
 
 
 def test_resume_reads_the_run_s_settings_and_names_a_differing_flag(written_run, monkeypatch, capsys):
-    from footforge.train_cli import main
+    from footforge.cli.train import main
 
     run, cfg, ppo = written_run
     seen = _capture_train(monkeypatch)
@@ -419,7 +419,7 @@ def replace_ppo(ppo, **changes):
 
 
 def test_build_root_names_the_builds_everywhere_and_build_dir_still_works(built, monkeypatch, capsys, tmp_path):
-    from footforge.train_cli import main
+    from footforge.cli.train import main
 
     seen = _capture_train(monkeypatch)
     root = built["ball"][0].parent
@@ -458,7 +458,7 @@ def test_progress_is_printed_as_plain_lines_when_not_a_terminal():
 
     from rich.console import Console
 
-    from footforge.train_cli import _Reporter
+    from footforge.cli.train import _Reporter
 
     log = io.StringIO()
     metrics = {"eval/episode_reward": 12.5, "eval/episode_error/lin_vel_x_per_step": 0.25}
@@ -488,8 +488,8 @@ def test_training_errors_go_to_stderr(written_run):
 def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypatch, capsys):
     """SIGTERM (a batch scheduler's kill) during training: no traceback, exit 2, and stderr says
     what the run folder keeps and how to continue."""
-    from footforge import train as train_lib
-    from footforge import train_cli
+    from footforge.rl import train as train_lib
+    from footforge.cli import train as train_cli
 
     def terminated(*args, **kwargs):
         os.kill(os.getpid(), signal.SIGTERM)
@@ -509,7 +509,7 @@ def test_the_first_epoch_is_estimated_from_the_throughput_not_its_compilation():
     """--max-minutes: after the first epoch (compilation included) the next is estimated from the
     measured steps/s plus an evaluation; later epochs by the last one's time. The H100 campaign's
     AFF job stopped at 4.8 of 8.5 minutes when its 4.8-minute first epoch was the estimate."""
-    from footforge.train import next_epoch_seconds
+    from footforge.rl.train import next_epoch_seconds
 
     # 4 M steps at 46,000 steps/s: 87 s, plus a 75 s evaluation; the first epoch took 290 s.
     assert next_epoch_seconds(290.0, True, 46_000.0, 4_000_000, 75.0) == pytest.approx(4e6 / 46e3 + 75.0)
@@ -522,7 +522,7 @@ def test_contact_model_flag_sets_the_model_s_physics_and_resume_keeps_it(written
     """Training uses contact_model 'stance' by default, with the step and solver iterations it
     needs on the chosen feet; --contact-model fast sets fast's own physics (ball feet back at
     5 ms x 4, 4/8 iterations; envs.physics); a resumed run names a differing --contact-model."""
-    from footforge.train_cli import main
+    from footforge.cli.train import main
 
     from footforge import envs as envs_module
 
@@ -558,14 +558,14 @@ def test_training_with_float64_physics_keeps_the_networks_float32(built, tmp_pat
     and the ONNX export casts it.)"""
     script = (
         "import sys, jax, numpy as np\n"
-        "from footforge.train_cli import main\n"
+        "from footforge.cli.train import main\n"
         "code = main('flat', 'test', sys.argv[1:])\n"
         "assert code == 0, code\n"
         "assert jax.config.read('jax_enable_x64')\n"
-        "from footforge.train import load_policy\n"
+        "from footforge.rl.train import load_policy\n"
         "policy, config, _ = load_policy(sys.argv[sys.argv.index('--out') + 1] + '/policy')\n"
         "assert config.float64_physics and config.contact_model == 'stance'\n"
-        "from footforge.train import load_policy_parameters\n"
+        "from footforge.rl.train import load_policy_parameters\n"
         "saved = load_policy_parameters(sys.argv[sys.argv.index('--out') + 1] + '/policy').params\n"
         "leaves = jax.tree_util.tree_leaves(saved[1:])  # policy and value networks (saved[0]: the normaliser)\n"
         "print('PARAMS', sorted({str(x.dtype) for x in leaves}))\n"

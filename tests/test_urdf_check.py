@@ -1,4 +1,4 @@
-"""Tests of footforge.urdf_check: planted defects, repairs, cross-checks with Pinocchio and MuJoCo."""
+"""Tests of footforge.inputs.urdf_lint: planted defects, repairs, cross-checks with Pinocchio and MuJoCo."""
 
 import copy
 from pathlib import Path
@@ -8,7 +8,7 @@ import pytest
 from lxml import etree
 
 from footforge.errors import InputError
-from footforge.urdf_check import (
+from footforge.inputs.urdf_lint import (
     Finding,
     check_urdf,
     errors,

@@ -14,9 +14,9 @@ from pxr import Usd, UsdGeom, UsdPhysics, UsdShade
 from footforge import constants as C
 from footforge import units
 from footforge.build import BuildOptions, build
-from footforge.cli import main
+from footforge.cli.main import main
 from footforge.errors import CheckFailure
-from footforge.params import load_params
+from footforge.inputs.params import load_params
 from footforge.usd import (
     compare_with_model,
     comparison_failures,

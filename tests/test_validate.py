@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from footforge.cli import main
+from footforge.cli.main import main
 from footforge.errors import InputError
-from footforge.params import load_params
+from footforge.inputs.params import load_params
 from footforge.validate import fidelity
 from footforge.validate.calibrate import write_params
 from footforge.validate.runner import (
@@ -218,12 +218,12 @@ def test_ground_impulse_equals_momentum_change_plus_weight_times_time(drops):
 
 def test_peak_force_and_impulse_do_not_depend_on_the_recording_interval():
     """The closed chain (0.25 ms step) recorded every 2 ms and every 1 ms: same peak, same impulse."""
-    from footforge.build import Stages
+    from footforge.timing import StageTimer
     from footforge.validate import simulate
-    from footforge.validate.runner import Session
+    from footforge.validate.runner import ValidationModels
 
-    session = Session(ValidateOptions(variants=()), Stages(None))
-    (case,) = session.cases("full", select(["flat_2cm"]))
+    models = ValidationModels(ValidateOptions(variants=()), StageTimer(None))
+    (case,) = models.cases("full", select(["flat_2cm"]))
     coarse = simulate.run(case, sample_dt_s=0.002)["scalars"]
     fine = simulate.run(case, sample_dt_s=0.001)["scalars"]
     assert fine["peak_force_n"] == pytest.approx(coarse["peak_force_n"], rel=0.02)
@@ -303,11 +303,11 @@ def test_closed_chain_reference_pose_is_at_rest():
     pose's arch sum; with rest 0 the sole rose 15.5 mm)."""
     import mujoco
 
-    from footforge import foot as foot_lib
-    from footforge.build import Stages
-    from footforge.validate.runner import Session
+    from footforge.mjcf import foot as foot_lib
+    from footforge.timing import StageTimer
+    from footforge.validate.runner import ValidationModels
 
-    full = Session(ValidateOptions(variants=()), Stages(None)).feet["full"]
+    full = ValidationModels(ValidateOptions(variants=()), StageTimer(None)).feet["full"]
     model = foot_lib.compile_model(full.mjcf)
     model.opt.timestep = 0.00025  # the drop tests' step for the closed chain
     model.opt.gravity[:] = 0.0

@@ -112,21 +112,18 @@ def build_dir(config: EnvConfig) -> Path:
 
 
 def ensure_built(config: EnvConfig) -> Path:
-    """The build folder of config.feet; runs `footforge build` there if it has no scene.xml.
+    """The build folder of config.feet, checked. Environments never build: the training pipelines
+    do (footforge.cli.train), and a library user runs `footforge build` first.
 
     Raises:
-      InputError: config.build_dir holds no scene.xml, or the folder holds a build this footforge
-        cannot use (another variant, an older build format, inputs changed since); never rebuilt
-        silently, since the folder may hold a user's build from their own parameter file.
+      InputError: the folder holds no scene.xml, or a build this footforge cannot use (another
+        variant, an older build format, inputs changed since); never rebuilt silently, since the
+        folder may hold a user's build from their own parameter file.
     """
     folder = build_dir(config)
     if not (folder / "scene.xml").is_file():
-        if config.build_dir:
-            raise InputError(f"{folder} holds no scene.xml", file=str(folder),
-                             fix=f"run footforge build --variant {config.feet} --out {folder}")
-        from footforge.build import BuildOptions, build
-
-        build(BuildOptions(variant=config.feet, out_dir=folder, formats=("mjcf",)))
+        raise InputError(f"{folder} holds no scene.xml", file=str(folder),
+                         fix=f"run footforge build --variant {config.feet} --out {folder}")
     problem = build_problem(folder, config.feet)
     if problem:
         raise InputError(f"{folder} cannot be used: {problem}", file=str(folder / "build_report.json"),

@@ -1,7 +1,7 @@
 """Configuration of the locomotion environments: frozen dataclasses, one docstring per field.
 
 Defaults are the paper's and, where it is silent, its public baseline's (OmniIsaacGymEnvs ANYmal;
-see ../shared/reference/paper_setup.md). PPO hyperparameters live apart, in footforge.train.
+see ../shared/reference/paper_setup.md). PPO hyperparameters live apart, in footforge.rl.train.
 """
 
 from __future__ import annotations
@@ -361,7 +361,7 @@ def check_policy_on_feet(config: EnvConfig, feet: str, source: str | None = None
     """Raises InputError for a haptic policy (BH, PH) on derived feet other than its own: it reads
     the passive joints of the feet it was trained on, which other derived feet do not have. On the
     closed chain (`full`) it reads those joints' estimates from the feet's sensors
-    (footforge.foot_imu). Blind and perceptive policies run on any feet (zero-shot). `source`:
+    (footforge.rl.foot_imu). Blind and perceptive policies run on any feet (zero-shot). `source`:
     the policy's folder or file, named in the error."""
     if config.haptic and feet not in (config.feet, "full"):
         raise InputError(f"a {config.policy} policy reads the passive joints of the {config.feet} feet it was "

@@ -140,7 +140,7 @@ class LocomotionEnv(Env):
             qpos = qpos.at[2].add(self._stand_site_clearance - clearance)
         return qpos, qvel, target
 
-    # The policy's side of a step, shared with the CPU runner of footforge.closed_chain ---------
+    # The policy's side of a step, shared with the CPU runner of footforge.rl.evaluate_closed_chain ---------
     def clip_action(self, action):
         """The policy output as the environment uses it, within +-EnvConfig.action_clip."""
         return jp.clip(action, -self.config.action_clip, self.config.action_clip)

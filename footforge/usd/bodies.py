@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from pxr import Gf, UsdGeom, UsdPhysics, Vt
 
-from footforge import massprops
+from footforge.models import massprops
 from footforge.usd.context import IDENTITY_QUAT, ExportContext, Pose, mj_name, mul_pose, neg_pose
 
 

@@ -11,7 +11,8 @@ import mujoco
 import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdPhysics, UsdValidation
 
-from footforge import massprops, units
+from footforge import units
+from footforge.models import massprops
 from footforge.usd.context import mj_name
 from footforge.usd.joints import servo_joint
 

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdPhysics
 
-from footforge import massprops
+from footforge.models import massprops
 from footforge.usd import bodies, geoms, joints
 from footforge.usd.context import ExportContext, Unsupported
 

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from footforge.errors import InputError
-from footforge.params import VariantParams, load_params
+from footforge.inputs.params import VariantParams, load_params
 from footforge.validate import fidelity
 
 GROUPS = {"aff": (("ankle_pitch",), ("ankle_roll",)),
@@ -67,8 +67,8 @@ def training_split(scenarios: list) -> tuple[list, list]:
     return [s for s in scenarios if s not in held], held
 
 
-def variant_params_summary(session, variant: str) -> dict:
-    params = session.source.params
+def variant_params_summary(models, variant: str) -> dict:
+    params = models.source.params
     joints = params.joints_for(variant)
     return {"joints": {n: {"stiffness": j.stiffness, "damping": j.damping} for n, j in joints.items()},
             "sole_lift_m": params.sole_lift_m[variant]}
@@ -83,24 +83,24 @@ def mean_series_errors(runs: dict[str, dict], full_runs: dict[str, dict], names)
         "objective": float(np.mean([fidelity.objective(e) for e in errs]))}
 
 
-def calibrate(session, pool, scenarios, runs, options, advance) -> dict:
+def calibrate(models, pool, scenarios, runs, options, advance) -> dict:
     train, held = training_split(scenarios)
     if not train:
         raise InputError("calibration needs scenarios to train on", fix="run --calibrate with --scenarios quick or all")
     out = {}
     for variant in [v for v in options.variants if v in DERIVED]:
-        params = session.source.params
-        before = variant_params_summary(session, variant)
-        cases = session.cases(variant, train)
+        params = models.source.params
+        before = variant_params_summary(models, variant)
+        cases = models.cases(variant, train)
         full = runs["full"]
         tick = advance(f"calibrating {variant}", options.calibration_evaluations)
-        best, history = _fit(pool, cases, full, params, variant, session.feet[variant], options, tick)
+        best, history = _fit(pool, cases, full, params, variant, models.feet[variant], options, tick)
         joints, lift = _values(best, variant)
-        session.reload(variant, write_params(params.source, variant, joints, lift))
-        new_runs = {r["scenario"]: r for r in pool.map(session.cases(variant, scenarios),
+        models.reload(variant, write_params(params.source, variant, joints, lift))
+        new_runs = {r["scenario"]: r for r in pool.map(models.cases(variant, scenarios),
                                                        advance(f"re-running {variant}", len(scenarios)))}
         out[variant] = {
-            "parameters_before": before, "parameters_after": variant_params_summary(session, variant),
+            "parameters_before": before, "parameters_after": variant_params_summary(models, variant),
             "objective_before": history[0], "objective_after": float(min(history)), "evaluations": len(history),
             "objective_history": history, "written_to": str(params.source),
             "train": [s.name for s in train], "held_out": [s.name for s in held],

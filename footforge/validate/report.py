@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from footforge.atomic import atomic_directory
-from footforge.build import json_default
+from footforge.provenance import json_default
 from footforge.validate import fidelity as fidelity_lib
 
 METRICS = ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm", "slip_mm")

@@ -6,9 +6,9 @@ import mujoco
 import numpy as np
 
 from footforge import constants as C
-from footforge import foot as foot_lib
-from footforge.params import VariantParams
-from footforge.robot import build_rig
+from footforge.mjcf import foot as foot_lib
+from footforge.inputs.params import VariantParams
+from footforge.mjcf.rig import build_rig
 from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
 from footforge.validate.simulate import RigCase
 

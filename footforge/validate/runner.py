@@ -8,15 +8,16 @@ import os
 import platform
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 from typing import Callable
 
 from footforge import __version__
-from footforge import foot as foot_lib
-from footforge.build import BuildOptions, Stages, load_foot_source, versions
+from footforge.mjcf import foot as foot_lib
 from footforge.errors import InputError
-from footforge.params import VariantParams
+from footforge.inputs.params import VariantParams
+from footforge.models.foot_source import FootInputs, load_foot_source
 from footforge.processes import die_with_parent
+from footforge.provenance import versions
+from footforge.timing import StageTimer
 from footforge.validate import calibrate as calibration
 from footforge.validate import fidelity, rigs, simulate
 from footforge.validate.scenarios import Scenario, select
@@ -43,7 +44,7 @@ class ValidateOptions:
     thresholds: fidelity.Thresholds = field(default_factory=fidelity.Thresholds)
     seed: int = 0
     """Added to every random scenario's seed (rough patches)."""
-    build: BuildOptions = field(default_factory=lambda: BuildOptions(variant="full", out_dir=Path(".")))
+    foot: FootInputs = FootInputs()
     """Foot description, sidecar, parameter file, packages and CoACD cache to build from."""
 
 
@@ -88,13 +89,13 @@ def _seeded(scenarios: list[Scenario], seed: int) -> list[Scenario]:
     return [replace(s, seed=s.seed + seed) if s.obstacle == "rough" else s for s in scenarios]
 
 
-class Session:
+class ValidationModels:
     """The models of one validation: the foot source, each variant's foot, the sole extent."""
 
-    def __init__(self, options: ValidateOptions, stage: Stages):
+    def __init__(self, options: ValidateOptions, stage: StageTimer):
         self.inputs: dict = {}
         """Input files with their hashes, checks and warnings (build_report's form)."""
-        self.source = load_foot_source(options.build, stage, self.inputs)
+        self.source = load_foot_source(options.foot, stage, self.inputs)
         self.feet = rigs.build_feet(self.source, options.variants)
         self.sole = rigs.sole_extent(self.feet["full"])
 
@@ -141,13 +142,13 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
     `progress(description, total)` returns a callback to advance by one finished run.
     """
     scenarios = _seeded(select(list(options.scenarios)), options.seed)
-    stage = Stages(None)
-    session = Session(options, stage)
+    stage = StageTimer(None)
+    models = ValidationModels(options, stage)
     advance = progress or (lambda description, total: lambda: None)
     pool = Pool(options.jobs)
     try:
         variants = ("full",) + options.variants
-        cases = [c for v in variants for c in session.cases(v, scenarios)]
+        cases = [c for v in variants for c in models.cases(v, scenarios)]
         results = pool.map(cases, advance("drop tests", len(cases)))
         runs = {v: {} for v in variants}
         for r in results:
@@ -155,8 +156,8 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
         report = {
             "footforge": __version__, "versions": versions(), "machine": platform.platform(),
             "seed": options.seed, "jobs": options.jobs, "thresholds": options.thresholds.as_dict(),
-            "params": str(session.source.params.source), "inputs": session.inputs.get("inputs", {}),
-            "scenarios": [s.describe() for s in scenarios], "sole_extent_m": asdict(session.sole),
+            "params": str(models.source.params.source), "inputs": models.inputs.get("inputs", {}),
+            "scenarios": [s.describe() for s in scenarios], "sole_extent_m": asdict(models.sole),
             "reference": reference_checks(runs["full"]), "runs": runs,
             "speed": {v: speed(runs[v]) for v in variants},
             "fidelity": {v: compare(runs[v], runs["full"], options.thresholds) for v in options.variants},
@@ -165,7 +166,7 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
         for v in variants:
             report["speed"][v]["vs_full"] = report["speed"][v]["realtime_factor"] / base
         if options.calibrate:
-            report["calibration"] = calibration.calibrate(session, pool, scenarios, runs, options, advance)
+            report["calibration"] = calibration.calibrate(models, pool, scenarios, runs, options, advance)
             for v, cal in report["calibration"].items():
                 cal["fidelity_summary_before"] = report["fidelity"][v]["summary"]
                 runs[v] = cal.pop("runs")

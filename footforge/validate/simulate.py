@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from footforge.foot import collision_points
+from footforge.mjcf.foot import collision_points
 from footforge.validate.scenarios import Scenario
 
 SAMPLE_DT_S = 0.002
@@ -38,7 +38,7 @@ class RigCase:
     xml: str
     assets: dict
     sole_bodies: tuple[str, ...] = ()
-    """Foot bodies whose bottoms form the sole (footforge.foot.sole_bodies), without the rig's
+    """Foot bodies whose bottoms form the sole (footforge.mjcf.foot.sole_bodies), without the rig's
     `foot/` prefix; none for the ball."""
     patch: dict | None = None
     """Calibration trial values applied to the compiled model: {"joints": {name: {"stiffness":

@@ -231,9 +231,9 @@ def run_state(run: Path) -> dict:
 
 def pack(run: Path, results: Path) -> str:
     """results/RUN.tar.gz: the run folder with its newest intact checkpoint only (the manifest
-    check of footforge.train; others, and those set aside as *.corrupt, are left out); TensorBoard
+    check of footforge.rl.train; others, and those set aside as *.corrupt, are left out); TensorBoard
     left out when the whole would pass 16 MiB (metrics.jsonl holds the same curves)."""
-    from footforge.train import checkpoint_problem, checkpoints as run_checkpoints
+    from footforge.rl.train import checkpoint_problem, checkpoints as run_checkpoints
 
     found = [path for _, path in run_checkpoints(run)]
     intact = [p for p in found if checkpoint_problem(p, read=False) is None]

@@ -27,7 +27,7 @@ fail() { echo "prepare: error: $*" >&2; exit 1; }
 # checked against the machine's packages (see README, "Training on an offline GPU machine").
 WHEELS=(
     mujoco==3.17.0 mujoco-mjx==3.17.0 brax==0.14.2
-    tensorboardX==2.6.5   # footforge.train's logger (the machine has tensorboard, not tensorboardX)
+    tensorboardX==2.6.5   # footforge.rl.train's logger (the machine has tensorboard, not tensorboardX)
     ml_collections==1.1.0 # imported by brax.training.agents.ppo.checkpoint
     jaxopt==0.8.5         # imported by brax.envs (brax.generalized.constraint)
     trimesh==5.2.0        # imported by mujoco.mjx at import time (mjx/_src/mesh.py)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from footforge.description import Description, descriptions_dir
+from footforge.inputs.description import Description, descriptions_dir
 from footforge.errors import InputError
 
 WORLD_LINK = "world"

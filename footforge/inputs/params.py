@@ -9,8 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from footforge.description import descriptions_dir
-from footforge.yaml_reader import YamlReader, read_yaml
+from footforge.inputs.description import descriptions_dir
+from footforge.inputs.yaml_reader import YamlReader, read_yaml
 
 
 def default_params_path() -> Path:

@@ -1,4 +1,4 @@
-"""The `footforge` command line: a thin layer over footforge.build, footforge.check and footforge.export_onnx.
+"""The `footforge` command line: a thin layer over footforge.build, footforge.build.check and footforge.rl.export_onnx.
 
 Exit codes: 0 success, 1 check failures, 2 usage or input errors. Errors print as messages
 that name the file, the element and the fix; `--verbose` adds the traceback.
@@ -17,7 +17,7 @@ import footforge
 footforge.headless_by_default()  # before any import of MuJoCo
 
 from footforge.errors import EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError
-from footforge.mesh_simplify import DEFAULT_FACE_BUDGET
+from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET
 
 
 class _Parser(argparse.ArgumentParser):
@@ -61,13 +61,13 @@ def _add_description_options(p: argparse.ArgumentParser, params_help: str | None
 
 
 def _description_options(args) -> dict:
-    """BuildOptions fields from _add_description_options' flags, checked before any work.
+    """FootInputs fields (also BuildOptions's) from _add_description_options' flags, checked before any work.
 
     Raises:
       InputError: a hull vertex cap below 4, a non-positive CoACD timeout, a negative face budget.
     """
-    from footforge.collision import DecompositionConfig
-    from footforge.description import parse_args
+    from footforge.models.collision import DecompositionConfig
+    from footforge.inputs.description import parse_args
     from footforge.errors import InputError
 
     if args.max_hull_vertices < 4:
@@ -195,8 +195,8 @@ def _print_summary(report: dict, out_dir: Path, console) -> None:
 def _run_validate(args, console) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from footforge.build import BuildOptions
     from footforge.errors import InputError
+    from footforge.models.foot_source import FootInputs
     from footforge.outputs import check_output_folder
     from footforge.validate import report as report_lib
     from footforge.validate.fidelity import Thresholds
@@ -213,7 +213,7 @@ def _run_validate(args, console) -> int:
         variants=parse_variants(args.variant), scenarios=tuple(args.scenarios), calibrate=args.calibrate,
         calibration_evaluations=args.evaluations, jobs=args.jobs,
         thresholds=Thresholds.with_overrides(args.threshold), seed=args.seed,
-        build=BuildOptions(variant="full", out_dir=args.out, **_description_options(args)))
+        foot=FootInputs(**_description_options(args)))
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=console, transient=True) as progress:
         def tracker(description: str, total: int):
@@ -259,9 +259,9 @@ def _print_validation(report: dict, out: Path, console) -> None:
 
 
 def _run_check(args, console) -> int:
-    from footforge.check import check_description
-    from footforge.description import parse_args
-    from footforge.urdf_check import format_findings
+    from footforge.build.check import check_description
+    from footforge.inputs.description import parse_args
+    from footforge.inputs.urdf_lint import format_findings
 
     result = check_description(args.path, package_paths=args.package_path, args=parse_args(args.arg),
                                sidecar=args.sidecar)
@@ -275,7 +275,7 @@ def _run_check(args, console) -> int:
 
 
 def _run_export(args, console) -> int:
-    from footforge.export_onnx import export
+    from footforge.rl.export_onnx import export
 
     out = export(args.policy_dir, args.out)
     console.print(f"policy written to {out}", markup=False, highlight=False, soft_wrap=True)

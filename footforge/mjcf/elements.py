@@ -1,10 +1,5 @@
-"""URDF -> (Pinocchio model, MJCF model authored with dm_control.mjcf).
-
-Pinocchio parses the URDF: its kinematic tree, the inertia of each moving body with fixed-attached
-links merged in by rigid-body algebra (`pin.Inertia` sums), and the collision and visual geometry
-(through coal). This module maps that parse onto MJCF, one body per Pinocchio joint, with numbers
-carried at full double precision. MuJoCo's own URDF importer is not used because its XML export
-rounds to six digits, which would break footforge's 1e-9 mass-property checks.
+"""MJCF elements authored with dm_control.mjcf from a Pinocchio parse: default classes, bodies,
+joints, geoms and mesh assets, one body per Pinocchio joint, numbers at full double precision.
 
 MJCF conventions of the written models:
 - Default classes: `visual` (group 2, no contacts, no mass), `collision` (group 3) and one class
@@ -15,150 +10,21 @@ MJCF conventions of the written models:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 import pinocchio as pin
 from dm_control import mjcf
-from lxml import etree
 
-from footforge.description import Description
 from footforge.errors import InputError
-
-FLOATING_JOINT = "root_joint"  # Pinocchio's name for the free-flyer it adds at the root
-
-_AXIS_OF_SHORTNAME = {
-    "JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0),
-    "JointModelRZ": (0.0, 0.0, 1.0), "JointModelPX": (1.0, 0.0, 0.0),
-    "JointModelPY": (0.0, 1.0, 0.0), "JointModelPZ": (0.0, 0.0, 1.0),
-    "JointModelRUBX": (1.0, 0.0, 0.0), "JointModelRUBY": (0.0, 1.0, 0.0),
-    "JointModelRUBZ": (0.0, 0.0, 1.0),
-}
-
-
-def quat_wxyz(rotation: np.ndarray) -> np.ndarray:
-    """MuJoCo's quaternion (w, x, y, z) of a rotation matrix, with w >= 0."""
-    q = pin.Quaternion(np.asarray(rotation, dtype=float))
-    wxyz = np.array([q.w, q.x, q.y, q.z])
-    return wxyz if wxyz[0] >= 0 else -wxyz
-
-
-def joint_axis(jmodel) -> np.ndarray:
-    name = jmodel.shortname()
-    if name in _AXIS_OF_SHORTNAME:
-        return np.array(_AXIS_OF_SHORTNAME[name])
-    concrete = jmodel.extract()
-    if hasattr(concrete, "axis"):
-        return np.asarray(concrete.axis, dtype=float)
-    raise InputError(f"unsupported joint type {name}", fix="use revolute, continuous, prismatic or fixed joints")
-
-
-def joint_kind(jmodel) -> str:
-    name = jmodel.shortname()
-    if name == "JointModelFreeFlyer":
-        return "free"
-    if "RevoluteUnbounded" in name or name.startswith("JointModelRUB"):
-        return "continuous"
-    if "Revolute" in name or name in ("JointModelRX", "JointModelRY", "JointModelRZ"):
-        return "hinge"
-    if "Prismatic" in name or name in ("JointModelPX", "JointModelPY", "JointModelPZ"):
-        return "slide"
-    raise InputError(f"unsupported joint type {name}", fix="use revolute, continuous, prismatic or fixed joints")
-
-
-@dataclass
-class ParsedURDF:
-    """A URDF parsed by Pinocchio, with the URDF's own names and order kept alongside."""
-
-    description: Description
-    urdf: str
-    """URDF text with mesh URIs rewritten to absolute file paths."""
-    model: pin.Model
-    collision: pin.GeometryModel
-    visual: pin.GeometryModel
-    root_link: str
-    link_of_joint: dict[str, str]
-    """Pinocchio joint name -> the link it moves (the root joint moves the root link)."""
-    child_order: dict[str, int]
-    """Link name -> its position in the URDF, to emit bodies in document order."""
-    mimics: tuple[tuple[str, str, float, float], ...]
-    """(joint, followed joint, multiplier, offset) of every URDF <mimic>."""
-
-    def joint_id(self, name: str) -> int:
-        if not self.model.existJointName(name):
-            raise InputError(f"no joint named '{name}' in the description", file=str(self.description.source),
-                             element=f"joint '{name}'", fix="check the name against the URDF")
-        return self.model.getJointId(name)
-
-    def body_of_link(self, link: str) -> tuple[int, pin.SE3]:
-        """Pinocchio joint id that carries `link`, and the link frame's placement in it."""
-        if not self.model.existFrame(link, pin.BODY):
-            raise InputError(f"no link named '{link}' in the description", file=str(self.description.source),
-                             element=f"link '{link}'", fix="check the name against the URDF")
-        frame = self.model.frames[self.model.getFrameId(link, pin.BODY)]
-        return frame.parentJoint, frame.placement
-
-    def link_of(self, joint_id: int) -> str:
-        return self.link_of_joint[self.model.names[joint_id]]
-
-
-def parse_urdf(description: Description, *, floating: bool) -> ParsedURDF:
-    """Parses an expanded description with Pinocchio.
-
-    Args:
-      description: the expanded URDF and where to resolve its mesh URIs.
-      floating: give the root a free-flyer joint (a robot's base, or a foot to be mounted later).
-
-    Raises:
-      InputError: unresolved packages, missing meshes, or a URDF Pinocchio rejects.
-    """
-    root = description.root()
-    for mesh in root.iter("mesh"):
-        uri = mesh.get("filename", "")
-        path = description.resolve_uri(uri)
-        if not path.is_file():
-            owner = mesh.getparent().getparent()
-            link = owner.getparent()
-            raise InputError(f"mesh file not found: {path}", file=str(description.source),
-                             element=f"link '{link.get('name')}' {owner.tag} mesh '{uri}'",
-                             fix="fix the filename, or add the folder holding the package with --package-path")
-        mesh.set("filename", str(path.resolve()))
-    urdf = etree.tostring(root, encoding="unicode")
-    try:
-        if floating:
-            model = pin.buildModelFromXML(urdf, pin.JointModelFreeFlyer())
-        else:
-            model = pin.buildModelFromXML(urdf)
-        collision = pin.buildGeomFromUrdfString(model, urdf, pin.COLLISION)
-        visual = pin.buildGeomFromUrdfString(model, urdf, pin.VISUAL)
-    except (ValueError, RuntimeError) as e:
-        raise InputError(f"Pinocchio cannot read the URDF: {e}", file=str(description.source),
-                         fix="run `footforge check` on it for the element at fault") from None
-
-    children = {j.find("child").get("link") for j in root.findall("joint")}
-    links = [l.get("name") for l in root.findall("link")]
-    roots = [l for l in links if l not in children]
-    if len(roots) != 1:
-        raise InputError(f"the URDF has {len(roots)} root links {roots}", file=str(description.source),
-                         fix="connect every link to one tree; run `footforge check`")
-    link_of_joint = {j.get("name"): j.find("child").get("link") for j in root.findall("joint")}
-    link_of_joint[FLOATING_JOINT] = roots[0]
-    mimics = []
-    for j in root.findall("joint"):
-        m = j.find("mimic")
-        if m is not None:
-            mimics.append((j.get("name"), m.get("joint"), float(m.get("multiplier", 1.0)),
-                           float(m.get("offset", 0.0))))
-    return ParsedURDF(description=description, urdf=urdf, model=model, collision=collision,
-                      visual=visual, root_link=roots[0], link_of_joint=link_of_joint,
-                      child_order={name: i for i, name in enumerate(links)}, mimics=tuple(mimics))
+from footforge.models.urdf import ParsedURDF, children_in_urdf_order, joint_axis, joint_kind, quat_wxyz
 
 
 CONTACT_SOLMIX = 1000.0
 """MuJoCo averages two geoms' solref weighted by solmix: the robot's collision geoms outweigh a
 ground geom's default 1, so the sole pad's contact stiffness holds on any terrain."""
+
 
 
 def add_default_classes(root: mjcf.RootElement, *, friction: float, contact_solref: tuple[float, float],
@@ -173,10 +39,12 @@ def add_default_classes(root: mjcf.RootElement, *, friction: float, contact_solr
         collision.geom.solimp = list(contact_solimp)
 
 
+
 def inertial_attributes(inertia: pin.Inertia) -> dict:
     I = inertia.inertia
     return dict(pos=np.array(inertia.lever), mass=float(inertia.mass),
                 fullinertia=[I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
+
 
 
 class MeshAssets:
@@ -211,6 +79,7 @@ class MeshAssets:
         return name
 
 
+
 def geom_attributes(geom_object, assets: MeshAssets) -> dict:
     """MJCF geom attributes (type, size or mesh, pos, quat) of a Pinocchio geometry object."""
     g = geom_object.geometry
@@ -234,14 +103,6 @@ def geom_attributes(geom_object, assets: MeshAssets) -> dict:
     return attrs
 
 
-def is_mesh(geom_object) -> bool:
-    return type(geom_object.geometry).__name__ not in ("Box", "Sphere", "Cylinder", "Capsule")
-
-
-def children_in_urdf_order(parsed: ParsedURDF, joint_id: int) -> list[int]:
-    kids = [j for j in range(1, parsed.model.njoints) if parsed.model.parents[j] == joint_id]
-    return sorted(kids, key=lambda j: parsed.child_order[parsed.link_of(j)])
-
 
 def add_joint(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, *, dclass: str | None = None):
     """Adds the MJCF joint of Pinocchio joint `joint_id` (hinge or slide) to `body`."""
@@ -260,6 +121,7 @@ def add_joint(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, *, dclass: 
         if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
             attrs.update(range=[lo, hi], limited="true")
     return body.add("joint", **attrs)
+
 
 
 def add_geoms(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, assets: MeshAssets,
@@ -289,6 +151,7 @@ def add_geoms(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, assets: Mes
             if kind == "visual":
                 attrs["rgba"] = np.array(go.meshColor)
             body.add("geom", name=f"{go.name}_{kind}", dclass=kind, **attrs)
+
 
 
 def add_body_tree(parsed: ParsedURDF, root_body: mjcf.Element, assets: MeshAssets, *,

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from footforge.evaluate import INDEX_UNITS, INDICES
+from footforge.rl.evaluate import INDEX_UNITS, INDICES
 
 
 def card_name(policy_index: int, policies: int) -> str:
@@ -24,7 +24,7 @@ def card_name(policy_index: int, policies: int) -> str:
 def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: list[str]) -> str:
     """The card (markdown) of `policy_dir` from its evaluations, each (index of the result in the
     evaluation's output, evaluate()'s result), and the output's file names (to link the plots)."""
-    from footforge.train import policy_meta
+    from footforge.rl.train import policy_meta
 
     policy_dir = Path(policy_dir)
     meta = policy_meta(policy_dir)
@@ -48,7 +48,7 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
     lines.append("| slippage (-) | " + " | ".join(f"{r['slippage']:.4g}" for _, r in evaluations) + " |")
     lines.append("| falls | " + " | ".join(f"{r['falls']}/{r['num_envs']}" for _, r in evaluations) + " |")
     lines += ["", "Mean ± standard deviation over every policy step of every robot still standing "
-              "(footforge/evaluate.py defines the indices).", "", "## Plots", ""]
+              "(footforge/rl/evaluate.py defines the indices).", "", "## Plots", ""]
     lines += [f"- {text}: [{f}]({f})" for text, f in _plots(evaluations, files)]
     return "\n".join(lines) + "\n"
 

@@ -1,9 +1,9 @@
 """A trained policy walking in CPU MuJoCo, run through its ONNX file: pipelines/play.py.
 
 What is exported is what is seen: the policy acts through onnxruntime on the graph that
-`footforge export` writes (footforge.export_onnx.build_model: for a policy folder the graph is
+`footforge export` writes (footforge.rl.export_onnx.build_model: for a policy folder the graph is
 built in memory, for an .onnx file the file is read), never through the JAX checkpoint. Everything
-around the network is the closed-chain runner's (footforge.closed_chain.Controller): the MJX
+around the network is the closed-chain runner's (footforge.rl.evaluate_closed_chain.Controller): the MJX
 environment's observation (noise included, as in training and evaluation), its action clip and PD
 targets, its termination contacts, evaluated on one CPU MuJoCo robot; the runner calls the policy
 inside its jitted step, through jax.pure_callback.
@@ -16,9 +16,9 @@ as an episode ends in training.
 
 Feet: the policy's own (the environment's physics step and solver), or another of ball, aff, aof
 and full (the 34-joint closed chain), stepped at its build's own physics (step, solver, contacts),
-as footforge.closed_chain runs the closed chain. Only blind (B) and perceptive (P) policies walk on
+as footforge.rl.evaluate_closed_chain runs the closed chain. Only blind (B) and perceptive (P) policies walk on
 feet they were not trained on: haptic ones (BH, PH) read the passive joints of their own feet, or
-on the closed chain those joints' estimates (footforge.foot_imu).
+on the closed chain those joints' estimates (footforge.rl.foot_imu).
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ class PlayConfig:
     feet: str | None = None
     """ball, aff, aof or full (the closed chain); None: the feet the policy was trained on."""
     terrain: bool = False
-    """Walk on the closed-chain runner's terrain tiles (footforge.closed_chain.TERRAIN_TILES: smooth
+    """Walk on the closed-chain runner's terrain tiles (footforge.rl.evaluate_closed_chain.TERRAIN_TILES: smooth
     slope, rough slope, stairs down, obstacles, generated as the rough task's terrain) instead of
     flat ground; the robot starts on the first tile (the smooth slope at difficulty 0.5)."""
     build_root: Path | None = None
@@ -66,7 +66,7 @@ class OnnxPolicy:
     session: object
     """onnxruntime.InferenceSession of the graph (input "obs", output "actions")."""
     metadata: dict
-    """The ONNX metadata_props, JSON-decoded (footforge.export_onnx.METADATA_KEYS)."""
+    """The ONNX metadata_props, JSON-decoded (footforge.rl.export_onnx.METADATA_KEYS)."""
     config: object
     """footforge.envs.config.EnvConfig: the policy folder's own, or for an .onnx file the task's
     default configuration with the file's action, physics step and observation settings."""
@@ -102,8 +102,8 @@ def load_policy(path: Path) -> OnnxPolicy:
     import onnx
     import onnxruntime
 
-    from footforge.export_onnx import METADATA_KEYS, build_model
-    from footforge.train import load_policy_config
+    from footforge.rl.export_onnx import METADATA_KEYS, build_model
+    from footforge.rl.train import load_policy_config
 
     path = Path(path)
     if not path.exists():
@@ -175,7 +175,7 @@ def check_feet(policy: OnnxPolicy, feet: str | None) -> str:
 
     Raises:
       InputError: unknown feet, or a haptic policy on derived feet it was not trained on (on the
-        closed chain it reads its passive joints' estimates, footforge.foot_imu).
+        closed chain it reads its passive joints' estimates, footforge.rl.foot_imu).
     """
     from footforge.envs.config import check_policy_on_feet
 
@@ -193,8 +193,8 @@ class Player:
     def __init__(self, policy: OnnxPolicy, config: PlayConfig = PlayConfig()):
         import mujoco
 
-        from footforge.closed_chain import TERRAIN_TILES, Controller, cpu_robot, observed_robot, policy_environment
-        from footforge.foot_imu import FootImuEstimator
+        from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, Controller, cpu_robot, observed_robot, policy_environment
+        from footforge.rl.foot_imu import FootImuEstimator
 
         feet = check_feet(policy, config.feet)
         # The user commands and pushes (the viewer's mouse); the environment's pushes are off.
@@ -212,7 +212,7 @@ class Player:
         # The commands the policy was trained on; play keeps the user's within them.
         self.command_low = np.array([limits.lin_vel_x_range[0], limits.lin_vel_y_range[0], -limits.yaw_rate_limit])
         self.command_high = np.array([limits.lin_vel_x_range[1], limits.lin_vel_y_range[1], limits.yaw_rate_limit])
-        # A haptic policy on the closed chain reads its passive joints' estimates (footforge.foot_imu).
+        # A haptic policy on the closed chain reads its passive joints' estimates (footforge.rl.foot_imu).
         self._imu = (FootImuEstimator(self.model, own.passive_names) if policy.config.haptic and feet == "full"
                      else None)
         self._control = Controller(env, observed_robot(self.robot, self._imu), policy.jax_policy())
@@ -221,7 +221,7 @@ class Player:
 
     def reset(self, command) -> None:
         """The robot at its start (standing, at rest), the policy's memory (last action) cleared."""
-        from footforge.closed_chain import observed_states, place_at_start
+        from footforge.rl.evaluate_closed_chain import observed_states, place_at_start
 
         place_at_start(self.robot, self.data, self.terrain, 0)
         self._info, self._obs = self._control.start(*observed_states([self.data], self._imu),
@@ -243,7 +243,7 @@ class Player:
         (base frame, m/s and rad/s), "command"}; after a fall the robot is back at its start."""
         import mujoco
 
-        from footforge.closed_chain import observed_states, padded_contacts
+        from footforge.rl.evaluate_closed_chain import observed_states, padded_contacts
         from footforge.envs.stability import diverged
 
         d, command = self.data, self._command(command)

@@ -26,7 +26,7 @@ FILE_URI_PREFIX = "file://"
 
 def descriptions_dir() -> Path:
     """The folder holding the project's own descriptions (source tree or installed package)."""
-    source_tree = Path(__file__).resolve().parents[1] / "descriptions"
+    source_tree = Path(__file__).resolve().parents[2] / "descriptions"
     if source_tree.is_dir():
         return source_tree
     from importlib import resources

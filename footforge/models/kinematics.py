@@ -13,8 +13,8 @@ import pinocchio as pin
 from scipy.optimize import least_squares
 
 from footforge.errors import CheckFailure, InputError
-from footforge.sidecar import Closure, Sidecar
-from footforge.urdf_import import ParsedURDF
+from footforge.inputs.sidecar import Closure, Sidecar
+from footforge.models.urdf import ParsedURDF
 
 CLOSURE_TOLERANCE_M = 1e-9
 """A solved reference pose must close every loop to this distance."""

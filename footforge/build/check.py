@@ -8,13 +8,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from footforge import kinematics
-from footforge.description import load_description
+from footforge.models import kinematics
+from footforge.inputs.description import load_description
 from footforge.errors import CheckFailure
-from footforge.foot_root import select_foot_root
-from footforge.sidecar import load_sidecar
-from footforge.urdf_check import Finding, check_urdf, has_errors
-from footforge.urdf_import import parse_urdf
+from footforge.inputs.foot_root import select_foot_root
+from footforge.inputs.sidecar import load_sidecar
+from footforge.inputs.urdf_lint import Finding, check_urdf, has_errors
+from footforge.models.urdf import parse_urdf
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from footforge.inertia import principal_moments
+from footforge.inputs.inertia import principal_moments
 
 
 def body_inertia_world(model: mujoco.MjModel, data: mujoco.MjData, body_id: int) -> pin.Inertia:
@@ -66,3 +66,44 @@ def principal_axes(inertia_3x3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, axes.flatten())
     return moments, quat
+
+
+MASS_RTOL = 1e-9
+"""Total mass and centre of mass of aff/aof must equal the closed chain's to this (relative)."""
+
+
+
+INERTIA_RTOL = 1e-9
+"""Each foot's centroidal inertia likewise (relative, Frobenius norm)."""
+
+
+
+def compare_mass_properties(variant_model: mujoco.MjModel, full_model: mujoco.MjModel, key: str,
+                            foot_roots: list[str]) -> dict:
+    """Total mass, centre of mass and each foot's centroidal inertia, variant against full, with
+    the base of both at the closed-chain model's keyframe pose (the home heights differ by the
+    feet's touchdown points)."""
+    df = at_keyframe(full_model, key)
+    dv = at_keyframe(variant_model, key, free_joint_qpos=df.qpos[:7])
+    tv, tf = subtree_inertia(variant_model, dv, 0), subtree_inertia(full_model, df, 0)
+    scale = max(float(np.linalg.norm(tf.lever)), 1.0)
+    report = {
+        "total_mass": {"variant_kg": tv.mass, "full_kg": tf.mass,
+                       "relative_error": abs(tv.mass - tf.mass) / tf.mass, "tolerance": MASS_RTOL},
+        "com": {"variant_m": np.array(tv.lever).tolist(), "full_m": np.array(tf.lever).tolist(),
+                "relative_error": float(np.linalg.norm(tv.lever - tf.lever)) / scale, "tolerance": MASS_RTOL},
+        "feet": {},
+    }
+    for body in foot_roots:
+        fv = subtree_inertia(variant_model, dv, variant_model.body(body).id)
+        ff = subtree_inertia(full_model, df, full_model.body(body).id)
+        report["feet"][body] = {
+            "mass_relative_error": abs(fv.mass - ff.mass) / ff.mass,
+            "com_error_m": float(np.linalg.norm(fv.lever - ff.lever)),
+            "centroidal_inertia_relative_error": float(np.linalg.norm(fv.inertia - ff.inertia) / np.linalg.norm(ff.inertia)),
+            "tolerance": INERTIA_RTOL}
+    errs = [report["total_mass"]["relative_error"], report["com"]["relative_error"]] + [
+        max(f["mass_relative_error"], f["com_error_m"] / scale, f["centroidal_inertia_relative_error"])
+        for f in report["feet"].values()]
+    report["passed"] = bool(max(errs) <= MASS_RTOL)
+    return report

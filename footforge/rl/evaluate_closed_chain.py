@@ -10,7 +10,7 @@ policy sees and how its action becomes PD targets are the MJX environment's: obs
 height scan of P policies included), commands, base velocity and height come from its own
 functions (LocomotionEnv's, RoughEnv's on terrain tiles) evaluated on the CPU state.
 
-Reported per feet (indices as in footforge.evaluate, over the policy steps of every standing
+Reported per feet (indices as in footforge.rl.evaluate, over the policy steps of every standing
 robot): forward, lateral and yaw-rate tracking errors, action rate, joint velocity rate, torques
 and base height (mean, std); falls (base contact, `terminate_on_knees` thigh contacts, or a
 diverged simulation) and when they happened; the simulated and wall-clock time. For the closed
@@ -20,7 +20,7 @@ rad), as the mean over time of the worst constraint and its maximum.
 
 Blind (B) and perceptive (P) policies run on any feet. Haptic ones (BH, PH) read the passive
 joints of the AFF or AOF feet they were trained on; on the closed chain they read those joints'
-estimates from the foot's IMUs (footforge.foot_imu), and on other derived feet they are refused.
+estimates from the foot's IMUs (footforge.rl.foot_imu), and on other derived feet they are refused.
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ from footforge.envs.config import check_policy_on_feet
 from footforge.envs.stability import diverged
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
-from footforge.evaluate import INDICES
-from footforge.foot_imu import IMU_BODIES, FootImuEstimator
+from footforge.rl.evaluate import INDICES
+from footforge.rl.foot_imu import IMU_BODIES, FootImuEstimator
 
 FULL = "full"
 TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, platform_m=1.0, border_m=20.0,
@@ -78,7 +78,7 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
       InputError: non-positive seconds or robots, or a policy step that is not a
         whole number of the closed chain's physics steps.
     """
-    from footforge.train import load_policy
+    from footforge.rl.train import load_policy
 
     policy, config, _ = load_policy(policy_dir)
     check_policy_on_feet(config, FULL, str(policy_dir))  # any policy: haptic ones read the sensors' estimates
@@ -97,7 +97,7 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
               "feet": {}}
     imu = FootImuEstimator(full.model, trained.passive_names) if config.haptic else None
     result["passive_joints_on_full"] = None if imu is None else {
-        "estimated_from": "IMUs (footforge.foot_imu)", "imu_bodies": list(IMU_BODIES), "joints": list(trained.passive_names)}
+        "estimated_from": "IMUs (footforge.rl.foot_imu)", "imu_bodies": list(IMU_BODIES), "joints": list(trained.passive_names)}
     for feet, robot in ((config.feet, trained), (FULL, full)):
         result["feet"][feet] = run(env, robot, policy, steps=steps, num_robots=num_robots, seed=seed, terrain=terrain,
                                    progress=(lambda done, f=feet: progress(f, done, steps)) if progress else None,
@@ -190,7 +190,7 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
                                         _stack(datas, "actuator_force"))
         fall_step[alive & fallen] = t
         alive &= ~fallen
-        live[:, t] = alive  # like footforge.evaluate: the step a robot falls on is not counted
+        live[:, t] = alive  # like footforge.rl.evaluate: the step a robot falls on is not counted
         for k, record in rows.items():
             record[alive, t] = row[k][alive]
         if progress:

@@ -28,13 +28,14 @@ import numpy as np
 import pinocchio as pin
 from dm_control import mjcf
 
-from footforge import kinematics
 from footforge.errors import InputError
-from footforge.collision import DecompositionConfig, Hulls, decompose
-from footforge.params import FootContact, PassiveJoint, VariantParams
-from footforge.sidecar import FAMILIES, Sidecar
-from footforge.urdf_import import (MeshAssets, ParsedURDF, add_body_tree, add_default_classes, add_geoms,
-                                   inertial_attributes, is_mesh, joint_axis, quat_wxyz)
+from footforge.inputs.params import FootContact, PassiveJoint
+from footforge.inputs.sidecar import FAMILIES, Sidecar
+from footforge.mjcf.elements import MeshAssets, add_body_tree, add_default_classes, add_geoms, inertial_attributes
+from footforge.mjcf.writing import compile_model
+from footforge.models import kinematics
+from footforge.models.foot_source import FootSource
+from footforge.models.urdf import ParsedURDF, joint_axis, quat_wxyz
 
 FOOT_VARIANTS = ("full", "aof", "aff")
 DERIVED_JOINT_CLASS = "foot_passive"
@@ -56,47 +57,6 @@ class FootModel:
     info: dict = field(default_factory=dict)
     """Figures for the build report."""
 
-
-@dataclass
-class FootSource:
-    """Everything a variant is derived from."""
-
-    parsed: ParsedURDF
-    sidecar: Sidecar
-    params: VariantParams
-    reference: kinematics.ReferencePose
-    hulls: dict[str, Hulls]
-    """Pinocchio collision geometry name -> its convex hulls (meshes only)."""
-
-    @property
-    def families(self) -> dict[int, str]:
-        return kinematics.joint_families(self.parsed, self.sidecar)
-
-
-def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, *, cache_dir=None,
-                               progress=None, starting=None) -> dict[str, Hulls]:
-    """Hulls of every collision mesh of `parsed`, decomposing each distinct file once.
-
-    `starting(mesh_path, number, count)` is called before each distinct mesh (CoACD can take a
-    minute on one: the user sees which), `progress(mesh_path, hulls)` after it."""
-    by_file: dict[str, Hulls] = {}
-    out = {}
-    meshes = [go for go in parsed.collision.geometryObjects if is_mesh(go)]
-    distinct = list(dict.fromkeys(f"{go.meshPath}|{tuple(go.meshScale)}" for go in meshes))
-    for go in meshes:
-        key = f"{go.meshPath}|{tuple(go.meshScale)}"
-        if key not in by_file:
-            if starting:
-                starting(go.meshPath, distinct.index(key) + 1, len(distinct))
-            hulls = decompose(go.meshPath, config, cache_dir=cache_dir)
-            if not np.allclose(go.meshScale, 1.0):
-                hulls = Hulls(tuple(v * np.asarray(go.meshScale) for v in hulls.vertices), hulls.faces,
-                              hulls.decomposed, hulls.cached)
-            by_file[key] = hulls
-            if progress:
-                progress(go.meshPath, hulls)
-        out[go.name] = by_file[key]
-    return out
 
 
 def _new_root(name: str, sidecar: Sidecar, contact_solref) -> mjcf.RootElement:
@@ -356,9 +316,6 @@ def sole_bodies(foot: FootModel) -> list[str]:
         return [j.parent.name for j in foot.mjcf.find_all("joint") if j.dclass == "chain"]
     return [b.name for b in foot.mjcf.find_all("body") if b.name.startswith("sole")]  # footforge's own names
 
-
-def compile_model(root: mjcf.RootElement) -> mujoco.MjModel:
-    return mujoco.MjModel.from_xml_string(root.to_xml_string(), assets=root.get_assets())
 
 
 def _finish(foot: FootModel) -> FootModel:

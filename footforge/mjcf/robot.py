@@ -1,6 +1,6 @@
-"""ANYmal C with a foot variant, its scene, and the single-foot drop-test rig, as MJCF.
+"""ANYmal C with a foot variant, as MJCF, with its `home` and `stand` keyframes.
 
-The robot comes from its description (parsed by Pinocchio, see urdf_import); adaptive feet are
+The robot comes from its description (parsed by Pinocchio, footforge.models.urdf); adaptive feet are
 attached with dm_control's `attach` at each leg's foot mount frame, so their bodies, joints and
 sensors are namespaced per leg ('LF_foot/front_arch').
 """
@@ -12,16 +12,15 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 from dm_control import mjcf
-from lxml import etree
 
 from footforge import constants as C
 from footforge.errors import CheckFailure
-from footforge.foot import FootModel, clone, collision_points, compile_model
-from footforge.params import VariantParams
-from footforge.urdf_import import (FLOATING_JOINT, MeshAssets, ParsedURDF, add_body_tree, add_default_classes,
-                                   add_geoms, inertial_attributes, quat_wxyz)
-
-FLOOR_CONTYPE = 1  # environment geoms touch robot collision geoms (conaffinity 1)
+from footforge.inputs.params import VariantParams
+from footforge.mjcf.elements import MeshAssets, add_body_tree, add_default_classes, add_geoms, inertial_attributes
+from footforge.mjcf.foot import FootModel, clone, collision_points
+from footforge.mjcf.scene import FLOOR_CONTYPE
+from footforge.mjcf.writing import compile_model
+from footforge.models.urdf import FLOATING_JOINT, ParsedURDF, quat_wxyz
 
 
 @dataclass
@@ -31,7 +30,7 @@ class BuiltModel:
     """Name of the keyframe simulations start from."""
 
 
-def _options(root: mjcf.RootElement, variant: str, params: VariantParams, *, robot: bool = False) -> None:
+def set_options(root: mjcf.RootElement, variant: str, params: VariantParams, *, robot: bool = False) -> None:
     root.compiler.angle = "radian"
     root.compiler.autolimits = True
     # implicitfast integrates joint damping and the actuators' kv implicitly: stable PD at 80/2.
@@ -46,7 +45,7 @@ def _options(root: mjcf.RootElement, variant: str, params: VariantParams, *, rob
         root.option.timestep = params.simplified_timestep
 
 
-def _add_passive_sensors(foot_root: mjcf.RootElement, joints) -> None:
+def add_passive_sensors(foot_root: mjcf.RootElement, joints) -> None:
     for joint in joints:
         foot_root.sensor.add("jointpos", name=f"{joint}_pos", joint=joint)
         foot_root.sensor.add("jointvel", name=f"{joint}_vel", joint=joint)
@@ -58,7 +57,7 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
     with keyframes `home` and (unless stand_keyframe is False) `stand`."""
     model = parsed.model
     root = mjcf.RootElement(model=f"anymal_c_{variant}")
-    _options(root, variant, params, robot=True)
+    set_options(root, variant, params, robot=True)
     add_default_classes(root, friction=friction, contact_solref=params.contact_solref_for(variant),
                         contact_solimp=params.contact_solimp)
     root.default.add("default", dclass="leg").joint.set_attributes(type="hinge")
@@ -93,7 +92,7 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
             body.add("site", name=f"{leg}_touchdown", pos=np.asarray(s.pos) - [0, 0, s.size[0]], size=[0.005], group=4)
         else:
             leg_foot = clone(foot, C.FOOT_MODEL_NAME.format(leg=leg))
-            _add_passive_sensors(leg_foot.mjcf, leg_foot.passive_joints)
+            add_passive_sensors(leg_foot.mjcf, leg_foot.passive_joints)
             # The foot's own collision class (namespaced by attach) gets the robot's solimp.
             leg_foot.mjcf.default.find("default", "collision").geom.solimp = list(params.contact_solimp)
             mount.attach(leg_foot.mjcf)
@@ -150,7 +149,7 @@ def _add_stand_keyframe(root: mjcf.RootElement) -> None:
     `home` is a pose, not an equilibrium: at kp 80 N m/rad the legs give under the robot's weight
     (the base settles about 4 cm lower) and an adaptive foot's passive joints turn to their
     loaded angles, so a simulation started there spends its first second falling and bouncing.
-    Starting from `stand`, a robot holding its targets does not move (footforge.stance).
+    Starting from `stand`, a robot holding its targets does not move (footforge.validate.stance).
 
     Raises:
       CheckFailure: the robot did not come to rest within STAND_SETTLE_MAX_S.
@@ -174,63 +173,3 @@ def _add_stand_keyframe(root: mjcf.RootElement) -> None:
     root.keyframe.add("key", name="stand", qpos=data.qpos.copy(), ctrl=data.ctrl.copy())
 
 
-def build_rig(foot: FootModel | None, ball_radius: float | None, *, variant: str, params: VariantParams,
-              friction: float, mount_quat=None) -> BuiltModel:
-    """One foot under a vertical slider carrying the payload, over a floor (the drop-test rig).
-
-    The slider's zero puts the foot mount at z = 0; keyframe 'reference' rests the foot's lowest
-    point on the floor with the foot at its reference pose. `mount_quat` (wxyz) tilts the foot
-    mount relative to the carriage: a leg meeting the ground at an angle.
-    """
-    root = mjcf.RootElement(model=f"foot_rig_{variant}")
-    _options(root, variant, params)
-    add_default_classes(root, friction=friction, contact_solref=params.contact_solref_for(variant))
-    _add_floor(root)
-    carriage = root.worldbody.add("body", name="carriage")
-    carriage.add("joint", name="slider", type="slide", axis=[0, 0, 1], damping=params.rig_slider_damping)
-    carriage.add("inertial", pos=[0, 0, 0.1], mass=params.rig_payload_mass, diaginertia=[0.05, 0.05, 0.05])
-    carriage.add("geom", name="payload_visual", dclass="visual", type="box", size=[0.04, 0.04, 0.04],
-                 pos=[0, 0, 0.1], rgba=[0.3, 0.3, 0.35, 1])
-    mount = carriage.add("site", name="mount", size=[0.005], group=4,
-                         quat=list(mount_quat) if mount_quat is not None else None)
-    root.sensor.add("jointpos", name="slider_pos", joint="slider")
-    root.sensor.add("jointvel", name="slider_vel", joint="slider")
-    if foot is None:  # the ball foot: a sphere whose centre is the mount (the default mount offset)
-        carriage.add("geom", name="ball_collision", dclass="collision", type="sphere", size=[ball_radius])
-        carriage.add("site", name="touchdown", pos=[0, 0, -ball_radius], size=[0.005], group=4)
-        lowest = -ball_radius
-    else:
-        rig_foot = clone(foot, "foot")
-        _add_passive_sensors(rig_foot.mjcf, rig_foot.passive_joints)
-        mount.attach(rig_foot.mjcf)
-        lowest = foot.touchdown[2]
-    mj = compile_model(root)
-    qpos = mj.qpos0.copy()
-    qpos[mj.jnt_qposadr[mj.joint("slider").id]] = -lowest
-    if foot is not None:
-        for joint, value in foot.reference_qpos.items():
-            qpos[mj.jnt_qposadr[mj.joint(f"foot/{joint}").id]] = value
-    root.keyframe.add("key", name="reference", qpos=qpos)
-    return BuiltModel(root, "reference")
-
-
-def _add_floor(root: mjcf.RootElement) -> None:
-    grid = root.asset.add("texture", name="grid", type="2d", builtin="checker", width=512, height=512,
-                          rgb1=[0.2, 0.3, 0.4], rgb2=[0.1, 0.2, 0.3])
-    material = root.asset.add("material", name="grid", texture=grid, texrepeat=[8, 8], reflectance=0.1)
-    root.worldbody.add("light", name="sun", pos=[0, 0, 3], dir=[0, 0, -1], directional=True)
-    root.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material=material,
-                       contype=FLOOR_CONTYPE, conaffinity=1)
-
-
-def scene_xml(robot_file: str, variant: str) -> str:
-    """scene.xml: the robot file included, plus a floor and a light (MuJoCo Menagerie's layout)."""
-    root = mjcf.RootElement(model=f"anymal_c_{variant}_scene")
-    _add_floor(root)
-    root.visual.headlight.set_attributes(diffuse=[0.6, 0.6, 0.6], ambient=[0.3, 0.3, 0.3])
-    root.statistic.set_attributes(center=[0, 0, 0.3], extent=1.2)
-    tree = etree.fromstring(root.to_xml_string().encode())
-    for default in tree.findall("default"):  # dm_control's empty top class clashes with the robot's
-        tree.remove(default)
-    tree.insert(0, etree.Element("include", file=robot_file))
-    return etree.tostring(tree, pretty_print=True, encoding="unicode")

@@ -40,7 +40,7 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     p.add_argument("--checkpoint-every", type=int, help="environment steps between checkpoints (default 5e6)")
     p.add_argument("--eval-envs", type=int, help="robots per evaluation (default 128)")
     p.add_argument("--no-compile-cache", action="store_true",
-                   help="compile without JAX's persistent cache (footforge/compile_cache.py: on by default, in "
+                   help="compile without JAX's persistent cache (footforge/rl/compile_cache.py: on by default, in "
                         "~/.cache/footforge/jax or $FOOTFORGE_COMPILE_CACHE)")
     p.add_argument("--no-evaluations", action="store_true",
                    help="skip the deterministic evaluation at the start and at each checkpoint (on a GPU one "
@@ -72,7 +72,7 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
 
     from rich.console import Console
 
-    from footforge import train
+    from footforge.rl import train
     from footforge.errors import FootforgeError
     from footforge.processes import sigterm_as_interrupt
 
@@ -100,7 +100,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                 jax.distributed.initialize(**({} if args.coordinator == "auto" else {
                     "coordinator_address": args.coordinator, "num_processes": args.num_processes,
                     "process_id": args.process_id}))
-            from footforge import compile_cache
+            if not args.resume:
+                _build_if_missing(env_config, console)
+            from footforge.rl import compile_cache
             from footforge.envs import enable_float64_physics
 
             enable_float64_physics(env_config)  # before any JAX array
@@ -131,6 +133,22 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     return 0
 
 
+def _build_if_missing(env_config, console) -> None:
+    """A new run on the default build folder (build/<feet>/) builds it when it has no scene.xml, as
+    `footforge build --variant <feet> --format mjcf` would; a folder given by --build-root must
+    hold a build already (the environment says how to make one)."""
+    from footforge.envs.anymal import build_dir
+
+    folder = build_dir(env_config)
+    if env_config.build_dir or (folder / "scene.xml").is_file():
+        return
+    from footforge.build import BuildOptions, build
+
+    with console.status(f"building {env_config.feet} into {folder} (footforge build --variant {env_config.feet})") as status:
+        build(BuildOptions(variant=env_config.feet, out_dir=folder, formats=("mjcf",)),
+              progress=lambda stage: status.update(f"building {env_config.feet} into {folder}: {stage}"))
+
+
 # The options that set a saved setting: flag, attribute of args, (config, field) it sets.
 _SETTINGS = (("--feet", "feet", ("env", "feet")), ("--policy", "policy", ("env", "policy")),
              ("--seed", "seed", ("ppo", "seed")), ("--num-envs", "num_envs", ("ppo", "num_envs")),
@@ -145,7 +163,8 @@ _SETTINGS = (("--feet", "feet", ("env", "feet")), ("--policy", "policy", ("env",
 
 
 def _new_configs(task: str, args):
-    from footforge import envs, train
+    from footforge import envs
+    from footforge.rl import train
 
     env_config = envs.default_config(task, args.feet or "aof", args.policy or "B", args.contact_model)
     if args.build_root or args.build_dir:
@@ -166,7 +185,7 @@ def _new_configs(task: str, args):
 def _resumed_configs(task: str, args):
     """The run's saved configs (--timesteps may change the total); every other option given must
     equal the saved setting, or the error names it."""
-    from footforge import train
+    from footforge.rl import train
     from footforge.envs.anymal import build_dir
 
     env_config, ppo = train.load_run_config(args.out)

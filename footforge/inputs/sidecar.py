@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
-from footforge.yaml_reader import YamlReader, read_yaml
+from footforge.inputs.yaml_reader import YamlReader, read_yaml
 
 SIDECAR_FORMAT = 1
 
@@ -68,7 +68,7 @@ class Sidecar:
     source: Path
     root_link: str | None
     """Link of the foot description bolted to the robot's foot mount; None: detected
-    (footforge.foot_root). Links above it (a test rig's `world`, a leg) are dropped."""
+    (footforge.inputs.foot_root). Links above it (a test rig's `world`, a leg) are dropped."""
     arch_joints: tuple[str, ...]
     roll_front: str
     roll_back: str
@@ -95,7 +95,7 @@ descriptions/ (its owners cannot be asked to add ours beside their files)."""
 
 def _enclosing_package(path: Path) -> str | None:
     """Name in the package.xml of the nearest folder above `path` that has one."""
-    from footforge.description import _package_name
+    from footforge.inputs.description import _package_name
 
     for folder in Path(path).resolve().parents:
         if (folder / "package.xml").is_file():
@@ -112,7 +112,7 @@ def find_sidecar(description: Path) -> Path:
         return beside
     shipped = SHIPPED_SIDECARS.get(_enclosing_package(description) or "")
     if shipped:
-        from footforge.description import descriptions_dir
+        from footforge.inputs.description import descriptions_dir
 
         return descriptions_dir().joinpath(*shipped)
     return beside

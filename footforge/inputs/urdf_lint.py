@@ -10,7 +10,7 @@ to the user.
 
 Findings (severity; repairable or not):
 
-* per link with an `<inertial>`: the criteria of `footforge.inertia` (`non_positive_mass`,
+* per link with an `<inertial>`: the criteria of `footforge.inputs.inertia` (`non_positive_mass`,
   `non_finite`: errors, not repairable; `not_symmetric`, `not_positive_definite`,
   `triangle_inequality`, `pseudo_inertia_not_psd`: errors, repaired by `balance_inertia`);
   `unparsable_inertial` (error) for a missing or malformed number. An inertial of mass 0 with an
@@ -34,15 +34,16 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Iterable, Literal, Sequence
 
 import numpy as np
 from lxml import etree
 
-from footforge.errors import InputError
-from footforge.inertia import balance_inertia, inertia_defects, principal_moments
+from footforge.errors import CheckFailure, InputError
+from footforge.inputs.description import Description
+from footforge.inputs.inertia import balance_inertia, inertia_defects, principal_moments
 
 Severity = Literal["error", "warning"]
 
@@ -517,10 +518,10 @@ def _mesh_items(root: etree._Element, resolve_uri: Callable[[str], Path]) -> lis
 
 
 def _collision_mesh_problem(path: Path, scale: str | None) -> str | None:
-    """Why the collision mesh at `path` cannot be built (footforge.collision.flat_mesh_problem)."""
+    """Why the collision mesh at `path` cannot be built (footforge.models.collision.flat_mesh_problem)."""
     import trimesh
 
-    from footforge.collision import flat_mesh_problem
+    from footforge.models.collision import flat_mesh_problem
 
     try:
         mesh = trimesh.load(path, force="mesh")
@@ -627,3 +628,49 @@ def format_findings(findings: Iterable[Finding]) -> str:
         tag = f"{f.code}, repairable" if f.repairable else f.code
         blocks.append(f"{f.severity}: {f.element} [{tag}]\n  {f.message}\n  fix: {f.fix}")
     return "\n\n".join(blocks) if blocks else "no findings"
+
+
+INPUT_ERROR_CODES = frozenset({"missing_mesh", "unresolved_package"})
+
+
+
+def lint_and_repair(description: Description, *, repair: bool, what: str) -> tuple[Description, list[Finding], list[str]]:
+    """Runs `check` on a description; repairs it if asked; refuses one with errors.
+
+    Raises:
+      CheckFailure: errors remain (all of them are listed, with fixes).
+    """
+    findings = check_urdf(description.root(), resolve_uri=description.resolve_uri)
+    notes: list[str] = []
+    if has_errors(findings) and repair:
+        repaired, notes = repair_urdf(description.root(), findings)
+        description = replace(description, urdf=etree.tostring(repaired, encoding="unicode"))
+        findings = check_urdf(description.root(), resolve_uri=description.resolve_uri)
+    missing = [f for f in findings if f.severity == "error" and f.code in INPUT_ERROR_CODES]
+    if missing:  # files that are not there are input errors (exit 2), not model defects
+        raise InputError(f"the {what} description refers to files it cannot find:\n{format_findings(missing)}",
+                         file=str(description.source),
+                         fix="fix the paths, or add the folder holding the package with --package-path")
+    if has_errors(findings):
+        repairable = all(f.repairable for f in findings if f.severity == "error")
+        raise CheckFailure(
+            f"the {what} description has errors:\n{format_findings([f for f in findings if f.severity == 'error'])}",
+            file=str(description.source),
+            fix=("rerun with --repair to apply the listed repairs (recorded in the build report)"
+                 if repairable else "fix the description as suggested above"))
+    return description, findings, notes
+
+
+
+def link_inertia_checks(description: Description, findings: list[Finding]) -> dict[str, str]:
+    """Per link with an inertial: 'ok' or the codes of its inertia findings."""
+    by_link: dict[str, list[str]] = {}
+    for f in findings:
+        if f.element.startswith("link '"):
+            by_link.setdefault(f.element.split("'")[1], []).append(f.code)
+    out = {}
+    for link in description.root().findall("link"):
+        if link.find("inertial") is not None:
+            codes = by_link.get(link.get("name"), [])
+            out[link.get("name")] = "ok" if not codes else ", ".join(codes)
+    return out

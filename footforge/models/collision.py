@@ -6,7 +6,7 @@ vertices each (PhysX's default cap is 64; MJX is fastest with small hulls). CoAC
 some inputs, so it runs in a child process with a timeout. Results are cached under
 `cache_dir`, keyed by the SHA-256 of the mesh file's bytes and of the parameters, so a rebuild
 with the same inputs does not decompose again. A mesh of more than `face_budget` faces is
-simplified first (footforge.mesh_simplify): CoACD's time grows with the input's size, and a CAD
+simplified first (footforge.models.mesh_simplify): CoACD's time grows with the input's size, and a CAD
 export of 40-50 thousand faces took minutes per part.
 """
 
@@ -24,7 +24,7 @@ import numpy as np
 import trimesh
 
 from footforge.errors import InputError
-from footforge.mesh_simplify import DEFAULT_FACE_BUDGET, simplify_to_budget
+from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET, simplify_to_budget
 from footforge.processes import die_with_parent
 
 CACHE_VERSION = 1
@@ -47,7 +47,7 @@ class DecompositionConfig:
     timeout_s: float = 120.0
     """Kill CoACD after this long and report the mesh (the user's --coacd-timeout)."""
     face_budget: int = DEFAULT_FACE_BUDGET
-    """A mesh with more faces is simplified to this many before CoACD (footforge.mesh_simplify;
+    """A mesh with more faces is simplified to this many before CoACD (footforge.models.mesh_simplify;
     the user's --face-budget; 0 keeps every face)."""
 
 

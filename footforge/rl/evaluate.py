@@ -40,7 +40,7 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
       InputError: a haptic policy on other feet (or no policy in the folder).
     """
     from footforge.envs import enable_float64_physics, from_config, on_feet
-    from footforge.train import load_policy
+    from footforge.rl.train import load_policy
 
     policy, env_config, _ = load_policy(policy_dir)
     enable_float64_physics(env_config)  # the physics it trained on (EnvConfig.float64_physics)
@@ -165,7 +165,7 @@ def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, s
            build_dir: str | None = None, kind: str | None = None,
            forward_mps: float = 0.6) -> tuple[mujoco.MjModel, np.ndarray]:
     """One robot walking `seconds` under the policy (random commands and pushes; after a fall the
-    environment restarts it), for footforge.render: (the environment's CPU MjModel, qpos after
+    environment restarts it), for footforge.rl.render: (the environment's CPU MjModel, qpos after
     every policy step (T, nq)). A rough-terrain policy with a terrain `kind` instead starts on the
     middle level's tile of that kind and is commanded straight ahead at `forward_mps`.
 

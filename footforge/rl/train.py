@@ -442,7 +442,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
 
     import jax
 
-    from footforge import jax_compat
+    from footforge.rl import jax_compat
 
     if notice is None:
         def notice(text: str) -> None:
@@ -714,7 +714,7 @@ def _observation_size(saved):
 
 @dataclass(frozen=True)
 class SavedPolicy:
-    """What a policy folder holds, read but not yet made a function (footforge.export_onnx reads
+    """What a policy folder holds, read but not yet made a function (footforge.rl.export_onnx reads
     the parameters directly)."""
 
     params: tuple
