@@ -19,6 +19,7 @@ KP_NM_PER_RAD = 80.0
 KD_NMS_PER_RAD = 2.0
 EFFORT_LIMIT_NM = 80.0
 VELOCITY_LIMIT_RAD_S = 7.5
+"""Joint velocity limit of the actuators, as published (recorded in exported policies)."""
 
 # Default joint angles of the paper's baselines, rad: HAA +left/-right, HFE and KFE front/hind.
 DEFAULT_JOINT_ANGLES_RAD = {
@@ -27,8 +28,6 @@ DEFAULT_JOINT_ANGLES_RAD = {
     **{f"{leg}_KFE": (-0.8 if leg[1] == "F" else 0.8) for leg in LEGS},
 }
 
-ROBOT_MASS_KG = 52.13485
-"""ANYmal C with its ball feet, as published."""
 
 BALL_FOOT_RADIUS_M = 0.03
 """ANYmal C's ball foot (the description's ball_radius); its centre is the foot mount."""

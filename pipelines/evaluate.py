@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="compile without JAX's persistent cache (on by default: footforge/rl/compile_cache.py)")
     args = p.parse_args(argv)
 
-    from footforge.processes import sigterm_as_interrupt
+    from footforge.cli.guard import run_guarded
 
     if args.num_envs < 1 or (args.seconds is not None and args.seconds <= 0) or (args.video is not None and args.video <= 0):
         print("evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
@@ -58,64 +58,55 @@ def main(argv: list[str] | None = None) -> int:
     from footforge.rl import compile_cache
 
     compile_cache.enable(not args.no_compile_cache)
-    with sigterm_as_interrupt():  # a terminated run cleans up as an interrupted one
-        return _run(args)
+    return run_guarded("evaluate", lambda: _run(args))
 
 
 def _run(args) -> int:
     from footforge.atomic import atomic_directory
-    from footforge.errors import FootforgeError
     from footforge.rl.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
     from footforge.outputs import check_output_folder
     from footforge.rl.policy_card import card_name, policy_card
     from footforge.rl.train import load_policy_config
 
-    try:
-        check_output_folder(args.out, force=args.force)  # before minutes of evaluation
-        if args.video:
-            from footforge.rl.render import check_renderer, render_frames, write_gif, write_strip
+    check_output_folder(args.out, force=args.force)  # before minutes of evaluation
+    if args.video:
+        from footforge.rl.render import check_renderer, render_frames, write_gif, write_strip
 
-            check_renderer()  # before minutes of evaluation
-        for policy in args.policy:  # each one a policy folder, before the first one's minutes
-            load_policy_config(policy)
-        results, recordings, cards = [], [], []
-        for policy in args.policy:
-            for feet in args.feet or [None]:
-                feet = feet or load_policy_config(policy).feet
-                build_dir = str(args.build_root / feet) if args.build_root else None
-                results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
-                                        seed=args.seed, build_dir=build_dir))
-                if results[-1]["diverged"]:
-                    print(f"evaluate: warning: {policy} on {feet}: the simulation of {results[-1]['diverged']} of "
-                          f"{args.num_envs} robots diverged (counted among the falls)", file=sys.stderr)
-                if args.video:
-                    i = len(results) - 1
-                    kinds = [None] + (["stairs_up", "stepping_stones"] if results[i]["task"] == "rough" else [])
-                    for kind in kinds:
-                        suffix = f"{i}_{kind}" if kind else f"{i}"
-                        recordings.append((suffix, results[i]["policy_dt_s"], *record(
-                            policy, feet=feet, seconds=args.video, seed=args.seed, build_dir=build_dir, kind=kind)))
-        with atomic_directory(args.out, force=args.force) as tmp:
-            files = plot(results, tmp)
-            for suffix, policy_dt_s, model, qpos in recordings:
-                frames = render_frames(model, qpos, every=2)  # real time at half the policy rate: 25 fps
-                write_gif(frames, tmp / f"video_{suffix}.gif", fps=0.5 / policy_dt_s)
-                write_strip(frames, tmp / f"strip_{suffix}.png")
-                files += [f"video_{suffix}.gif", f"strip_{suffix}.png"]
-            (tmp / "comparison.md").write_text(comparison_markdown(results) + "\n" + terrain_markdown(results))
-            for k, policy in enumerate(args.policy):  # one card per policy, linking its own plots
-                card = card_name(k, len(args.policy))
-                (tmp / card).write_text(policy_card(policy, [(i, r) for i, r in enumerate(results)
-                                                             if r["policy"] == str(policy)], files))
-                cards.append(card)
-            (tmp / "metrics.json").write_text(json.dumps(
-                [{k: v for k, v in r.items() if k != "traces"} for r in results], indent=2))
-    except FootforgeError as e:
-        print(f"evaluate: error: {e}", file=sys.stderr)
-        return e.exit_code
-    except KeyboardInterrupt:
-        print("evaluate: interrupted; no output was written", file=sys.stderr)
-        return 2
+        check_renderer()  # before minutes of evaluation
+    for policy in args.policy:  # each one a policy folder, before the first one's minutes
+        load_policy_config(policy)
+    results, recordings, cards = [], [], []
+    for policy in args.policy:
+        for feet in args.feet or [None]:
+            feet = feet or load_policy_config(policy).feet
+            build_dir = str(args.build_root / feet) if args.build_root else None
+            results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
+                                    seed=args.seed, build_dir=build_dir))
+            if results[-1]["diverged"]:
+                print(f"evaluate: warning: {policy} on {feet}: the simulation of {results[-1]['diverged']} of "
+                      f"{args.num_envs} robots diverged (counted among the falls)", file=sys.stderr)
+            if args.video:
+                i = len(results) - 1
+                kinds = [None] + (["stairs_up", "stepping_stones"] if results[i]["task"] == "rough" else [])
+                for kind in kinds:
+                    suffix = f"{i}_{kind}" if kind else f"{i}"
+                    recordings.append((suffix, results[i]["policy_dt_s"], *record(
+                        policy, feet=feet, seconds=args.video, seed=args.seed, build_dir=build_dir, kind=kind)))
+    with atomic_directory(args.out, force=args.force) as tmp:
+        files = plot(results, tmp)
+        for suffix, policy_dt_s, model, qpos in recordings:
+            frames = render_frames(model, qpos, every=2)  # real time at half the policy rate: 25 fps
+            write_gif(frames, tmp / f"video_{suffix}.gif", fps=0.5 / policy_dt_s)
+            write_strip(frames, tmp / f"strip_{suffix}.png")
+            files += [f"video_{suffix}.gif", f"strip_{suffix}.png"]
+        (tmp / "comparison.md").write_text(comparison_markdown(results) + "\n" + terrain_markdown(results))
+        for k, policy in enumerate(args.policy):  # one card per policy, linking its own plots
+            card = card_name(k, len(args.policy))
+            (tmp / card).write_text(policy_card(policy, [(i, r) for i, r in enumerate(results)
+                                                         if r["policy"] == str(policy)], files))
+            cards.append(card)
+        (tmp / "metrics.json").write_text(json.dumps(
+            [{k: v for k, v in r.items() if k != "traces"} for r in results], indent=2))
     print((args.out / "comparison.md").read_text())
     print(f"written to {args.out}: metrics.json, comparison.md, " + ", ".join(cards + files))
     return 0

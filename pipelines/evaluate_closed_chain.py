@@ -40,10 +40,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="replace --out even if footforge did not write it (it may hold your files)")
     args = p.parse_args(argv)
 
-    from footforge.processes import sigterm_as_interrupt
+    from footforge.cli.guard import run_guarded
 
-    with sigterm_as_interrupt():  # a terminated run cleans up as an interrupted one
-        return _run(args)
+    return run_guarded("evaluate_closed_chain", lambda: _run(args))
 
 
 def _run(args) -> int:
@@ -52,43 +51,35 @@ def _run(args) -> int:
 
     from footforge.atomic import atomic_directory
     from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
-    from footforge.errors import FootforgeError
     from footforge.outputs import check_output_folder
     from footforge.rl.train import load_policy_config
 
     console = Console()
-    try:
-        check_output_folder(args.out, force=args.force)  # before minutes of simulation
-        for policy in args.policy:  # each one a policy folder, before the first one's minutes
-            load_policy_config(policy)
-        results = []
-        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                      console=console, transient=True) as progress:
-            for policy in args.policy:
-                tasks = {}
+    check_output_folder(args.out, force=args.force)  # before minutes of simulation
+    for policy in args.policy:  # each one a policy folder, before the first one's minutes
+        load_policy_config(policy)
+    results = []
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=console, transient=True) as progress:
+        for policy in args.policy:
+            tasks = {}
 
-                def report(feet, done, total, policy=policy, tasks=tasks):
-                    if feet not in tasks:
-                        tasks[feet] = progress.add_task(f"{policy.parent.name or policy} on {feet}", total=total)
-                    progress.update(tasks[feet], completed=done)
-                results.append(evaluate_closed_chain(
-                    policy, seconds=args.seconds, num_robots=args.robots, seed=args.seed, build_root=args.build_root,
-                    terrain_tiles=TERRAIN_TILES if args.terrain else None, progress=report))
-        with atomic_directory(args.out, force=args.force) as tmp:
-            files = []
-            for i, r in enumerate(results):
-                plot(r, tmp / f"closed_chain_{i}.png")
-                files.append(f"closed_chain_{i}.png")
-            (tmp / "closed_chain.md").write_text(comparison_markdown(results))
-            (tmp / "metrics.json").write_text(json.dumps(
-                [r | {"feet": {f: {k: v for k, v in c.items() if k != "traces"} for f, c in r["feet"].items()}}
-                 for r in results], indent=2))
-    except FootforgeError as e:
-        print(f"evaluate_closed_chain: error: {e}", file=sys.stderr)
-        return e.exit_code
-    except KeyboardInterrupt:
-        print("evaluate_closed_chain: interrupted; no output was written", file=sys.stderr)
-        return 2
+            def report(feet, done, total, policy=policy, tasks=tasks):
+                if feet not in tasks:
+                    tasks[feet] = progress.add_task(f"{policy.parent.name or policy} on {feet}", total=total)
+                progress.update(tasks[feet], completed=done)
+            results.append(evaluate_closed_chain(
+                policy, seconds=args.seconds, num_robots=args.robots, seed=args.seed, build_root=args.build_root,
+                terrain_tiles=TERRAIN_TILES if args.terrain else None, progress=report))
+    with atomic_directory(args.out, force=args.force) as tmp:
+        files = []
+        for i, r in enumerate(results):
+            plot(r, tmp / f"closed_chain_{i}.png")
+            files.append(f"closed_chain_{i}.png")
+        (tmp / "closed_chain.md").write_text(comparison_markdown(results))
+        (tmp / "metrics.json").write_text(json.dumps(
+            [r | {"feet": {f: {k: v for k, v in c.items() if k != "traces"} for f, c in r["feet"].items()}}
+             for r in results], indent=2))
     print((args.out / "closed_chain.md").read_text())
     print(f"written to {args.out}: metrics.json, closed_chain.md, " + ", ".join(files))
     return 0

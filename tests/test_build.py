@@ -166,16 +166,18 @@ def test_mjcf_on_disk_equals_model_in_memory(tmp_path):
     from footforge.inputs.description import default_foot_description
     from footforge.inputs.params import load_params
     from footforge.inputs.sidecar import default_sidecar_path, load_sidecar
+    from footforge.models.foot_source import FootSource, decompose_collision_meshes
     from footforge.models.urdf import parse_urdf
+    from footforge.mjcf.writing import compile_model
 
     desc = load_description(default_foot_description())
     parsed = parse_urdf(desc, floating=True)
     sidecar = load_sidecar(default_sidecar_path(default_foot_description()))
     params = load_params()
-    hulls = foot_lib.decompose_collision_meshes(parsed, DecompositionConfig(), cache_dir=tmp_path / "cache")
-    source = foot_lib.FootSource(parsed, sidecar, params, kinematics.reference_pose(parsed, sidecar), hulls)
+    hulls = decompose_collision_meshes(parsed, DecompositionConfig(), cache_dir=tmp_path / "cache")
+    source = FootSource(parsed, sidecar, params, kinematics.reference_pose(parsed, sidecar), hulls)
     robot = parse_urdf(load_description(default_robot_description(), args={"foot": "none"}), floating=True)
-    memory = foot_lib.compile_model(build_robot(robot, foot_lib.build_derived(source, "aof"), variant="aof",
+    memory = compile_model(build_robot(robot, foot_lib.build_derived(source, "aof"), variant="aof",
                                                 params=params, friction=sidecar.friction).mjcf)
     for field in ("body_mass", "body_inertia", "body_ipos", "body_iquat", "body_pos", "body_quat", "jnt_axis",
                   "jnt_range", "jnt_stiffness", "dof_damping", "dof_armature", "geom_size", "geom_pos",

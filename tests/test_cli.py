@@ -1,5 +1,6 @@
 """The command line: exit codes, messages that name file/element/fix, no partial output."""
 
+import math
 import shutil
 
 import numpy as np
@@ -121,6 +122,22 @@ def test_check_finds_crossed_closure(capsys, tmp_path):
     sidecar.write_text(yaml.safe_dump(data))
     code, text = run(capsys, "check", FOOT_XACRO, "--sidecar", sidecar)
     assert code == 1 and "closure" in text and "does not close" in text
+
+
+def test_closure_axis_off_the_chain_pins_is_refused(capsys, tmp_path):
+    """A closure whose pin axis is not its chain's (turned 10 degrees about z in the link's frame)
+    cannot be closed by a point coincidence alone: check reports it and build refuses it, naming
+    the closure; the shipped axes lie on the pins (0 degrees)."""
+    data = yaml.safe_load(FOOT_SIDECAR.read_text())
+    closure = data["closures"][1]
+    assert closure["axis"] == [1.0, 0.0, 0.0]
+    closure["axis"] = [math.cos(math.radians(10)), math.sin(math.radians(10)), 0.0]
+    sidecar = tmp_path / "tilted.sidecar.yaml"
+    sidecar.write_text(yaml.safe_dump(data))
+    code, text = run(capsys, "check", FOOT_XACRO, "--sidecar", sidecar)
+    assert code == 1 and f"closure '{closure['name']}'" in text and "10.0 deg off" in text, text
+    code, text = run(capsys, "build", "--variant", "aof", "--sidecar", sidecar, "--out", tmp_path / "o", "--format", "mjcf")
+    assert code == 1 and "10.0 deg off" in text and not (tmp_path / "o").exists(), text
 
 
 def test_check_clean_descriptions(capsys):

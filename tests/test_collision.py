@@ -59,7 +59,7 @@ def test_unreadable_mesh(tmp_path):
 def test_mesh_thickness_is_the_thinnest_extent_whatever_the_orientation():
     """Computed two ways: a 30 x 20 x 4 mm box turned by a random rotation is 4 mm thick; squashed
     flat it is 0, and decompose refuses it with the file named."""
-    from footforge.models.collision import mesh_thickness_m
+    from footforge.inputs.meshes import mesh_thickness_m
 
     box = trimesh.creation.box(extents=(0.03, 0.02, 0.004))
     rotation = trimesh.transformations.random_rotation_matrix(np.random.default_rng(3).random(3))

@@ -1,5 +1,6 @@
 """MJX locomotion environments: registry, observation layout, reset/step, rewards, termination."""
 
+import dataclasses
 import math
 from dataclasses import replace
 
@@ -12,7 +13,7 @@ from conftest import float64_stance
 from footforge import envs
 from footforge.envs import anymal, observations, rewards
 from footforge.envs.anymal import GEOM_BASE
-from footforge.envs.config import EnvConfig
+from footforge.envs.config import EnvConfig, ObservationConfig, ObservationTerm, RewardConfig
 from footforge.envs.locomotion import LocomotionEnv, ground_contacts
 from footforge.errors import InputError
 
@@ -45,7 +46,13 @@ def test_observation_layout_is_documented_and_sized():
     assert flat.observations.pd_targets and not rough.observations.pd_targets
     assert observations.layout(flat, 16)[7] == ("pd_target", 12) and observations.size(flat, 16) == 48 + 12 + 32
     assert "pd_target" not in dict(observations.layout(rough, 16))
-    assert all(len(entry) == 3 and entry[2] for entry in observations.LAYOUT)
+    # Each group is declared once, in ObservationConfig: its reading function says what it holds
+    # and in which unit, and every group is read by some policy type.
+    groups = [f.name for f in dataclasses.fields(ObservationConfig) if isinstance(getattr(bh.observations, f.name),
+                                                                                ObservationTerm)]
+    assert all(observations.description(bh, name) for name in groups)
+    read = {name for config in (b, bh, flat, rough) for name, _ in observations.layout(config, 16)}
+    assert read == set(groups)
 
 
 RICHEST = {"ball": "B", "aff": "BH", "aof": "BH"}
@@ -79,7 +86,7 @@ def test_reset_and_step_every_registered_env(rollouts, built):
             assert bool(jp.isfinite(state.obs).all()) and bool(jp.isfinite(state.reward))
             assert float(jp.abs(state.obs).max()) <= env.config.observations.clip
         assert set(states[-1].metrics) == set(states[0].metrics)
-        assert {f"reward/{t}" for t in rewards.TERMS} <= set(states[-1].metrics)
+        assert {f"reward/{t}" for t in rewards.terms(env.config.rewards)} <= set(states[-1].metrics)
         # The flat task starts at the build's `stand` keyframe (at rest under the published
         # default targets), the PD targets at those defaults, joint velocities within +-0.1 rad/s.
         first = states[0]
@@ -93,7 +100,7 @@ def test_reset_and_step_every_registered_env(rollouts, built):
         # each one's observation of the stepped state is sized by its layout, finite, and a
         # prefix of the richest one's (noise off).
         quiet = replace(env.config.observations, noise=False)
-        full = LocomotionEnv(replace(env.config, observations=quiet), env.robot)._observe(
+        full = LocomotionEnv(replace(env.config, observations=quiet), env.robot).observe(
             states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
         # The PD targets' slice (velocity actions, ObservationConfig.pd_targets) holds the targets
         # integrated from the actions, default + sum of clip(a) x 13.5 x dt within the joint
@@ -113,26 +120,32 @@ def test_reset_and_step_every_registered_env(rollouts, built):
             if task == "flat" and f == feet:
                 other = LocomotionEnv(replace(envs.default_config("flat", feet, policy), observations=quiet,
                                               build_dir=str(built[feet][0])), env.robot)
-                obs = other._observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
+                obs = other.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
                 assert obs.shape == (other.observation_size,)
                 np.testing.assert_allclose(obs, full[:other.observation_size], atol=1e-6)
 
 
 def test_reward_terms_on_known_states():
-    sigma = 0.25
-    assert float(rewards.lin_vel_xy(jp.array([1.0, 0.0]), jp.array([1.0, 0.0]), sigma)) == pytest.approx(1.0)
-    assert float(rewards.lin_vel_xy(jp.array([1.0, 0.0]), jp.array([0.5, 0.0]), sigma)) == pytest.approx(math.exp(-1))
-    assert float(rewards.yaw_rate(0.5, 0.0, sigma)) == pytest.approx(math.exp(-1))
-    assert float(rewards.lin_vel_z(0.3)) == pytest.approx(0.09)
-    assert float(rewards.ang_vel_xy(jp.array([0.1, 0.2, 5.0]))) == pytest.approx(0.05)
-    assert float(rewards.orientation(jp.array([0.0, 0.0, -1.0]))) == 0.0
+    cfg = RewardConfig(tracking_sigma=0.25, base_height_target_m=0.52)
+    Q = rewards.Quantities
+    assert float(rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([1.0, 0.0, 0.0])), cfg)) == pytest.approx(1.0)
+    assert float(rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([0.5, 0.0, 0.0])), cfg)) == pytest.approx(math.exp(-1))
+    assert float(rewards.yaw_rate(Q(command=jp.array([0.0, 0.0, 0.5]), ang_vel=jp.zeros(3)), cfg)) == pytest.approx(math.exp(-1))
+    assert float(rewards.lin_vel_z(Q(lin_vel=jp.array([0.0, 0.0, 0.3])), cfg)) == pytest.approx(0.09)
+    assert float(rewards.ang_vel_xy(Q(ang_vel=jp.array([0.1, 0.2, 5.0])), cfg)) == pytest.approx(0.05)
+    assert float(rewards.orientation(Q(gravity=jp.array([0.0, 0.0, -1.0])), cfg)) == 0.0
     tilt = math.radians(30)  # base rolled by 30 deg: gravity has sin(30) along base y
-    assert float(rewards.orientation(jp.array([0.0, math.sin(tilt), -math.cos(tilt)]))) == pytest.approx(0.25)
-    assert float(rewards.base_height(0.42, 0.52)) == pytest.approx(0.01)
-    assert float(rewards.torques(jp.full(12, 10.0))) == pytest.approx(1200.0)
-    assert float(rewards.joint_acc(jp.ones(12), jp.zeros(12))) == pytest.approx(12.0)
-    assert float(rewards.action_rate(jp.ones(12), jp.ones(12))) == 0.0
-    assert float(rewards.hip(jp.array([0.13, -0.13, 0.03, -0.03]), jp.array([0.03, -0.03, 0.03, -0.03]))) == pytest.approx(0.2)
+    assert float(rewards.orientation(Q(gravity=jp.array([0.0, math.sin(tilt), -math.cos(tilt)])), cfg)) == pytest.approx(0.25)
+    assert float(rewards.base_height(Q(base_height=0.42), cfg)) == pytest.approx(0.01)
+    assert float(rewards.torques(Q(torques=jp.full(12, 10.0)), cfg)) == pytest.approx(1200.0)
+    assert float(rewards.joint_acc(Q(joint_vel=jp.ones(12), last_joint_vel=jp.zeros(12)), cfg)) == pytest.approx(12.0)
+    assert float(rewards.action_rate(Q(action=jp.ones(12), last_action=jp.ones(12)), cfg)) == 0.0
+    assert float(rewards.hip(Q(haa_offset=jp.array([0.1, -0.1, 0.0, 0.0])), cfg)) == pytest.approx(0.2)
+    # Each term is declared once, in RewardConfig: its function is the one above, its scale a number.
+    terms = rewards.terms(cfg)
+    assert list(terms) == ["lin_vel_xy", "yaw_rate", "lin_vel_z", "ang_vel_xy", "orientation", "base_height",
+                           "torques", "joint_acc", "action_rate", "hip"]
+    assert all(term.compute is getattr(rewards, name) and isinstance(term.scale, float) for name, term in terms.items())
 
 
 def test_ground_contacts_count_base_and_knees():
@@ -355,7 +368,7 @@ def test_privileged_critic_observations(built):
     np.testing.assert_array_equal(obs["privileged_state"][:n], obs["state"])
     extra = np.asarray(obs["privileged_state"][n:])
     lin, _, _ = env.base_state(state.pipeline_state)
-    np.testing.assert_allclose(extra[:3], np.asarray(lin) * env.config.observations.lin_vel_scale, atol=1e-6)
+    np.testing.assert_allclose(extra[:3], np.asarray(lin) * env.config.observations.base_lin_vel.scale, atol=1e-6)
     forces = extra[3:7]
     assert np.all(forces > 0.1)  # every foot bears load
     assert abs(forces.sum() - 1.0) < 0.05, forces  # and together the robot's weight (vertical = normal here)

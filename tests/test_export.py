@@ -121,8 +121,8 @@ def test_onnx_matches_the_jax_policy_on_random_observations(tmp_path, capsys, ca
     assert [s["start"] for s in layout] == list(np.cumsum([0] + [s["size"] for s in layout])[:-1])
     assert meta["observation"]["size"] == size and meta["observation"]["clip"] == env_config.observations.clip
     scales = {s["name"]: s["scale"] for s in layout}
-    assert scales["joint_vel"] == env_config.observations.joint_vel_scale
-    assert scales["command"] == list(env_config.observations.command_scale)
+    assert scales["joint_vel"] == env_config.observations.joint_vel.scale
+    assert scales["command"] == list(env_config.observations.command.scale)
     assert meta["network"]["policy_hidden_layers"] == [32, 16, 8] and meta["network"]["activation"] == "elu"
 
 

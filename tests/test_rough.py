@@ -68,7 +68,7 @@ def test_reset_and_step_every_feet_and_policy_type(rough, built):
                 continue
             other = envs.make("rough", feet, policy, build_dir=str(built[feet][0]), terrain=SMALL,
                               observations=replace(env.config.observations, noise=False))
-            obs = other._observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
+            obs = other.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
             assert obs.shape == (observations.size(other.config, len(other.robot.passive_qpos)),)
             assert bool(jp.isfinite(obs).all()), (feet, policy)
         assert {"terrain/level_per_step", "terrain/at_level_0_per_step"} <= set(states[-1].metrics)
@@ -96,12 +96,12 @@ def test_height_scan_agrees_with_mujoco_ray_casts(rough):
         world = xy + local @ np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
         mujoco.mj_forward(model, cpu)
         for value, (x, y) in zip(scan, world):
-            if abs(value) >= obs_cfg.height_clip_m * obs_cfg.height_scale:
+            if abs(value) >= obs_cfg.height_clip_m:
                 continue  # clipped: carries no height
             distance = mujoco.mj_ray(model, cpu, np.array([x, y, 20.0]), np.array([0.0, 0.0, -1.0]), floor_only, 1, -1,
                                      geom_id)
             ray_height = 20.0 - distance
-            scan_height = z - obs_cfg.height_offset_m - value / obs_cfg.height_scale
+            scan_height = z - obs_cfg.height_offset_m - value
             assert abs(scan_height - ray_height) < 0.005, (x, y)
             checked += 1
     assert checked > 1000

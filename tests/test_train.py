@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jp
@@ -15,11 +16,12 @@ import pytest
 from conftest import REPO
 
 from footforge import envs
-from footforge.envs import observations
+from footforge.envs import observations, rewards
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 from footforge.rl.train import (
     PPOConfig,
+    env_config_from_dict,
     from_dict,
     latest_checkpoint,
     load_policy,
@@ -42,6 +44,31 @@ def test_configs_round_trip_through_json():
     assert from_dict(EnvConfig, json.loads(json.dumps(to_dict(env)))) == env
     ppo = PPOConfig(policy_hidden_layers=(8, 4))
     assert from_dict(PPOConfig, json.loads(json.dumps(to_dict(ppo)))) == ppo
+    # What is declared in code (the observation groups' reading functions) is not saved, and
+    # loading restores it from the declaration.
+    saved = json.loads(json.dumps(to_dict(env)))
+    assert saved["observations"]["joint_vel"] == {"scale": 0.05, "noise": 1.5}
+    assert saved["rewards"]["lin_vel_z"] == {"scale": -0.03}
+    with pytest.raises(InputError, match="unknown configuration key 'lin_vel_scael'"):
+        env_config_from_dict({**saved, "observations": {"lin_vel_scael": 2.0}})
+
+
+def test_configs_saved_before_terms_were_declared_once_load_unchanged():
+    """config.json of runs from before 2026-11-26 (flat scale and noise keys, bare reward scales),
+    such as the GPU campaign's, load with every value in its new place."""
+    old = json.loads((Path(__file__).parents[1] / "benchmarks" / "gpu_campaign_2026-11-24" / "flat_aof_B.config.json")
+                     .read_text())["env"]
+    env = env_config_from_dict(old)
+    o, r = env.observations, env.rewards
+    assert (o.base_lin_vel.scale, o.base_lin_vel.noise) == (old["observations"]["lin_vel_scale"],
+                                                            old["observations"]["lin_vel_noise"])
+    assert o.command.scale == tuple(old["observations"]["command_scale"])
+    assert (o.height_scan.scale, o.height_scan.noise) == (old["observations"]["height_scale"],
+                                                          old["observations"]["height_noise_m"])
+    assert o.foot_joint_vel.noise == old["observations"]["foot_joint_vel_noise"]
+    assert {name: term.scale for name, term in rewards.terms(r).items()} == {
+        name: old["rewards"][name] for name in rewards.terms(r)}
+    assert r.fall == old["rewards"]["fall"] and r.tracking_sigma == old["rewards"]["tracking_sigma"]
 
 
 def test_tiny_ppo_run_increases_the_return(built, tmp_path):

@@ -304,11 +304,12 @@ def test_closed_chain_reference_pose_is_at_rest():
     import mujoco
 
     from footforge.mjcf import foot as foot_lib
+    from footforge.mjcf.writing import compile_model
     from footforge.timing import StageTimer
     from footforge.validate.runner import ValidationModels
 
     full = ValidationModels(ValidateOptions(variants=()), StageTimer(None)).feet["full"]
-    model = foot_lib.compile_model(full.mjcf)
+    model = compile_model(full.mjcf)
     model.opt.timestep = 0.00025  # the drop tests' step for the closed chain
     model.opt.gravity[:] = 0.0
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT

@@ -43,15 +43,16 @@ def check_description(path: str | Path, *, package_paths: Sequence[str | Path] =
         foot, _ = select_foot_root(description, side.root_link, sidecar_path=side.source)
         parsed = parse_urdf(foot, floating=True)
         try:
-            pose = kinematics.reference_pose(parsed, side)
-            residuals = kinematics.closure_residuals(parsed, side, pose.q)
+            q = kinematics.reference_pose(parsed, side).q
         except CheckFailure as e:
             # The loops could not be closed: report each gap with the chain pins at zero and the
             # listed joints at their reference angles, then the failure.
             q = kinematics.pin.neutral(parsed.model)
             for name, value in side.reference_joints.items():
                 kinematics.set_joint(parsed, q, name, value)
-            residuals = kinematics.closure_residuals(parsed, side, q)
             findings.append(Finding("error", "closure_open", e.element or "sidecar", e.message, e.fix or "", False))
+        residuals = kinematics.closure_residuals(parsed, side, q)
         gaps = {c.name: float(np.linalg.norm(r)) for c, r in zip(side.closures, residuals)}
+        findings += [Finding("error", "closure_axis", element, message, fix, False)
+                     for element, message, fix in kinematics.closure_axis_problems(parsed, side, q)]
     return CheckResult(findings, gaps)

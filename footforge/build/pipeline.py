@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import platform
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Literal, Mapping
 
@@ -32,7 +32,6 @@ from footforge.mjcf.robot import build_robot
 from footforge.mjcf.scene import scene_xml
 from footforge.mjcf.writing import compile_model, xml_with_assets
 from footforge.models import massprops
-from footforge.models.collision import DecompositionConfig
 from footforge.models.foot_source import FootInputs, load_foot_source
 from footforge.models.massprops import MASS_RTOL, compare_mass_properties
 from footforge.models.urdf import parse_urdf
@@ -46,8 +45,11 @@ FORMATS = ("mjcf", "usd")
 
 REPORT_FORMAT = C.BUILD_FORMAT
 
-@dataclass(frozen=True)
-class BuildOptions:
+
+@dataclass(frozen=True, kw_only=True)
+class BuildOptions(FootInputs):
+    """What to build and where; where the foot comes from is FootInputs' fields."""
+
     variant: Variant
     """Which feet: full (closed chain), aof, aff, ball."""
     out_dir: Path
@@ -57,35 +59,11 @@ class BuildOptions:
     """Replace `out_dir` even if footforge did not write it (the user's --force)."""
     foot_only: bool = False
     """Write the foot alone (foot.xml) and its rig, no robot."""
-    foot_description: Path | None = None
-    """Foot xacro/URDF; default descriptions/softfoot_q/urdf/softfoot_q.urdf.xacro."""
-    sidecar: Path | None = None
-    """Foot sidecar; default <stem>.sidecar.yaml beside the foot description."""
     robot_description: Path | None = None
-    """Robot xacro/URDF with a `foot` argument (ball|none); default ANYmal C."""
-    package_paths: tuple[Path, ...] = ()
-    """Folders searched for ROS packages before ROS_PACKAGE_PATH and the project's own."""
-    foot_args: Mapping[str, str] = field(default_factory=dict)
-    """xacro arguments for the foot description."""
-    params: Path | None = None
-    """Variant parameter file; default descriptions/softfoot_q/config/variant_params.yaml."""
-    repair: bool = False
-    """Repair the descriptions' repairable defects (reported) instead of refusing them."""
-    decomposition: DecompositionConfig = DecompositionConfig()
-    cache_dir: Path | None = None
-    """CoACD cache; default ~/.cache/footforge/coacd (or $FOOTFORGE_CACHE)."""
+    """Robot xacro/URDF with a `foot` argument (ball|none); default ANYmal C. `repair` applies to
+    it too."""
     formats: tuple[str, ...] = FORMATS
     """Which outputs: "mjcf" (MuJoCo XML and assets) and/or "usd" (for Isaac Sim)."""
-
-    @property
-    def foot_inputs(self) -> FootInputs:
-        """The options that say where the foot comes from (footforge.models.foot_source)."""
-        return FootInputs(foot_description=self.foot_description, sidecar=self.sidecar,
-                          package_paths=self.package_paths, foot_args=self.foot_args, params=self.params,
-                          repair=self.repair, decomposition=self.decomposition, cache_dir=self.cache_dir)
-
-
-
 
 
 def build(options: BuildOptions, *, progress: Callable[[str], None] | None = None) -> dict:
@@ -119,7 +97,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
     foot = full_foot = None
     sidecar = None
     if options.variant != "ball":
-        source = load_foot_source(options.foot_inputs, stage, report, params)
+        source = load_foot_source(options, stage, report, params)
         sidecar = source.sidecar
         with stage(f"build {options.variant} foot"):
             full_foot = foot_lib.build_full(source)

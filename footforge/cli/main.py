@@ -229,7 +229,7 @@ def _run_validate(args, console) -> int:
 def _print_validation(report: dict, out: Path, console) -> None:
     from rich.table import Table
 
-    from footforge.validate.report import METRICS, _fmt, failing_metrics
+    from footforge.validate.report import METRICS, format_value, failing_metrics
 
     ref = report["reference"]
     table = Table(title=f"footforge validate -> {out}/report.md")
@@ -237,9 +237,9 @@ def _print_validation(report: dict, out: Path, console) -> None:
         table.add_column(column)
     for v, f in report["fidelity"].items():
         m = f["summary"]["metrics"]
-        table.add_row(v, *[_fmt(m[k]["mean"]) for k in METRICS], f"{report['speed'][v]['vs_full']:.1f}x",
+        table.add_row(v, *[format_value(m[k]["mean"]) for k in METRICS], f"{report['speed'][v]['vs_full']:.1f}x",
                       "[green]pass[/green]" if f["summary"]["passed"] else "[red]FAIL[/red]")
-    table.add_row("threshold", *[_fmt(report["thresholds"][k]) for k in METRICS], "", "")
+    table.add_row("threshold", *[format_value(report["thresholds"][k]) for k in METRICS], "", "")
     console.print(table)
     for v, f in report["fidelity"].items():
         failing = failing_metrics(f["summary"])
@@ -247,14 +247,14 @@ def _print_validation(report: dict, out: Path, console) -> None:
             console.print(f"[red]{v} fails[/red] on: " + "; ".join(failing))
         if f["summary"].get("missed_obstacle"):
             console.print(f"{v} missed the obstacle in {', '.join(f['summary']['missed_obstacle'])}: excluded from the means")
-    console.print(f"closed-chain reference: largest closure opening {_fmt(ref['max_closure_gap_mm'])} mm "
-                  f"(limit {ref['closure_limit_mm']}), largest energy gain {_fmt(ref['max_energy_gain_j'])} J: "
+    console.print(f"closed-chain reference: largest closure opening {format_value(ref['max_closure_gap_mm'])} mm "
+                  f"(limit {ref['closure_limit_mm']}), largest energy gain {format_value(ref['max_energy_gain_j'])} J: "
                   + ("[green]trustworthy[/green]" if ref["passed"] else "[red]NOT trustworthy[/red]"))
     for v, cal in report.get("calibration", {}).items():
         console.print(f"calibrated {v}: objective {cal['series_errors_before']['train']['objective']:.3g} -> "
                       f"{cal['series_errors_after']['train']['objective']:.3g} (train), "
-                      f"{_fmt(cal['series_errors_before']['held_out'].get('objective'))} -> "
-                      f"{_fmt(cal['series_errors_after']['held_out'].get('objective'))} (held out); "
+                      f"{format_value(cal['series_errors_before']['held_out'].get('objective'))} -> "
+                      f"{format_value(cal['series_errors_after']['held_out'].get('objective'))} (held out); "
                       f"written to {cal['written_to']}")
 
 

@@ -12,7 +12,7 @@ from dataclasses import replace
 from typing import get_args
 
 from footforge.envs.config import (CommandConfig, ContactModel, EnvConfig, ObservationConfig, ResetConfig,
-                                   RewardScales, check_feet_and_policy)
+                                   RewardConfig, check_feet_and_policy)
 from footforge.errors import InputError
 
 TASKS = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
@@ -39,7 +39,7 @@ def default_config(task: str, feet: str, policy: str, contact_model: str | None 
     if task == "flat":
         # The flat baseline's published scales where it has them (the rest: the rough baseline's).
         # Its reset puts the joints at the defaults (only their velocities are drawn).
-        flat_rewards = RewardScales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
+        flat_rewards = RewardConfig().with_scales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006)
         # Velocity actions integrate onto a PD target the policy must see (ObservationConfig.pd_targets).
         config = EnvConfig(task="flat", feet=feet, policy=policy, action="velocity", rewards=flat_rewards,
                            reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),

@@ -1,22 +1,26 @@
 """Configuration of the locomotion environments: frozen dataclasses, one docstring per field.
 
-Defaults are the paper's and, where it is silent, its public baseline's (OmniIsaacGymEnvs ANYmal;
-see ../shared/reference/paper_setup.md). PPO hyperparameters live apart, in footforge.rl.train.
+Defaults are the paper's (Scaldaferri et al. 2024) and, where it is silent, its public baseline's:
+OmniIsaacGymEnvs' Anymal and AnymalTerrain tasks (tasks/anymal.py, anymal_terrain.py and their
+cfg/task YAML). PPO hyperparameters live apart, in footforge.rl.train.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass, field, fields, replace
+from typing import Callable, Literal
 
+from footforge import constants as C
+from footforge.envs import observations, rewards
 from footforge.envs.terrain import TerrainConfig
 from footforge.errors import InputError
 
 PolicyType = Literal["B", "BH", "P", "PH"]
 Feet = Literal["ball", "aff", "aof"]
 ContactModel = Literal["stance", "fast", "build"]
-MjxImpl = Literal["jax", "warp"]
 """EnvConfig.contact_model's choices, the default first."""
+MjxImpl = Literal["jax", "warp"]
+N_ACTUATED = len(C.ACTUATED_JOINTS)
 
 
 @dataclass(frozen=True)
@@ -37,29 +41,45 @@ class CommandConfig:
     """Commands are redrawn this often within an episode, s."""
 
 
-@dataclass(frozen=True)
-class RewardScales:
-    """Scale of each of the paper's ten terms (each term is multiplied by the policy step dt)."""
+NOT_SAVED = {"saved": False}
+"""Field metadata: declared in code, not written to a run's config.json (functions, widths)."""
 
-    lin_vel_xy: float = 1.0
+
+@dataclass(frozen=True)
+class RewardTerm:
+    """One reward term: its function and its scale."""
+
+    compute: Callable = field(default=None, metadata=NOT_SAVED)
+    """(rewards.Quantities, RewardConfig) -> the unscaled term (envs.rewards, whose docstrings give
+    each term's formula and unit)."""
+    scale: float = 0.0
+    """Multiplies the term (and the policy step dt): positive rewards, negative penalises."""
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """The paper's ten terms, each declared once (function and scale), and their parameters.
+    Each term is multiplied by its scale and the policy step dt."""
+
+    lin_vel_xy: RewardTerm = RewardTerm(rewards.lin_vel_xy, 1.0)
     """exp(-|v_xy,cmd - v_xy|^2 / sigma)."""
-    yaw_rate: float = 0.5
+    yaw_rate: RewardTerm = RewardTerm(rewards.yaw_rate, 0.5)
     """exp(-(w_z,cmd - w_z)^2 / sigma)."""
-    lin_vel_z: float = -4.0
+    lin_vel_z: RewardTerm = RewardTerm(rewards.lin_vel_z, -4.0)
     """v_z^2, (m/s)^2."""
-    ang_vel_xy: float = -0.05
+    ang_vel_xy: RewardTerm = RewardTerm(rewards.ang_vel_xy, -0.05)
     """Roll and pitch rate, |w_xy|^2, (rad/s)^2."""
-    orientation: float = -1.0
+    orientation: RewardTerm = RewardTerm(rewards.orientation, -1.0)
     """|projected gravity_xy|^2 (unpublished value; the paper turns the term on)."""
-    base_height: float = -10.0
+    base_height: RewardTerm = RewardTerm(rewards.base_height, -10.0)
     """(h - target)^2, m^2, with h the base height over the ground (unpublished value)."""
-    torques: float = -2e-5
+    torques: RewardTerm = RewardTerm(rewards.torques, -2e-5)
     """sum tau^2, (N m)^2."""
-    joint_acc: float = -5e-4
+    joint_acc: RewardTerm = RewardTerm(rewards.joint_acc, -5e-4)
     """sum (qd - qd_prev)^2 of the actuated joints over a policy step, (rad/s)^2 (as the baseline)."""
-    action_rate: float = -0.01
+    action_rate: RewardTerm = RewardTerm(rewards.action_rate, -0.01)
     """sum (a - a_prev)^2."""
-    hip: float = -0.06
+    hip: RewardTerm = RewardTerm(rewards.hip, -0.06)
     """sum |q_HAA - default|, rad."""
     tracking_sigma: float = 0.25
     """Width of the tracking kernels, (m/s)^2 and (rad/s)^2."""
@@ -72,46 +92,82 @@ class RewardScales:
     falls without a value; OmniIsaacGymEnvs' flat Anymal adds -1 after its clip (its rough task's
     -1 x dt comes before the clip, which erases it), so footforge follows the flat task in both."""
 
+    def with_scales(self, **scales: float) -> RewardConfig:
+        """This configuration with the named terms' scales replaced."""
+        return replace(self, **{name: replace(getattr(self, name), scale=s) for name, s in scales.items()})
+
+
+@dataclass(frozen=True)
+class ObservationTerm:
+    """One observation group: its reading function, width and readers (declared in code), and
+    its scale and noise (configurable)."""
+
+    read: Callable = field(default=None, metadata=NOT_SAVED)
+    """(env, data, info) -> the group's value in its unit (envs.observations, whose docstrings
+    give what each holds)."""
+    width: int | str = field(default=0, metadata=NOT_SAVED)
+    """Number of values, or "passive_joints" / "scan_points": one per passive foot joint / scan point."""
+    read_by: str = field(default="always", metadata=NOT_SAVED)
+    """Which policies read it: "always", "haptic" (BH, PH), "perceptive" (P, PH), "pd_targets"
+    (where ObservationConfig.pd_targets)."""
+    scale: float | tuple[float, ...] = 1.0
+    """Factor the noisy value is multiplied by (per component for a tuple)."""
+    noise: float = 0.0
+    """Half-width of the uniform noise added before scaling, in the group's unit (where
+    ObservationConfig.noise)."""
+
 
 @dataclass(frozen=True)
 class ObservationConfig:
-    """Scales and uniform noise (before scaling) of each observation group."""
+    """The observation's groups, each declared once, in the order of the observation vector."""
 
-    lin_vel_scale: float = 2.0
-    ang_vel_scale: float = 0.25
-    command_scale: tuple[float, float, float] = (2.0, 2.0, 0.25)
-    joint_pos_scale: float = 1.0
-    joint_vel_scale: float = 0.05
-    foot_joint_pos_scale: float = 1.0
-    """Haptic observations (BH/PH): passive foot joint angles, rad."""
-    foot_joint_vel_scale: float = 0.05
-    lin_vel_noise: float = 0.1
-    ang_vel_noise: float = 0.2
-    gravity_noise: float = 0.05
-    joint_pos_noise: float = 0.01
-    joint_vel_noise: float = 1.5
-    foot_joint_pos_noise: float = 0.01
-    foot_joint_vel_noise: float = 1.5
-    height_scale: float = 5.0
-    """Perceptive observations (P/PH): each scan value is clip(base z - offset - h, +-clip) x scale."""
+    base_lin_vel: ObservationTerm = ObservationTerm(observations.base_lin_vel, 3, scale=2.0, noise=0.1)
+    """Base linear velocity in the base frame, m/s."""
+    base_ang_vel: ObservationTerm = ObservationTerm(observations.base_ang_vel, 3, scale=0.25, noise=0.2)
+    """Base angular velocity in the base frame, rad/s."""
+    projected_gravity: ObservationTerm = ObservationTerm(observations.projected_gravity, 3, noise=0.05)
+    """Unit gravity direction in the base frame."""
+    command: ObservationTerm = ObservationTerm(observations.command, 3, scale=(2.0, 2.0, 0.25))
+    """vx, vy (m/s), yaw rate (rad/s)."""
+    joint_pos: ObservationTerm = ObservationTerm(observations.joint_pos, N_ACTUATED, noise=0.01)
+    """Actuated joint angles minus the defaults, rad."""
+    joint_vel: ObservationTerm = ObservationTerm(observations.joint_vel, N_ACTUATED, scale=0.05, noise=1.5)
+    """Actuated joint velocities, rad/s."""
+    last_action: ObservationTerm = ObservationTerm(observations.last_action, N_ACTUATED)
+    """The previous policy output."""
+    pd_target: ObservationTerm = ObservationTerm(observations.pd_target, N_ACTUATED, read_by="pd_targets")
+    """With pd_targets (the flat task's velocity actions): the actuated joints' PD targets minus
+    the defaults, rad, noiseless (the controller knows them)."""
+    height_scan: ObservationTerm = ObservationTerm(observations.height_scan, "scan_points", read_by="perceptive",
+                                                   scale=5.0, noise=0.06)
+    """P/PH only: clip(base z - height_offset_m - terrain height, +-height_clip_m) at the scan
+    points, m, x-major (EnvConfig.height_scan)."""
+    foot_joint_pos: ObservationTerm = ObservationTerm(observations.foot_joint_pos, "passive_joints",
+                                                      read_by="haptic", noise=0.01)
+    """BH/PH only: passive foot joint angles, rad."""
+    foot_joint_vel: ObservationTerm = ObservationTerm(observations.foot_joint_vel, "passive_joints",
+                                                      read_by="haptic", scale=0.05, noise=1.5)
+    """BH/PH only: passive foot joint velocities, rad/s."""
     height_offset_m: float = 0.5
+    """The height scan reads the terrain this far below the base, m."""
     height_clip_m: float = 1.0
-    height_noise_m: float = 0.06
+    """The height scan's values are clipped to +-this, m (before the scale)."""
     pd_targets: bool = False
-    """Observe the actuated joints' PD targets (minus the defaults, rad, noiseless: the controller
-    knows them). envs.default_config turns it on for the flat task's velocity actions, off elsewhere
-    (and in configurations saved before it existed, whose networks do not read it). Why: under
-    velocity actions the target is the integral of every past action (EnvConfig.action), a state of
-    the controller that neither q nor the last action reveals. OmniIsaacGymEnvs' flat Anymal needs
-    no such input because its drive is so stiff (about 22.9k N m/rad) that q equals the target; at
-    ANYmal C's kp 80 N m/rad the two differ by torque / kp, 0.11-0.21 rad standing at the `stand`
-    keyframe and up to 1 rad at the 80 N m limit, so a policy that cannot see the target is
-    partially blind to its own torques. Under position actions (rough task) the target,
-    default + scale x last action, is observed already. benchmarks/RESULTS.md (2026-11-25, fifth
-    session): the CPU learning run with it, beside the earlier run without it."""
+    """Observe the actuated joints' PD targets (pd_target). envs.default_config turns it on for the
+    flat task's velocity actions, off elsewhere (and in configurations saved before it existed,
+    whose networks do not read it). Why: under velocity actions the target is the integral of
+    every past action (EnvConfig.action), a state of the controller that neither q nor the last
+    action reveals. OmniIsaacGymEnvs' flat Anymal needs no such input because its drive is so
+    stiff (about 22.9k N m/rad) that q equals the target; at ANYmal C's kp 80 N m/rad the two
+    differ by torque / kp, 0.11-0.21 rad standing at the `stand` keyframe and up to 1 rad at the
+    80 N m limit, so a policy that cannot see the target is partially blind to its own torques.
+    Under position actions (rough task) the target, default + scale x last action, is observed
+    already. benchmarks/RESULTS.md (2026-11-25, fifth session): the CPU learning run with it,
+    beside the earlier run without it."""
     noise: bool = True
     """Add the uniform noise (off for evaluation of the noiseless state)."""
     clip: float = 5.0
+    """The whole observation is clipped to +-clip after scaling."""
 
 
 @dataclass(frozen=True)
@@ -316,7 +372,7 @@ class EnvConfig:
     mujoco-mjx's `warp` extra installed (warp-lang, mujoco_warp). Refused with a clear error
     where it cannot run (envs.anymal.check_mjx_impl); not yet measured on a GPU."""
     commands: CommandConfig = field(default_factory=CommandConfig)
-    rewards: RewardScales = field(default_factory=RewardScales)
+    rewards: RewardConfig = field(default_factory=RewardConfig)
     observations: ObservationConfig = field(default_factory=ObservationConfig)
     pushes: PushConfig = field(default_factory=PushConfig)
     reset: ResetConfig = field(default_factory=ResetConfig)
@@ -375,3 +431,38 @@ def check_feet_and_policy(feet: str, policy: str) -> None:
     if policy in ("BH", "PH") and feet == "ball":
         raise InputError(f"policy type {policy} reads the feet's passive joints; the ball foot has none",
                          fix="use B with ball feet, or aff/aof feet")
+
+
+_SAVED_BEFORE_TERMS = {  # ObservationConfig's flat keys before each group was declared once (2026-11-26)
+    "lin_vel_scale": ("base_lin_vel", "scale"), "lin_vel_noise": ("base_lin_vel", "noise"),
+    "ang_vel_scale": ("base_ang_vel", "scale"), "ang_vel_noise": ("base_ang_vel", "noise"),
+    "gravity_noise": ("projected_gravity", "noise"), "command_scale": ("command", "scale"),
+    "joint_pos_scale": ("joint_pos", "scale"), "joint_pos_noise": ("joint_pos", "noise"),
+    "joint_vel_scale": ("joint_vel", "scale"), "joint_vel_noise": ("joint_vel", "noise"),
+    "foot_joint_pos_scale": ("foot_joint_pos", "scale"), "foot_joint_pos_noise": ("foot_joint_pos", "noise"),
+    "foot_joint_vel_scale": ("foot_joint_vel", "scale"), "foot_joint_vel_noise": ("foot_joint_vel", "noise"),
+    "height_scale": ("height_scan", "scale"), "height_noise_m": ("height_scan", "noise"),
+}
+
+
+def upgrade_saved(env: dict) -> dict:
+    """An EnvConfig as a run saved it (config.json's "env"), in today's form: runs saved before the
+    observation groups and reward terms were declared once hold flat scale and noise keys
+    (lin_vel_scale, ...) and bare reward scales; the values carry over unchanged."""
+    env = dict(env)
+    if "observations" in env:
+        obs = {}
+        for key, value in env["observations"].items():
+            if key in _SAVED_BEFORE_TERMS:
+                group, attribute = _SAVED_BEFORE_TERMS[key]
+                obs.setdefault(group, {})[attribute] = value
+            else:
+                obs[key] = value
+        env["observations"] = obs
+    if "rewards" in env:
+        env["rewards"] = {key: {"scale": value} if key in _REWARD_TERMS and not isinstance(value, dict) else value
+                          for key, value in env["rewards"].items()}
+    return env
+
+
+_REWARD_TERMS = tuple(f.name for f in fields(RewardConfig) if f.type in ("RewardTerm", RewardTerm))

@@ -12,6 +12,8 @@ explains why); footforge.envs.rough builds the rough task on the hooks marked be
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jp
 import mujoco
@@ -27,6 +29,36 @@ from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
 
 N_ACTUATED = len(C.ACTUATED_JOINTS)
+
+
+class ResetKeys(NamedTuple):
+    """The random keys of an episode's start, in the order they are split from the reset key."""
+
+    rng: jax.Array
+    """Carried on in info["rng"] (after the observation's key is split from it)."""
+    command: jax.Array
+    spawn: jax.Array
+    joints: jax.Array
+
+
+class StepKeys(NamedTuple):
+    """The random keys of a policy step, in the order they are split from info["rng"]."""
+
+    rng: jax.Array
+    """The next step's info["rng"]."""
+    push: jax.Array
+    command: jax.Array
+    observation: jax.Array
+    spawn: jax.Array
+    joints: jax.Array
+
+
+def reset_keys(rng: jax.Array) -> ResetKeys:
+    return ResetKeys(*jax.random.split(rng, len(ResetKeys._fields)))
+
+
+def step_keys(rng: jax.Array) -> StepKeys:
+    return StepKeys(*jax.random.split(rng, len(StepKeys._fields)))
 
 
 def _yaw(quat):
@@ -59,7 +91,8 @@ class LocomotionEnv(Env):
         self._geom_category = jp.asarray(r.geom_category)
         self._stand = jp.asarray(r.stand_qpos)
         self._ctrl_order = jp.asarray(r.actuator_ids)
-        self._default_q = jp.asarray(r.default_q)
+        self.default_q = jp.asarray(r.default_q)
+        """The actuated joints' default angles, rad (actuator order)."""
         self._q_lo, self._q_hi = jp.asarray(r.q_limits[:, 0]), jp.asarray(r.q_limits[:, 1])
         stand = mujoco.MjData(r.model)
         stand.qpos[:] = r.stand_qpos
@@ -90,25 +123,16 @@ class LocomotionEnv(Env):
         return "mjx"
 
     def reset(self, rng: jax.Array) -> State:
-        rng, key_cmd, key_spawn, key_joints = jax.random.split(rng, 4)
+        keys = reset_keys(rng)
         data = mjx.make_data(self.mjx_model)
-        info = {"rng": rng, "last_action": jp.zeros(N_ACTUATED), "last_joint_vel": jp.zeros(N_ACTUATED),
-                "step": jp.zeros((), jp.int32), "episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(())}
-        info |= self._first_spawn_info(key_spawn)
-        data = self._place(data, *self._start_state(info, key_joints))
-        info["target"] = data.ctrl[self._ctrl_order]
-        data = mjx.forward(self.mjx_model, data)
-        command, heading = self._sample_command(key_cmd)
-        info |= {"command": command, "heading_target": heading}
-        info["command"] = self._heading_command(info, data)
-        metrics = {f"reward/{t}": jp.zeros(()) for t in (*rewards.TERMS, "fall")}
+        info = {"episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(())} | self._first_spawn_info(keys.spawn)
+        data = mjx.forward(self.mjx_model, self._place(data, *self._start_state(info, keys.joints)))
+        info, obs = self.policy_start(data, info, keys, data.ctrl[self._ctrl_order])
+        metrics = {f"reward/{t}": jp.zeros(()) for t in (*rewards.terms(self.config.rewards), "fall")}
         metrics |= {k: jp.zeros(()) for k in ("error/lin_vel_x_per_step", "error/lin_vel_y_per_step",
                                               "error/yaw_rate_per_step", "base_height_m_per_step", "diverged")}
         metrics |= self._task_metrics(info)
-        rng, key_obs = jax.random.split(rng)
-        info["rng"] = rng
-        obs = self.observation(data, info, key_obs)
-        return policy_side(State(data, obs, jp.zeros(()), jp.zeros(()), metrics, info))
+        return policy_side(State(data, self._with_privileged(obs, data), jp.zeros(()), jp.zeros(()), metrics, info))
 
     def _place(self, data, qpos, qvel, target, where=True):
         """The robot at (qpos, qvel) with PD targets `target` (only where `where`: the fields a
@@ -128,9 +152,9 @@ class LocomotionEnv(Env):
         k_pos, k_vel = jax.random.split(key)
         lo, hi = cfg.joint_pos_factor_range
         factor = jax.random.uniform(k_pos, (N_ACTUATED,), minval=lo, maxval=hi)
-        target = jp.clip(self._default_q * factor, self._q_lo, self._q_hi)
+        target = jp.clip(self.default_q * factor, self._q_lo, self._q_hi)
         qpos = self._spawn_qpos(info)
-        qpos = qpos.at[r.actuated_qpos].set(jp.clip(qpos[r.actuated_qpos] + target - self._default_q,
+        qpos = qpos.at[r.actuated_qpos].set(jp.clip(qpos[r.actuated_qpos] + target - self.default_q,
                                                      self._q_lo, self._q_hi))
         qvel = jp.zeros(self.mjx_model.nv).at[r.actuated_dof].set(
             jax.random.uniform(k_vel, (N_ACTUATED,), minval=-cfg.joint_vel_max, maxval=cfg.joint_vel_max))
@@ -140,7 +164,54 @@ class LocomotionEnv(Env):
             qpos = qpos.at[2].add(self._stand_site_clearance - clearance)
         return qpos, qvel, target
 
-    # The policy's side of a step, shared with the CPU runner of footforge.rl.evaluate_closed_chain ---------
+    # The policy's side: what a controller on the robot computes, from the robot's state (data's
+    # qpos and qvel) and its own memory (info). env.reset and env.step call these, and so does the
+    # CPU runner on the closed chain (footforge.rl.evaluate_closed_chain.Controller), which gets
+    # the same commands, PD targets, pushes and observations from the same random keys.
+    def policy_start(self, data, info: dict, keys: ResetKeys, target, command=None):
+        """(info, the policy's observation) at an episode's start: the first command, drawn with
+        keys.command, its yaw rate steering to the drawn heading (`command`, vx vy yaw rate, where
+        not NaN, replaces it); no previous action or joint velocity; PD targets `target`."""
+        drawn, heading = self.sample_command(keys.command)
+        rng, key_obs = jax.random.split(keys.rng)
+        info = info | {"rng": rng, "step": jp.zeros((), jp.int32), "target": target, "command": drawn,
+                       "heading_target": heading, "last_action": jp.zeros(N_ACTUATED),
+                       "last_joint_vel": jp.zeros(N_ACTUATED)}
+        info["command"] = _given(command, self.heading_command(info, data))
+        return info, self.observe(data, info, key_obs)
+
+    def policy_act(self, info: dict, action):
+        """Before a policy step's physics: (the clipped action, the PD targets it sets, whether the
+        step pushes the base, the planar velocity the push sets (m/s), info advanced a step, the
+        step's random keys)."""
+        keys = step_keys(info["rng"])
+        step = info["step"] + 1
+        action = self.clip_action(action)
+        target = self.joint_targets(info["target"], action)
+        push_now, push = self.push(step, keys.push)
+        return action, target, push_now, push, info | {"rng": keys.rng, "step": step, "target": target}, keys
+
+    def policy_command(self, info: dict, data, keys: StepKeys, command=None):
+        """After the physics: (info with the command and heading target of the next step, the fresh
+        draw (command, heading) that episodes restarting now take). The command is redrawn every
+        resample_s, its yaw rate steering to the heading; `command`, where not NaN, replaces it."""
+        fresh = self.sample_command(keys.command)
+        info = info | self.next_command(info, data, info["step"], *fresh)
+        info["command"] = _given(command, info["command"])
+        return info, fresh
+
+    def policy_observe(self, data, info: dict, keys: StepKeys, action, ended=False, fresh=None):
+        """After the physics and any restart: (info remembering this step's action and joint
+        velocities, the policy's observation, non-finite values zeroed). Where `ended`, the
+        episode restarted: nothing is remembered and the command is the fresh draw."""
+        info = info | {"last_action": jp.where(ended, 0.0, action),
+                       "last_joint_vel": jp.where(ended, 0.0, data.qvel[self.robot.actuated_dof])}
+        if fresh is not None:
+            info |= {"command": jp.where(ended, fresh[0], info["command"]),
+                     "heading_target": jp.where(ended, fresh[1], info["heading_target"])}
+        obs = self.observe(data, info, keys.observation)
+        return info, jp.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
+
     def clip_action(self, action):
         """The policy output as the environment uses it, within +-EnvConfig.action_clip."""
         return jp.clip(action, -self.config.action_clip, self.config.action_clip)
@@ -152,7 +223,7 @@ class LocomotionEnv(Env):
         if cfg.action == "velocity":
             target = previous_target + cfg.action_scale * action * cfg.policy_dt
         else:
-            target = self._default_q + cfg.action_scale * action
+            target = self.default_q + cfg.action_scale * action
         return jp.clip(target, self._q_lo, self._q_hi)
 
     def push(self, step, key):
@@ -167,7 +238,7 @@ class LocomotionEnv(Env):
         resample = step % self._command_every == 0
         info = info | {"command": jp.where(resample, new_command, info["command"]),
                        "heading_target": jp.where(resample, new_heading, info["heading_target"])}
-        return {"command": self._heading_command(info, data), "heading_target": info["heading_target"]}
+        return {"command": self.heading_command(info, data), "heading_target": info["heading_target"]}
 
     # Where episodes start: flat ground always at the home pose; RoughEnv overrides these hooks.
     def _first_spawn_info(self, key) -> dict:
@@ -185,26 +256,20 @@ class LocomotionEnv(Env):
         return {}
 
     def step(self, state: State, action: jax.Array) -> State:
-        cfg, r = self.config, self.robot
+        cfg = self.config
         data, info = state.pipeline_state, dict(state.info)
-        rng, key_push, key_cmd, key_obs, key_spawn, key_joints = jax.random.split(info["rng"], 6)
-        step = info["step"] + 1
-        action = self.clip_action(action)
-        target = self.joint_targets(info["target"], action)
+        action, target, push_now, push, info, keys = self.policy_act(info, action)
         data = data.replace(ctrl=data.ctrl.at[self._ctrl_order].set(target))
-        push_now, push = self.push(step, key_push)  # sets the base's planar velocity, then the physics runs
+        # The push sets the base's planar velocity, then the physics runs.
         data = data.replace(qvel=jp.where(push_now, data.qvel.at[:2].set(push), data.qvel))
 
         def physics(d, _):
             return mjx.step(self.mjx_model, d), None
         data, _ = jax.lax.scan(physics, data, None, length=cfg.decimation)
-
-        new_command, new_heading = self._sample_command(key_cmd)
-        info.update(self.next_command(info, data, step, new_command, new_heading))
+        info, fresh = self.policy_command(info, data, keys)
 
         terms, errors = self._reward_terms(data, info, action)
-        scales = cfg.rewards
-        weighted = {t: terms[t] * getattr(scales, t) * cfg.policy_dt for t in rewards.TERMS}
+        weighted = {name: terms[name] * term.scale * cfg.policy_dt for name, term in rewards.terms(cfg.rewards).items()}
         reward = sum(weighted.values())
         # A robot whose simulation diverged ends its episode as a fall with zero metrics; its
         # NaNs must reach neither the returns nor the policy's inputs. Finiteness (of the state
@@ -212,17 +277,16 @@ class LocomotionEnv(Env):
         # turn -inf or NaN into 0 and hide the divergence; the `diverged` metric reports it.
         # Physics that blew up without reaching inf (EnvConfig.diverged_speed) counts the same.
         finite = (jp.isfinite(data.qpos).all() & (jp.abs(data.qvel) < cfg.diverged_speed).all() & jp.isfinite(reward)
-                  & jp.isfinite(data.actuator_force).all()
-                  & jp.all(jp.isfinite(jp.stack([terms[t] for t in rewards.TERMS]))))
-        if scales.clip_total_at_zero:
+                  & jp.isfinite(data.actuator_force).all() & jp.all(jp.isfinite(jp.stack(list(terms.values())))))
+        if cfg.rewards.clip_total_at_zero:
             reward = jp.maximum(reward, 0.0)
         reward = jp.where(finite, reward, 0.0)
         weighted = {t: jp.where(finite, v, 0.0) for t, v in weighted.items()}
         errors = {k: jp.where(finite, v, 0.0) for k, v in errors.items()}
         terminated = self._terminated(data) | ~finite
-        # After the clip (RewardScales.fall). Strongly typed: a weakly typed metric would differ
+        # After the clip (RewardConfig.fall). Strongly typed: a weakly typed metric would differ
         # from reset's and make every second call of a jitted step compile again.
-        fall_penalty = jp.float32(scales.fall) * terminated.astype(jp.float32)
+        fall_penalty = jp.float32(cfg.rewards.fall) * terminated.astype(jp.float32)
         reward = reward + fall_penalty
         # A time-out is reported as done with info['time_out'] = 1, which PPO
         # (bootstrap_on_timeout) bootstraps instead of treating as a fall.
@@ -235,22 +299,19 @@ class LocomotionEnv(Env):
         # The environment restarts ended episodes itself (footforge.envs.wrappers): a new spawn,
         # no previous action, a new command. Brax's auto-reset would restore one fixed first
         # state and lose the curriculum's per-robot state.
-        qvel = data.qvel[r.actuated_dof]
-        info.update(self._next_spawn_info(info, data, ended, key_spawn))
-        data = self._place(data, *self._start_state(info, key_joints), where=ended)
-        info.update(rng=rng, step=step, episode_step=jp.where(ended, 0, episode_step),
-                    target=data.ctrl[self._ctrl_order],  # this step's targets, or the restart's
-                    time_out=time_out.astype(jp.float32), last_action=jp.where(ended, 0.0, action),
-                    last_joint_vel=jp.where(ended, 0.0, qvel),
-                    command=jp.where(ended, new_command, info["command"]),
-                    heading_target=jp.where(ended, new_heading, info["heading_target"]))
+        info.update(self._next_spawn_info(info, data, ended, keys.spawn))
+        data = self._place(data, *self._start_state(info, keys.joints), where=ended)
+        info.update(episode_step=jp.where(ended, 0, episode_step), time_out=time_out.astype(jp.float32),
+                    target=data.ctrl[self._ctrl_order])  # this step's targets, or the restart's
+        info, obs = self.policy_observe(data, info, keys, action, ended, fresh)
         obs = jax.tree_util.tree_map(lambda o: jp.nan_to_num(o, nan=0.0, posinf=0.0, neginf=0.0),
-                                     self.observation(data, info, key_obs))
+                                     self._with_privileged(obs, data))
         return policy_side(state.replace(pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32),
                                          metrics=metrics, info=info))
 
     # Pieces --------------------------------------------------------------------------------
-    def _sample_command(self, key):
+    def sample_command(self, key):
+        """A command (vx, vy, 0) and a target heading drawn from CommandConfig's ranges."""
         c = self.config.commands
         kx, ky, kh = jax.random.split(key, 3)
         vx = jax.random.uniform(kx, minval=c.lin_vel_x_range[0], maxval=c.lin_vel_x_range[1])
@@ -259,7 +320,7 @@ class LocomotionEnv(Env):
         keep = jp.hypot(vx, vy) > c.zero_below
         return jp.array([vx, vy, 0.0]) * keep, heading
 
-    def _heading_command(self, info, data):
+    def heading_command(self, info, data):
         """The yaw-rate command steers the base toward the target heading."""
         c = self.config.commands
         error = _wrap(info["heading_target"] - _yaw(data.qpos[3:7]))
@@ -278,19 +339,22 @@ class LocomotionEnv(Env):
         """What the networks read: the policy's observation, or with EnvConfig.privileged_critic
         Brax's dict {"state": the policy's, "privileged_state": the policy's + privileged}, the
         value network reading the second (an asymmetric actor-critic)."""
-        obs = self._observe(data, info, key)
+        return self._with_privileged(self.observe(data, info, key), data)
+
+    def _with_privileged(self, obs, data):
         if not self.config.privileged_critic:
             return obs
         return {"state": obs, "privileged_state": jp.concatenate([obs, self.privileged(data)])}
 
     def privileged(self, data):
         """Critic-only quantities no robot measures directly: the true base linear velocity
-        (x lin_vel_scale, noiseless), each foot's normal ground force over the robot's weight,
+        (x the base_lin_vel group's scale, noiseless), each foot's normal ground force over the robot's weight,
         the noiseless height scan, and the ground's friction coefficient."""
         cfg = self.config.observations
         lin, _, _ = self.base_state(data)
-        return jp.concatenate([lin * cfg.lin_vel_scale, self.foot_forces(data) / self._weight_n,
-                               self.height_scan(data), self.mjx_model.geom_friction[self.robot.floor_geom, :1]])
+        return jp.concatenate([lin * cfg.base_lin_vel.scale, self.foot_forces(data) / self._weight_n,
+                               self.height_scan(data) * cfg.height_scan.scale,
+                               self.mjx_model.geom_friction[self.robot.floor_geom, :1]])
 
     def foot_forces(self, data):
         """Per leg (LF, RF, LH, RH): the normal force of its foot's contacts with the ground, N."""
@@ -301,33 +365,18 @@ class LocomotionEnv(Env):
         hit, other = _floor_hits(self._geom_category, self.robot.floor_geom, contact.geom[index], contact.dist[index])
         return jp.stack([jp.sum(jp.where(hit & (other == GEOM_FOOT + i), force[:, 0], 0.0)) for i in range(4)])
 
-    def _observe(self, data, info, key):
-        cfg, r = self.config.observations, self.robot
-        lin, ang, gravity = self.base_state(data)
-        parts = {
-            "base_lin_vel": (lin * cfg.lin_vel_scale, cfg.lin_vel_noise * cfg.lin_vel_scale),
-            "base_ang_vel": (ang * cfg.ang_vel_scale, cfg.ang_vel_noise * cfg.ang_vel_scale),
-            "projected_gravity": (gravity, cfg.gravity_noise),
-            "command": (info["command"] * jp.asarray(cfg.command_scale), 0.0),
-            "joint_pos": ((data.qpos[r.actuated_qpos] - self._default_q) * cfg.joint_pos_scale,
-                          cfg.joint_pos_noise * cfg.joint_pos_scale),
-            "joint_vel": (data.qvel[r.actuated_dof] * cfg.joint_vel_scale, cfg.joint_vel_noise * cfg.joint_vel_scale),
-            "last_action": (info["last_action"], 0.0),
-            "pd_target": (info["target"] - self._default_q, 0.0),
-            "foot_joint_pos": (data.qpos[r.passive_qpos] * cfg.foot_joint_pos_scale,
-                               cfg.foot_joint_pos_noise * cfg.foot_joint_pos_scale),
-            "foot_joint_vel": (data.qvel[r.passive_dof] * cfg.foot_joint_vel_scale,
-                               cfg.foot_joint_vel_noise * cfg.foot_joint_vel_scale),
-        }
-        if self.config.perceptive:
-            parts["height_scan"] = (self.height_scan(data), cfg.height_noise_m * cfg.height_scale)
+    def observe(self, data, info, key):
+        """The policy's observation: each group this policy type reads (envs.observations), with
+        uniform noise of +-noise in its unit (where ObservationConfig.noise), times its scale,
+        the whole clipped to +-clip."""
+        cfg = self.config.observations
+        groups = observations.terms(self.config)
         chunks = []
-        keys = jax.random.split(key, len(parts))
-        for (name, width), k in zip(observations.layout(self.config, self._n_passive), keys):
-            value, noise = parts[name]
-            if cfg.noise and noise:
-                value = value + jax.random.uniform(k, (width,), minval=-noise, maxval=noise)
-            chunks.append(value)
+        for (_, term), k in zip(groups, jax.random.split(key, len(groups))):
+            value = term.read(self, data, info)
+            if cfg.noise and term.noise:
+                value = value + jax.random.uniform(k, value.shape, minval=-term.noise, maxval=term.noise)
+            chunks.append(value * (jp.asarray(term.scale) if isinstance(term.scale, tuple) else term.scale))
         return jp.clip(jp.concatenate(chunks), -cfg.clip, cfg.clip)
 
     def base_height(self, data):
@@ -339,35 +388,29 @@ class LocomotionEnv(Env):
         return jp.zeros(xy.shape[:-1])
 
     def height_scan(self, data):
-        """The perceptive observation: clip(base z - offset - h, +-clip) x scale at the scan points
-        (EnvConfig.height_scan), which turn with the base's yaw; x-major order."""
+        """The perceptive observation before its scale: clip(base z - offset - h, +-clip) at the
+        scan points (EnvConfig.height_scan), which turn with the base's yaw; x-major order, m."""
         cfg, scan = self.config.observations, self.config.height_scan
         points = jp.array([(x, y) for x in scan.x_m for y in scan.y_m])
         yaw = _yaw(data.qpos[3:7])
         c, s = jp.cos(yaw), jp.sin(yaw)
         world = data.qpos[:2] + points @ jp.array([[c, s], [-s, c]])
         relative = data.qpos[2] - cfg.height_offset_m - self.terrain_height(world)
-        return jp.clip(relative, -cfg.height_clip_m, cfg.height_clip_m) * cfg.height_scale
+        return jp.clip(relative, -cfg.height_clip_m, cfg.height_clip_m)
 
     def _reward_terms(self, data, info, action):
-        cfg, r = self.config.rewards, self.robot
+        """(each reward term unscaled, the tracking errors and base height as metrics)."""
+        r = self.robot
         lin, ang, gravity = self.base_state(data)
-        command = info["command"]
-        qvel = data.qvel[r.actuated_dof]
-        terms = {
-            "lin_vel_xy": rewards.lin_vel_xy(command[:2], lin[:2], cfg.tracking_sigma),
-            "yaw_rate": rewards.yaw_rate(command[2], ang[2], cfg.tracking_sigma),
-            "lin_vel_z": rewards.lin_vel_z(lin[2]),
-            "ang_vel_xy": rewards.ang_vel_xy(ang),
-            "orientation": rewards.orientation(gravity),
-            "base_height": rewards.base_height(self.base_height(data), cfg.base_height_target_m),
-            "torques": rewards.torques(data.actuator_force[self._ctrl_order]),
-            "joint_acc": rewards.joint_acc(qvel, info["last_joint_vel"]),
-            "action_rate": rewards.action_rate(action, info["last_action"]),
-            "hip": rewards.hip(data.qpos[r.actuated_qpos][r.haa], self._default_q[r.haa]),
-        }
+        q = rewards.Quantities(
+            command=info["command"], lin_vel=lin, ang_vel=ang, gravity=gravity, base_height=self.base_height(data),
+            torques=data.actuator_force[self._ctrl_order], joint_vel=data.qvel[r.actuated_dof],
+            last_joint_vel=info["last_joint_vel"], action=action, last_action=info["last_action"],
+            haa_offset=data.qpos[r.actuated_qpos][r.haa] - self.default_q[r.haa])
+        terms = {name: term.compute(q, self.config.rewards) for name, term in rewards.terms(self.config.rewards).items()}
+        command = q.command
         errors = {"error/lin_vel_x_per_step": jp.abs(command[0] - lin[0]), "error/lin_vel_y_per_step": jp.abs(command[1] - lin[1]),
-                  "error/yaw_rate_per_step": jp.abs(command[2] - ang[2]), "base_height_m_per_step": self.base_height(data)}
+                  "error/yaw_rate_per_step": jp.abs(command[2] - ang[2]), "base_height_m_per_step": q.base_height}
         return terms, errors
 
     def contact_flags(self, data):
@@ -408,3 +451,8 @@ def foot_contacts(geom_category, floor_geom, geoms, dist):
     """Per leg (LF, RF, LH, RH): does any of its foot geoms touch the floor."""
     hit, other = _floor_hits(geom_category, floor_geom, geoms, dist)
     return jp.stack([jp.any(hit & (other == GEOM_FOOT + i)) for i in range(4)])
+
+
+def _given(command, own):
+    """`command` where given and not NaN (per component), else the environment's own."""
+    return own if command is None else jp.where(jp.isnan(command), own, command)

@@ -1,56 +1,102 @@
-"""The paper's ten reward terms as pure functions of the quantities they penalise or reward.
+"""The paper's ten reward terms as pure functions of what they penalise or reward.
 
-Each returns the unscaled term; the environment multiplies by its scale and the policy dt.
+Each term is declared once, as a field of RewardConfig (envs.config): its function (here), unit
+and scale. The environment measures a step's Quantities once; each function returns its
+unscaled term, which the environment multiplies by the term's scale and the policy step dt.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, NamedTuple
+
 import jax.numpy as jp
 
-
-def lin_vel_xy(command_xy, vel_xy, sigma):
-    """exp(-|command - velocity|^2 / sigma), base frame (m/s)."""
-    return jp.exp(-jp.sum(jp.square(command_xy - vel_xy)) / sigma)
+if TYPE_CHECKING:
+    from footforge.envs.config import RewardConfig
 
 
-def yaw_rate(command_yaw, yaw_rate_now, sigma):
-    return jp.exp(-jp.square(command_yaw - yaw_rate_now) / sigma)
+class Quantities(NamedTuple):
+    """What the reward terms read after a policy step's physics (base frame where a vector)."""
+
+    command: object = None
+    """vx, vy (m/s), yaw rate (rad/s)."""
+    lin_vel: object = None
+    """Base linear velocity, m/s."""
+    ang_vel: object = None
+    """Base angular velocity, rad/s."""
+    gravity: object = None
+    """Unit gravity direction."""
+    base_height: object = None
+    """Base height over the ground under it, m."""
+    torques: object = None
+    """Actuator torques, N m."""
+    joint_vel: object = None
+    """Actuated joint velocities, rad/s."""
+    last_joint_vel: object = None
+    """The same one policy step earlier, rad/s."""
+    action: object = None
+    """This step's clipped action."""
+    last_action: object = None
+    """The previous step's."""
+    haa_offset: object = None
+    """Hip abduction/adduction angles minus their defaults, rad."""
 
 
-def lin_vel_z(vel_z):
-    return jp.square(vel_z)
+def lin_vel_xy(q: Quantities, cfg: RewardConfig):
+    """exp(-|command - velocity|^2 / sigma) of the planar velocity, base frame (m/s)."""
+    return jp.exp(-jp.sum(jp.square(q.command[:2] - q.lin_vel[:2])) / cfg.tracking_sigma)
 
 
-def ang_vel_xy(ang_vel):
-    return jp.sum(jp.square(ang_vel[:2]))
+def yaw_rate(q: Quantities, cfg: RewardConfig):
+    """exp(-(command - yaw rate)^2 / sigma), rad/s."""
+    return jp.exp(-jp.square(q.command[2] - q.ang_vel[2]) / cfg.tracking_sigma)
 
 
-def orientation(projected_gravity):
-    """Zero when the base is level (gravity along -z of the base)."""
-    return jp.sum(jp.square(projected_gravity[:2]))
+def lin_vel_z(q: Quantities, cfg: RewardConfig):
+    """Vertical base velocity squared, (m/s)^2."""
+    return jp.square(q.lin_vel[2])
 
 
-def base_height(height, target):
-    return jp.square(height - target)
+def ang_vel_xy(q: Quantities, cfg: RewardConfig):
+    """Roll and pitch rate squared, (rad/s)^2."""
+    return jp.sum(jp.square(q.ang_vel[:2]))
 
 
-def torques(tau):
-    return jp.sum(jp.square(tau))
+def orientation(q: Quantities, cfg: RewardConfig):
+    """|projected gravity_xy|^2: zero when the base is level (gravity along -z of the base)."""
+    return jp.sum(jp.square(q.gravity[:2]))
 
 
-def joint_acc(qvel, qvel_prev):
+def base_height(q: Quantities, cfg: RewardConfig):
+    """(h - target)^2, m^2, with h the base height over the ground."""
+    return jp.square(q.base_height - cfg.base_height_target_m)
+
+
+def torques(q: Quantities, cfg: RewardConfig):
+    """sum tau^2, (N m)^2."""
+    return jp.sum(jp.square(q.torques))
+
+
+def joint_acc(q: Quantities, cfg: RewardConfig):
     """sum of squared joint-velocity changes over one policy step, (rad/s)^2: how the paper's
     baseline computes its "joint accelerations" term (the change, not divided by the step)."""
-    return jp.sum(jp.square(qvel - qvel_prev))
+    return jp.sum(jp.square(q.joint_vel - q.last_joint_vel))
 
 
-def action_rate(action, action_prev):
-    return jp.sum(jp.square(action - action_prev))
+def action_rate(q: Quantities, cfg: RewardConfig):
+    """sum (a - a_prev)^2."""
+    return jp.sum(jp.square(q.action - q.last_action))
 
 
-def hip(q_haa, default_haa):
-    return jp.sum(jp.abs(q_haa - default_haa))
+def hip(q: Quantities, cfg: RewardConfig):
+    """sum |q_HAA - default|, rad."""
+    return jp.sum(jp.abs(q.haa_offset))
 
 
-TERMS = ("lin_vel_xy", "yaw_rate", "lin_vel_z", "ang_vel_xy", "orientation", "base_height", "torques",
-         "joint_acc", "action_rate", "hip")
+def terms(cfg: RewardConfig) -> dict:
+    """name -> RewardTerm of every term, in declaration order."""
+    from dataclasses import fields
+
+    from footforge.envs.config import RewardTerm
+
+    return {f.name: getattr(cfg, f.name) for f in fields(cfg) if isinstance(getattr(cfg, f.name), RewardTerm)}

@@ -25,6 +25,7 @@ import numpy as np
 from brax import math as brax_math
 from mujoco import mjx
 
+from footforge.geometry import box_corners
 from footforge.envs import curriculum
 from footforge.envs.anymal import GEOM_BASE, GEOM_THIGH, load_robot
 from footforge.envs.config import EnvConfig
@@ -76,7 +77,7 @@ class RoughEnv(LocomotionEnv):
             info |= {"command": jp.array([forward_mps, 0.0, 0.0]), "heading_target": yaw}
         data = mjx.forward(self.mjx_model, self._place(state.pipeline_state,
                                                        *self._start_state(info, jax.random.fold_in(rng, 2))))
-        info |= {"target": data.ctrl[self._ctrl_order], "command": self._heading_command(info, data)}
+        info |= {"target": data.ctrl[self._ctrl_order], "command": self.heading_command(info, data)}
         return policy_side(state.replace(pipeline_state=data, obs=self.observation(data, info, key), info=info))
 
     # Curriculum and spawns -------------------------------------------------------------------
@@ -128,14 +129,14 @@ def _surface_points(model: mujoco.MjModel, geom_category: np.ndarray):
     for g in np.flatnonzero((geom_category == GEOM_BASE) | ((geom_category >= GEOM_THIGH) & (geom_category < GEOM_THIGH + 4))):
         size = model.geom_size[g]
         if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
-            local = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * size
+            local = box_corners(size)
         elif model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER:
             angles = np.arange(8) * np.pi / 4
             rim = np.stack([size[0] * np.cos(angles), size[0] * np.sin(angles)], axis=1)
             local = np.concatenate([np.hstack([rim, np.full((8, 1), z)]) for z in (-size[1], size[1])])
         else:  # the corners of its bounding box in the geom frame
             centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-            local = centre + np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+            local = box_corners(half, centre)
         geoms += [g] * len(local)
         points.append(local)
         category += [geom_category[g]] * len(local)

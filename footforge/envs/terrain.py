@@ -200,7 +200,7 @@ def _stairs_down(config, d, rng):
 
 
 def _discrete(config, d, rng):
-    n, res = config.samples_per_tile, config.horizontal_resolution_m
+    n = config.samples_per_tile
     x, y, r = _tile_coords(config)
     tile = np.zeros((n, n))
     height = config.obstacle_height_m[0] + config.obstacle_height_m[1] * d
@@ -267,15 +267,14 @@ def add_to_spec(spec, terrain: Terrain, name: str = "floor", base_thickness_m: f
 
 def preview(terrain: Terrain, path) -> None:
     """A PNG of the heights with the tile grid, each column's kind and each level's difficulty."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: a library leaves the backend to its user
 
     c, h = terrain.config, terrain.heights_m
     res = terrain.resolution_m
     extent = [terrain.origin_xy[0], terrain.origin_xy[0] + (h.shape[1] - 1) * res,
               terrain.origin_xy[1], terrain.origin_xy[1] + (h.shape[0] - 1) * res]
-    fig, ax = plt.subplots(figsize=(6, 10))
+    fig = Figure(figsize=(6, 10))
+    ax = fig.subplots()
     image = ax.imshow(np.clip(h, -0.5, None), origin="lower", extent=extent, cmap="terrain")
     fig.colorbar(image, ax=ax, label="height (m), pits clipped at -0.5", shrink=0.6)
     for column, kind in enumerate(terrain.column_kinds):
@@ -288,4 +287,3 @@ def preview(terrain: Terrain, path) -> None:
            title=f"terrain, seed {c.seed}, {res} m samples")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -119,7 +119,7 @@ _JOINTS = {"aff": ("ankle_pitch", "ankle_roll"),
 
 
 def _passive(r: YamlReader) -> PassiveJoint:
-    r.get("stiffness", allowed={"stiffness", "damping", "armature", "springref"})
+    r.check_keys({"stiffness", "damping", "armature", "springref"})
     return PassiveJoint(stiffness=r.get("stiffness").float(min_value=0.0),
                         damping=r.get("damping").float(min_value=0.0),
                         armature=r.get("armature", 0.0).float(min_value=0.0),
@@ -134,7 +134,7 @@ def _pair(r: YamlReader, n: int) -> tuple[float, ...]:
 
 def _foot_contact(r: YamlReader) -> FootContact:
     default = FootContact()
-    sole = r.get("sole", default.sole, allowed={"sole", "grid", "radius_m", "upper_collisions"}).data
+    sole = r.check_keys({"sole", "grid", "radius_m", "upper_collisions"}).get("sole", default.sole).data
     if sole not in SOLE_CONTACT_SHAPES:
         raise r.get("sole").fail(f"unknown sole contact '{sole}'", f"use one of {', '.join(SOLE_CONTACT_SHAPES)}")
     grid_r = r.get("grid", list(default.grid))
@@ -169,10 +169,10 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     path = Path(path) if path else default_params_path()
     top = YamlReader(read_yaml(path, what="parameter file", fix="pass an existing file to --params"),
                      "", path)
-    top.get("format", allowed={"format", "full", "simplified", "aff", "aof", "rig", "contact"})
+    top.check_keys({"format", "full", "simplified", "aff", "aof", "rig", "contact"})
     full = top.get("full")
-    full.get("timestep", allowed={"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp",
-                                  "contact_solref"})
+    full.check_keys({"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp",
+                                  "contact_solref"}).get("timestep")
     iterations = full.get("iterations").float(min_value=1)
     settings = FullChainSettings(
         timestep=full.get("timestep").float(min_value=1e-6),
@@ -184,12 +184,12 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     for key in ("closure_solref", "contact_solref"):
         _check_timeconst(full.get(key), getattr(settings, key), settings.timestep)
     simplified = top.get("simplified")
-    simplified.get("timestep", allowed={"timestep"})
+    simplified.check_keys({"timestep"})
     variants, lifts, contacts = {}, {}, {}
     for variant, names in _JOINTS.items():
         r = top.get(variant)
         extra = {"sole_lift_m", "collision"} | ({"split_x", "sole_range"} if variant == "aof" else set())
-        r.get(names[0], allowed=set(names) | extra)
+        r.check_keys(set(names) | extra)
         variants[variant] = {n: _passive(r.get(n)) for n in names}
         lifts[variant] = r.get("sole_lift_m", 0.0).float(min_value=0.0, max_value=0.05)
         contacts[variant] = _foot_contact(r.get("collision", {}))
@@ -198,9 +198,9 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     if sole_range[0] >= sole_range[1]:
         raise aof.get("sole_range").fail(f"empty range {list(sole_range)}", "give [lower, upper] with lower < upper")
     rig = top.get("rig")
-    rig.get("payload_mass", allowed={"payload_mass", "slider_damping"})
+    rig.check_keys({"payload_mass", "slider_damping"})
     contact = top.get("contact")
-    contact.get("solref", allowed={"solref", "solimp", "cone", "impratio"})
+    contact.check_keys({"solref", "solimp", "cone", "impratio"})
     contact_solref = _pair(contact.get("solref"), 2)
     solimp = _pair(contact.get("solimp", [0.9, 0.95, 0.001]), 3)  # MuJoCo's default
     if not (0 < solimp[0] <= solimp[1] < 1 and solimp[2] > 0):

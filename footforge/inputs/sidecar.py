@@ -141,17 +141,17 @@ def load_sidecar(path: str | Path) -> Sidecar:
     data = read_yaml(path, what="sidecar file", fix="write one (see descriptions/softfoot_q/urdf/"
                      "softfoot_q.sidecar.yaml) or pass --sidecar PATH")
     top = YamlReader(data, "", path)
-    top.get("format", allowed=_TOP_KEYS)
+    top.check_keys(_TOP_KEYS)
     fmt = top.get("format").data
     if fmt != SIDECAR_FORMAT:
         raise top.get("format").fail(f"unsupported format {fmt!r}", f"set format: {SIDECAR_FORMAT}")
 
     roll = top.get("roll_joints")
-    roll.get("front", allowed={"front", "back"})
+    roll.check_keys({"front", "back"})
     coupling = None
     if top.mapping().get("roll_coupling") is not None:
         c = top.get("roll_coupling")
-        c.get("joint", allowed={"joint", "follows", "multiplier"})
+        c.check_keys({"joint", "follows", "multiplier"})
         coupling = Coupling(c.get("joint").str(), c.get("follows").str(),
                             c.get("multiplier").float())
 
@@ -161,7 +161,7 @@ def load_sidecar(path: str | Path) -> Sidecar:
         raise cl.fail("expected a non-empty list of closures", "list each loop-closing pin")
     for i, item in enumerate(cl.data):
         r = YamlReader(item, f"closures[{i}]", path)
-        r.get("name", allowed={"name", "link", "point", "to_link", "to_point", "axis"})
+        r.check_keys({"name", "link", "point", "to_link", "to_point", "axis"})
         axis = r.get("axis").vec3()
         norm = math.sqrt(sum(a * a for a in axis))
         if norm < 1e-9:
@@ -174,23 +174,22 @@ def load_sidecar(path: str | Path) -> Sidecar:
     spring = None
     if top.mapping().get("arch_spring") is not None:
         s = top.get("arch_spring")
-        s.get("joints", allowed={"joints", "stiffness", "rest"})
+        s.check_keys({"joints", "stiffness", "rest"})
         spring = TendonSpring(joints=s.get("joints").float_map(),
                               stiffness=s.get("stiffness").float(min_value=0.0),
                               rest=s.get("rest", 0.0).float())
 
     dyn = {}
-    jd = top.get("joint_dynamics", {})
-    jd.mapping()
+    jd = top.get("joint_dynamics", {}).check_keys(set(FAMILIES))
     for fam in FAMILIES:
-        f = jd.get(fam, {"damping": 0.0, "frictionloss": 0.0, "armature": 0.0}, allowed=set(FAMILIES))
-        f.get("damping", 0.0, allowed={"damping", "frictionloss", "armature"})
+        f = jd.get(fam, {"damping": 0.0, "frictionloss": 0.0, "armature": 0.0})
+        f.check_keys({"damping", "frictionloss", "armature"})
         dyn[fam] = JointDynamics(damping=f.get("damping", 0.0).float(min_value=0.0),
                                  frictionloss=f.get("frictionloss", 0.0).float(min_value=0.0),
                                  armature=f.get("armature", 0.0).float(min_value=0.0))
 
     ref = top.get("reference_pose", {"joints": {}, "solve_closures": True})
-    ref.get("joints", {}, allowed={"joints", "solve_closures"})
+    ref.check_keys({"joints", "solve_closures"})
     return Sidecar(
         source=path.resolve(),
         root_link=top.get("root_link").str() if top.mapping().get("root_link") is not None else None,

@@ -518,10 +518,10 @@ def _mesh_items(root: etree._Element, resolve_uri: Callable[[str], Path]) -> lis
 
 
 def _collision_mesh_problem(path: Path, scale: str | None) -> str | None:
-    """Why the collision mesh at `path` cannot be built (footforge.models.collision.flat_mesh_problem)."""
+    """Why the collision mesh at `path` cannot be built (footforge.inputs.meshes.flat_mesh_problem)."""
     import trimesh
 
-    from footforge.models.collision import flat_mesh_problem
+    from footforge.inputs.meshes import flat_mesh_problem
 
     try:
         mesh = trimesh.load(path, force="mesh")

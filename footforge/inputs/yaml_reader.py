@@ -38,13 +38,17 @@ class YamlReader:
                              "write it as 'key: value' lines")
         return self.data
 
-    def get(self, key: str, default: Any = ..., *, allowed: set[str] | None = None) -> "YamlReader":
+    def check_keys(self, allowed: set[str]) -> "YamlReader":
+        """This mapping, refused if it holds a key outside `allowed` (a typo would otherwise be
+        silently ignored)."""
+        unknown = set(self.mapping()) - allowed
+        if unknown:
+            raise self.fail(f"unknown keys {sorted(unknown)}", f"use only {sorted(allowed)}")
+        return self
+
+    def get(self, key: str, default: Any = ...) -> "YamlReader":
+        """The value under `key` (`default` where it is missing; without one, missing is an error)."""
         m = self.mapping()
-        if allowed is not None:
-            unknown = set(m) - allowed
-            if unknown:
-                raise self.fail(f"unknown keys {sorted(unknown)}",
-                                 f"use only {sorted(allowed)}")
         sub = f"{self.path}.{key}" if self.path else key
         if key not in m:
             if default is ...:

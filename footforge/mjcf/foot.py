@@ -29,6 +29,7 @@ import pinocchio as pin
 from dm_control import mjcf
 
 from footforge.errors import InputError
+from footforge.geometry import box_corners
 from footforge.inputs.params import FootContact, PassiveJoint
 from footforge.inputs.sidecar import FAMILIES, Sidecar
 from footforge.mjcf.elements import MeshAssets, add_body_tree, add_default_classes, add_geoms, inertial_attributes
@@ -37,7 +38,6 @@ from footforge.models import kinematics
 from footforge.models.foot_source import FootSource
 from footforge.models.urdf import ParsedURDF, joint_axis, quat_wxyz
 
-FOOT_VARIANTS = ("full", "aof", "aff")
 DERIVED_JOINT_CLASS = "foot_passive"
 
 
@@ -132,8 +132,8 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     return _finish(FootModel("full", root, parsed.root_link, reference, list(reference), np.zeros(3), info))
 
 
-def _compiled_full(foot: FootModel):
-    """The closed-chain foot compiled by MuJoCo and posed at the reference pose."""
+def posed_at_reference(foot: FootModel) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The foot compiled by MuJoCo, its kinematics at the reference pose."""
     model = compile_model(foot.mjcf)
     data = mujoco.MjData(model)
     for joint, value in foot.reference_qpos.items():
@@ -153,8 +153,7 @@ def geom_points(model: mujoco.MjModel, data: mujoco.MjData, geom_id: int) -> np.
         half = (model.geom_size[geom_id] if model.geom_type[geom_id] == mujoco.mjtGeom.mjGEOM_BOX
                 else model.geom_aabb[geom_id, 3:])
         center = 0 if model.geom_type[geom_id] == mujoco.mjtGeom.mjGEOM_BOX else model.geom_aabb[geom_id, :3]
-        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-        local = center + signs * half
+        local = box_corners(half, center)
     return local @ R.T + p
 
 
@@ -175,7 +174,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
     joints = params.joints_for(variant)
     sole_lift = params.sole_lift_m[variant]
     contact = params.foot_contact[variant]
-    ref_model, ref_data = _compiled_full(full or build_full(source, name="reference"))
+    ref_model, ref_data = posed_at_reference(full or build_full(source, name="reference"))
     q = source.reference.q
     data = parsed.model.createData()
     pin.forwardKinematics(parsed.model, data, q)
@@ -320,21 +319,12 @@ def sole_bodies(foot: FootModel) -> list[str]:
 
 def _finish(foot: FootModel) -> FootModel:
     """Measures the touchdown point: the lowest collision point under the ankle, reference pose."""
-    model = compile_model(foot.mjcf)
-    data = mujoco.MjData(model)
-    for joint, value in foot.reference_qpos.items():
-        data.qpos[model.jnt_qposadr[model.joint(joint).id]] = value
-    mujoco.mj_kinematics(model, data)
+    model, data = posed_at_reference(foot)
     pts = collision_points(model, data, [model.body(b).name for b in range(1, model.nbody)])
     foot.touchdown = np.array([0.0, 0.0, pts[:, 2].min()])
     foot.mjcf.find("body", foot.root_body).add("site", name="touchdown", pos=foot.touchdown, size=[0.005], group=4)
     return foot
 
-
-def build_foot(source: FootSource, variant: str, *, name: str = "foot") -> FootModel:
-    if variant == "full":
-        return build_full(source, name=name)
-    return build_derived(source, variant, name=name)
 
 
 def clone(foot: FootModel, name: str) -> FootModel:

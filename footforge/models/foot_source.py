@@ -11,7 +11,7 @@ from typing import Mapping
 
 import numpy as np
 
-from footforge.errors import InputError
+from footforge.errors import CheckFailure, InputError
 from footforge.inputs.description import default_foot_description, load_description
 from footforge.inputs.foot_root import select_foot_root
 from footforge.inputs.params import VariantParams, load_params
@@ -122,6 +122,11 @@ def load_foot_source(options: FootInputs, stage: StageTimer, report: dict,
         check_sidecar_names(parsed, sidecar)
     with stage("solve reference pose"):
         reference = kinematics.reference_pose(parsed, sidecar)
+        problems = kinematics.closure_axis_problems(parsed, sidecar, reference.q)
+        if problems:
+            element, message, fix = problems[0]
+            raise CheckFailure(f"{element}: {message}" + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""),
+                               file=str(sidecar.source), element=element, fix=fix)
     with stage("decompose collision meshes"):
         hull_report = []
         started_s = [0.0]

@@ -14,7 +14,7 @@ from scipy.optimize import least_squares
 
 from footforge.errors import CheckFailure, InputError
 from footforge.inputs.sidecar import Closure, Sidecar
-from footforge.models.urdf import ParsedURDF
+from footforge.models.urdf import ParsedURDF, joint_axis
 
 CLOSURE_TOLERANCE_M = 1e-9
 """A solved reference pose must close every loop to this distance."""
@@ -64,6 +64,41 @@ def closure_residuals(parsed: ParsedURDF, sidecar: Sidecar, q: np.ndarray) -> np
     pin.forwardKinematics(parsed.model, data, q)
     return np.array([point_in_root(parsed, data, c.link, c.point)
                      - point_in_root(parsed, data, c.to_link, c.to_point) for c in sidecar.closures])
+
+
+CLOSURE_AXIS_TOL_RAD = 0.0175
+"""A closure's pin axis may differ from its chain's pins by this (1 degree): footforge closes a loop
+with a point coincidence (a `connect` equality), which leaves the rotation about the pin to the
+chain's own parallel pins; a closure whose axis is not theirs would need a hinge the model lacks."""
+
+
+def closure_axis_errors_rad(parsed: ParsedURDF, sidecar: Sidecar, q: np.ndarray) -> np.ndarray:
+    """Per closure, the angle between its pin axis (the sidecar's, in `link`'s frame) and the axis
+    of the pin that carries `link` in its chain, at configuration q, rad."""
+    data = parsed.model.createData()
+    pin.forwardKinematics(parsed.model, data, q)
+    angles = []
+    for c in sidecar.closures:
+        joint_id, placement = parsed.body_of_link(c.link)
+        closure_axis = data.oMi[joint_id].rotation @ placement.rotation @ np.asarray(c.axis, dtype=float)
+        pin_axis = data.oMi[joint_id].rotation @ joint_axis(parsed.model.joints[joint_id])
+        angles.append(float(np.arccos(np.clip(abs(closure_axis @ pin_axis), 0.0, 1.0))))
+    return np.array(angles)
+
+
+def closure_axis_problems(parsed: ParsedURDF, sidecar: Sidecar, q: np.ndarray) -> list[tuple[str, str, str]]:
+    """(element, message, fix) of every closure whose pin axis is more than CLOSURE_AXIS_TOL_RAD
+    off its chain's pins at configuration q."""
+    problems = []
+    for c, angle in zip(sidecar.closures, closure_axis_errors_rad(parsed, sidecar, q)):
+        if angle > CLOSURE_AXIS_TOL_RAD:
+            problems.append((
+                f"closure '{c.name}'",
+                f"its pin axis {list(c.axis)} (in {c.link}'s frame) is {np.degrees(angle):.1f} deg off the axis of the "
+                f"pin that carries {c.link}; footforge closes loops with a point coincidence and relies on the "
+                "chain's parallel pins for the rotation",
+                f"give the axis of the chain's pins in {c.link}'s frame (closures, axis) in {sidecar.source}"))
+    return problems
 
 
 def set_joint(parsed: ParsedURDF, q: np.ndarray, name: str, value: float) -> None:

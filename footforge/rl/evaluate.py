@@ -21,6 +21,7 @@ import numpy as np
 
 from footforge.envs.config import check_policy_on_feet
 from footforge.errors import InputError
+from footforge.tables import markdown_table
 
 INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
            "base_height")
@@ -149,7 +150,7 @@ def terrain_markdown(results: list[dict]) -> str:
         return ""
     kinds = sorted({k for r in rough for k in r["by_terrain"]})
     head = ["policy", "type", "trained on", "feet", *[f"{k}: vx error / falls" for k in kinds]]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for r in rough:
         cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
         for kind in kinds:
@@ -157,8 +158,8 @@ def terrain_markdown(results: list[dict]) -> str:
             robots = sum(t["robots"] for t in tiles)
             error = np.nanmean([t["lin_vel_x_error"] for t in tiles]) if tiles else float("nan")
             cells.append(f"{error:.3f} / {sum(t['falls'] for t in tiles)}/{robots}")
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        rows.append(cells)
+    return "\n".join(markdown_table(head, rows)) + "\n"
 
 
 def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, seed: int = 0,
@@ -173,7 +174,6 @@ def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, s
       InputError: as evaluate(), or a kind that the policy's terrain lacks.
     """
     import jax
-    import jax.numpy as jp
 
     policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir)
     steps = int(round(seconds / env_config.policy_dt))
@@ -204,26 +204,25 @@ def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, s
 def comparison_markdown(results: list[dict]) -> str:
     """One row per (policy, feet): every index as mean +- std (the paper's Figure 8 as a table)."""
     head = ["policy", "type", "trained on", "feet", *INDICES, "slippage", "falls"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for r in results:
         cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
         cells += [f"{r['indices'][k]['mean']:.3f} ± {r['indices'][k]['std']:.3f}" for k in INDICES]
         diverged = f" ({r['diverged']} diverged)" if r.get("diverged") else ""
         cells += [f"{r['slippage']:.3f}", f"{r['falls']}/{r['num_envs']}{diverged}"]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        rows.append(cells)
+    return "\n".join(markdown_table(head, rows)) + "\n"
 
 
 def plot(results: list[dict], out_dir: Path) -> list[str]:
     """comparison.png (indices per policy and feet), contacts_<i>.png (robot 0's feet contact
     schedule over the first 4 s), push_response_<i>.png (mean forward velocity error over time;
     pushes at the environment's interval)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: a library leaves the backend to its user
 
     files = []
-    fig, axes = plt.subplots(1, len(INDICES), figsize=(3 * len(INDICES), 3.5))
+    fig = Figure(figsize=(3 * len(INDICES), 3.5))
+    axes = fig.subplots(1, len(INDICES))
     labels = [f"{Path(r['policy']).parent.name}\non {r['feet']}" for r in results]
     for ax, name in zip(axes, INDICES):
         ax.bar(range(len(results)), [r["indices"][name]["mean"] for r in results],
@@ -232,12 +231,12 @@ def plot(results: list[dict], out_dir: Path) -> list[str]:
         ax.set_xticks(range(len(results)), labels, fontsize=6, rotation=45)
     fig.tight_layout()
     fig.savefig(out_dir / "comparison.png", dpi=90)
-    plt.close(fig)
     files.append("comparison.png")
     for i, r in enumerate(results):
         dt = r["policy_dt_s"]
         contacts = np.asarray(r["traces"]["contacts_robot0"])[: int(4.0 / dt)]
-        fig, ax = plt.subplots(figsize=(8, 2.2))
+        fig = Figure(figsize=(8, 2.2))
+        ax = fig.subplots()
         for leg in range(4):
             on = np.flatnonzero(contacts[:, leg])
             ax.broken_barh([(k * dt, dt) for k in on], (leg - 0.4, 0.8), color="k")
@@ -245,15 +244,14 @@ def plot(results: list[dict], out_dir: Path) -> list[str]:
                title=f"feet contact schedule: {labels[i].replace(chr(10), ' ')}")
         fig.tight_layout()
         fig.savefig(out_dir / f"contacts_{i}.png", dpi=90)
-        plt.close(fig)
         err = np.asarray(r["traces"]["base_vx_error_mean"])
-        fig, ax = plt.subplots(figsize=(8, 2.5))
+        fig = Figure(figsize=(8, 2.5))
+        ax = fig.subplots()
         ax.plot(np.arange(len(err)) * dt, err)
         for t in np.arange(r["push_interval_s"], r["seconds"], r["push_interval_s"]):
             ax.axvline(t, color="r", ls="--", lw=0.8)
         ax.set(xlabel="time (s)", ylabel="mean vx command - vx (m/s)", title="push response (pushes: red)")
         fig.tight_layout()
         fig.savefig(out_dir / f"push_response_{i}.png", dpi=90)
-        plt.close(fig)
         files += [f"contacts_{i}.png", f"push_response_{i}.png"]
     return files

@@ -42,6 +42,7 @@ from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
 from footforge.rl.evaluate import INDICES
 from footforge.rl.foot_imu import IMU_BODIES, FootImuEstimator
+from footforge.tables import markdown_table
 
 FULL = "full"
 TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, platform_m=1.0, border_m=20.0,
@@ -293,63 +294,45 @@ class _EqualityResiduals:
 
 
 class Controller:
-    """The MJX environment's policy-side step for a batch of CPU robots, jitted and vectorised.
+    """The MJX environment's policy side (LocomotionEnv.policy_start, policy_act, policy_command,
+    policy_observe) for a batch of CPU robots, jitted and vectorised, with the same random keys.
 
-    start: env.reset's command and observation for given states; act: the policy's action and
-    env.step's PD targets and push; touching: the environment's termination contacts, from
-    MuJoCo's; settle: env.step after its physics (commands, tracking errors, next observation).
-    The random keys are split as env.reset and env.step split them. start and settle take an
-    optional command per robot (vx m/s, vy m/s, yaw rate rad/s; footforge's play) that replaces
-    the environment's drawn, heading-steered one where it is not NaN. `env` gives the observation, command, base-velocity and
-    base-height functions; they read the robot only through its index tables, so they are bound
-    here to `robot`, whose MJX model is never needed.
+    start: the policy's side of env.reset for given states; act: the policy's action, its PD
+    targets and the push; touching: the environment's termination contacts, from MuJoCo's;
+    settle: after the physics (commands, tracking errors, next observation). start and settle
+    take an optional command per robot (vx m/s, vy m/s, yaw rate rad/s; footforge's play) that
+    replaces the environment's drawn, heading-steered one where it is not NaN. The environment's
+    functions read the robot only through its index tables, so they are bound here to `robot`,
+    whose MJX model is never needed.
     """
 
     def __init__(self, env, robot: Robot, policy):
         import jax
         import jax.numpy as jp
 
-        from footforge.envs.locomotion import ground_contacts
+        from footforge.envs.locomotion import ground_contacts, reset_keys
 
         env = copy.copy(env)
         env.robot = robot  # ANYmal's joints (defaults, ranges) are the same on every feet
         config, r = env.config, robot
         category, floor = jp.asarray(r.geom_category), r.floor_geom
 
-        def start(qpos, qvel, rng, fixed):
-            state = _State(qpos, qvel)
-            rng, key_cmd, _, _ = jax.random.split(rng, 4)  # as env.reset (the others: spawn, joint state)
-            command, heading = env._sample_command(key_cmd)
-            info = {"rng": rng, "command": command, "heading_target": heading, "last_action": jp.zeros(12),
-                    "last_joint_vel": jp.zeros(12), "step": jp.zeros((), jp.int32),
-                    "target": jp.asarray(r.default_q)}  # the PD targets start at the defaults
-            info["command"] = jp.where(jp.isnan(fixed), env._heading_command(info, state), fixed)
-            rng, key_obs = jax.random.split(rng)
-            info["rng"] = rng
-            return info, env._observe(state, info, key_obs)
-
-        def targets(qpos, action, info):
-            rng, key_push, key_cmd, key_obs, _, _ = jax.random.split(info["rng"], 6)  # as env.step
-            step = info["step"] + 1
-            push_now, push = env.push(step, key_push)
-            target = env.joint_targets(info["target"], action)
-            return target, push_now, push, info | {"rng": rng, "step": step, "target": target}, (key_cmd, key_obs)
+        def start(qpos, qvel, rng, command):  # the PD targets start at the defaults
+            return env.policy_start(_State(qpos, qvel), {}, reset_keys(rng), jp.asarray(r.default_q), command)
 
         def act(obs, qpos, info):
             if config.privileged_critic:  # the policy reads "state" only; the critic's slice is not needed
                 obs = {"state": obs, "privileged_state": jp.zeros((obs.shape[0], env.observation_size[
                     "privileged_state"][0]))}
-            action = env.clip_action(policy(obs, jax.random.PRNGKey(0))[0])
-            return action, *jax.vmap(targets)(qpos, action, info)
+            return jax.vmap(env.policy_act)(info, policy(obs, jax.random.PRNGKey(0))[0])
 
         def touching(geoms, dists):
             base, knees = ground_contacts(category, floor, geoms, dists)
             return base | (knees >= config.terminate_on_knees)
 
-        def settle(qpos, qvel, info, keys, action, actuator_force, fixed):
-            state, (key_cmd, key_obs) = _State(qpos, qvel), keys
-            info = info | env.next_command(info, state, info["step"], *env._sample_command(key_cmd))
-            info["command"] = jp.where(jp.isnan(fixed), info["command"], fixed)
+        def settle(qpos, qvel, info, keys, action, actuator_force, command):
+            state = _State(qpos, qvel)
+            info, _ = env.policy_command(info, state, keys, command)
             lin, ang, _ = env.base_state(state)
             qd, command = qvel[r.actuated_dof], info["command"]
             row = {"lin_vel_x_error": jp.abs(command[0] - lin[0]), "lin_vel_y_error": jp.abs(command[1] - lin[1]),
@@ -358,8 +341,7 @@ class Controller:
                    "joint_vel_rate": jp.linalg.norm(qd - info["last_joint_vel"]),
                    "torques": jp.linalg.norm(actuator_force), "base_height": env.base_height(state),
                    "vx": lin[0], "vx_command": command[0], "vy": lin[1], "yaw_rate": ang[2]}
-            info = info | {"last_action": action, "last_joint_vel": qd}
-            obs = jp.nan_to_num(env._observe(state, info, key_obs), nan=0.0, posinf=0.0, neginf=0.0)
+            info, obs = env.policy_observe(state, info, keys, action)
             return info, obs, row
 
         self._start = jax.jit(jax.vmap(start))
@@ -403,7 +385,7 @@ def comparison_markdown(results: list[dict]) -> str:
     head = ["policy", "type", "trained on", "feet", "vx error (m/s)", "vy error (m/s)", "yaw-rate error (rad/s)",
             "base height (m)", "falls", "closure gap mean / max (mm)", "roll coupling max (mrad)", "finite",
             "real-time factor"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for r in results:
         for feet, c in r["feet"].items():
             cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"],
@@ -417,19 +399,18 @@ def comparison_markdown(results: list[dict]) -> str:
             cells += [f"{eq['closure_gap_mean_m'] * 1e3:.4f} / {eq['closure_gap_max_m'] * 1e3:.4f}" if eq else "-",
                       f"{eq['coupling_max_rad'] * 1e3:.3f}" if eq else "-",
                       "yes" if c["finite"] else f"no ({c['diverged']} diverged)", f"{c['real_time_factor']:.2f}"]
-            lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+            rows.append(cells)
+    return "\n".join(markdown_table(head, rows)) + "\n"
 
 
 def plot(result: dict, path: Path) -> None:
     """Robot 0's forward velocity on both feet and its command over time (top), and the closed
     chain's worst closure gap per robot (bottom)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: a library leaves the backend to its user
 
     dt = result["policy_dt_s"]
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig = Figure(figsize=(9, 6))
+    top, bottom = fig.subplots(2, 1, sharex=True)
     # The same seeds give both feet the same forward-velocity commands.
     command = result["feet"][result["trained_on"]]["traces"]["vx_command_m_s"][0]
     time_s = np.arange(1, len(command) + 1) * dt
@@ -447,4 +428,3 @@ def plot(result: dict, path: Path) -> None:
     bottom.legend(fontsize=7, ncol=4)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
-    plt.close(fig)

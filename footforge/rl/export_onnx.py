@@ -179,10 +179,9 @@ def metadata(env, ppo, observation_size: int, global_step: int, network_kwargs: 
 
     n_passive = observations.passive_joints_of(env, observation_size)
     slices, start = [], 0
-    descriptions = {name: text for name, _, text in observations.LAYOUT}
     for name, width in observations.layout(env, n_passive):
         slices.append({"name": name, "start": start, "size": width, "scale": observations.scale(env, name),
-                       "description": descriptions[name]})
+                       "description": observations.description(env, name)})
         start += width
     if start != observation_size:
         raise InputError(f"the policy reads {observation_size} observations but its configuration lays out {start}",

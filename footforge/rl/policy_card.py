@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 
 from footforge.rl.evaluate import INDEX_UNITS, INDICES
+from footforge.tables import markdown_table
 
 
 def card_name(policy_index: int, policies: int) -> str:
@@ -28,25 +29,22 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
 
     policy_dir = Path(policy_dir)
     meta = policy_meta(policy_dir)
-    env, ppo = meta["env"], meta["ppo"]
+    env = meta["env"]
     progress_file = policy_dir.resolve().parent / "progress.json"
     progress = json.loads(progress_file.read_text()) if progress_file.is_file() else {}
     name = policy_dir.resolve().parent.name if policy_dir.resolve().name == "policy" else policy_dir.name
     lines = [f"# Policy card: {name}", "",
              f"`{policy_dir}`: {env['task']} task, {env['feet']} feet, policy type {env['policy']}", ""]
-    lines += ["## Training", "", "| | |", "|---|---|"]
-    lines += [f"| {k} | {v} |" for k, v in _training_rows(meta, progress)]
+    lines += ["## Training", ""] + markdown_table(["", ""], [(k, str(v)) for k, v in _training_rows(meta, progress)])
     lines += ["", "## Evaluation", ""]
     for _, r in evaluations:
         lines.append(f"- on {r['feet']} feet{' (zero-shot)' if r['feet'] != r['trained_on'] else ''}: "
                      f"{r['num_envs']} robots, {r['seconds']:g} s, seed {r['seed']}, {r['falls']} fell")
-    lines += ["", "| index | " + " | ".join(f"on {r['feet']}" for _, r in evaluations) + " |",
-              "|---|" + "---|" * len(evaluations)]
-    for index in INDICES:
-        cells = [f"{r['indices'][index]['mean']:.4g} ± {r['indices'][index]['std']:.4g}" for _, r in evaluations]
-        lines.append(f"| {index} ({INDEX_UNITS[index]}) | " + " | ".join(cells) + " |")
-    lines.append("| slippage (-) | " + " | ".join(f"{r['slippage']:.4g}" for _, r in evaluations) + " |")
-    lines.append("| falls | " + " | ".join(f"{r['falls']}/{r['num_envs']}" for _, r in evaluations) + " |")
+    rows = [[f"{index} ({INDEX_UNITS[index]})"] + [f"{r['indices'][index]['mean']:.4g} ± {r['indices'][index]['std']:.4g}"
+                                                   for _, r in evaluations] for index in INDICES]
+    rows.append(["slippage (-)"] + [f"{r['slippage']:.4g}" for _, r in evaluations])
+    rows.append(["falls"] + [f"{r['falls']}/{r['num_envs']}" for _, r in evaluations])
+    lines += [""] + markdown_table(["index"] + [f"on {r['feet']}" for _, r in evaluations], rows)
     lines += ["", "Mean ± standard deviation over every policy step of every robot still standing "
               "(footforge/rl/evaluate.py defines the indices).", "", "## Plots", ""]
     lines += [f"- {text}: [{f}]({f})" for text, f in _plots(evaluations, files)]

@@ -49,7 +49,7 @@ import os
 import shutil
 import sys
 import time
-from dataclasses import asdict, dataclass, fields, is_dataclass
+from dataclasses import dataclass, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -118,21 +118,37 @@ def default_ppo(task: str, **overrides) -> PPOConfig:
 
 
 def to_dict(config) -> dict:
-    return asdict(config)
+    """A (nested) frozen dataclass as config.json holds it: every field but those declared in code
+    (metadata "saved": False, e.g. an observation group's reading function)."""
+    return {f.name: to_dict(v) if is_dataclass(v := getattr(config, f.name)) else
+            (list(v) if isinstance(v, tuple) else v)
+            for f in fields(config) if f.metadata.get("saved", True)}
 
 
-def from_dict(cls, data: dict):
-    """A (nested) frozen dataclass from its asdict() form; tuples restored from lists."""
+def from_dict(cls, data: dict, default=None):
+    """A (nested) frozen dataclass from its to_dict() form; tuples restored from lists. Fields
+    not in `data` keep their defaults (`default`, an instance, where the class has none)."""
     kwargs = {}
     types = {f.name: f for f in fields(cls)}
     for name, value in data.items():
-        default = types[name].default_factory() if callable(types[name].default_factory) else types[name].default
-        if is_dataclass(default):
-            value = from_dict(type(default), value)
+        if name not in types:
+            raise InputError(f"unknown configuration key '{name}' for {cls.__name__}",
+                             fix="use the footforge version that wrote the configuration")
+        field_default = getattr(default, name) if default is not None else (
+            types[name].default_factory() if callable(types[name].default_factory) else types[name].default)
+        if is_dataclass(field_default):
+            value = from_dict(type(field_default), value, field_default)
         elif isinstance(value, list):
             value = tuple(value)
         kwargs[name] = value
-    return cls(**kwargs)
+    return replace(default, **kwargs) if default is not None else cls(**kwargs)
+
+
+def env_config_from_dict(data: dict) -> EnvConfig:
+    """An EnvConfig from a run's config.json "env" (older forms upgraded: envs.config.upgrade_saved)."""
+    from footforge.envs.config import upgrade_saved
+
+    return from_dict(EnvConfig, upgrade_saved(data))
 
 
 def network_factory(ppo: PPOConfig, privileged: bool = False):
@@ -384,7 +400,7 @@ def load_run_config(run_dir: Path) -> tuple[EnvConfig, "PPOConfig"]:
         raise InputError(f"{run_dir} does not exist", file=str(run_dir), fix="give the folder of an earlier run")
     try:
         saved = json.loads(path.read_text())
-        return from_dict(EnvConfig, saved["env"]), from_dict(PPOConfig, saved["ppo"])
+        return env_config_from_dict(saved["env"]), from_dict(PPOConfig, saved["ppo"])
     except FileNotFoundError:
         raise InputError("not a training run (no config.json)", file=str(run_dir),
                          fix="give the folder of an earlier run, or start without --resume") from None
@@ -407,6 +423,57 @@ def config_differences(saved: dict, now: dict, prefix: str = "") -> list[str]:
 
 class _OutOfTime(Exception):
     """Raised from Brax's progress callback to stop training at a checkpoint (max_wall_s)."""
+
+
+def _check_run_settings(ppo: PPOConfig, max_wall_s: float | None) -> None:
+    """Raises InputError for settings this machine cannot run: bad hyperparameters, a time budget
+    that is not positive or spans several processes, robots that do not split over the devices."""
+    import jax
+
+    ppo.check()
+    if max_wall_s is not None and max_wall_s <= 0:
+        raise InputError(f"max_wall_s must be positive, got {max_wall_s}", fix="give a positive time budget")
+    if max_wall_s is not None and jax.process_count() > 1:  # only process 0 would stop; the others would wait
+        raise InputError("a wall-time budget works on one machine only (one JAX process)",
+                         fix="leave out the time budget with --coordinator")
+    if ppo.num_envs % jax.device_count():
+        raise InputError(f"num_envs ({ppo.num_envs}) must be a multiple of the number of JAX devices "
+                         f"({jax.device_count()}): Brax splits the robots evenly over them",
+                         fix=f"e.g. --num-envs {ppo.num_envs - ppo.num_envs % jax.device_count() or jax.device_count()}")
+
+
+def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, primary: bool):
+    """(steps done, the checkpoint to restore, the number of this resume, training seconds so far)
+    of the run in run_dir, refused where it was started with other settings."""
+    saved_env, saved_ppo = load_run_config(run_dir)
+    saved = json.loads(json.dumps({"env": to_dict(saved_env), "ppo": to_dict(saved_ppo) | {"num_timesteps": 0}}))
+    now = json.loads(json.dumps({"env": to_dict(env_config), "ppo": to_dict(ppo) | {"num_timesteps": 0}}))
+    differences = config_differences(saved, now)  # tuples as lists: compared as JSON
+    if differences:
+        raise InputError(f"the run was started with other settings: {'; '.join(differences)}",
+                         file=str(run_dir / "config.json"),
+                         fix="resume with the run's own settings (the pipelines read them from config.json), "
+                             "or start a new run with another --out")
+    offset, restore = _resume_point(run_dir, notice, set_aside=primary)
+    state_file = run_dir / "progress.json"
+    previous = json.loads(state_file.read_text()) if state_file.exists() else {}
+    # Training time of the earlier calls, up to their last checkpoint (a killed call's time after
+    # it is lost with its work).
+    return offset, restore, previous.get("resumes", 0) + 1, previous.get("wall_s_total", previous.get("wall_s", 0.0))
+
+
+def _write_policy(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, this_machine: dict) -> None:
+    """run_dir/policy: the newest intact checkpoint (the final parameters) and the configs."""
+    final = latest_intact_checkpoint(run_dir)
+    if final is None:
+        return
+    state_file = run_dir / "progress.json"
+    with atomic_directory(run_dir / "policy") as tmp:
+        shutil.copytree(final[1], tmp, dirs_exist_ok=True)
+        recorded = json.loads(state_file.read_text()) if state_file.exists() else {}
+        _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
+                                             "global_step": final[0], "wall_s": recorded.get("wall_s_total"),
+                                             "machine": this_machine})
 
 
 def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False, force: bool = False,
@@ -449,16 +516,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
             print(text, file=sys.stderr, flush=True)
     jax_compat.install()  # Brax 0.14.2's PPO on JAX >= 0.10
     enable_float64_physics(env_config)  # EnvConfig.float64_physics: before the environment's first array
-    ppo.check()
-    if max_wall_s is not None and max_wall_s <= 0:
-        raise InputError(f"max_wall_s must be positive, got {max_wall_s}", fix="give a positive time budget")
-    if max_wall_s is not None and jax.process_count() > 1:  # only process 0 would stop; the others would wait
-        raise InputError("a wall-time budget works on one machine only (one JAX process)",
-                         fix="leave out the time budget with --coordinator")
-    if ppo.num_envs % jax.device_count():
-        raise InputError(f"num_envs ({ppo.num_envs}) must be a multiple of the number of JAX devices "
-                         f"({jax.device_count()}): Brax splits the robots evenly over them",
-                         fix=f"e.g. --num-envs {ppo.num_envs - ppo.num_envs % jax.device_count() or jax.device_count()}")
+    _check_run_settings(ppo, max_wall_s)
     # On several machines only process 0 writes (Brax saves and evaluates there alone).
     primary = jax.process_index() == 0
     # Only process 0 checks the folder: the others may look before or after it wrote its marker.
@@ -467,21 +525,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     state_file = run_dir / "progress.json"
     offset, restore, resumes, wall_s_before = 0, None, 0, 0.0
     if resume:
-        saved_env, saved_ppo = load_run_config(run_dir)
-        saved = json.loads(json.dumps({"env": to_dict(saved_env), "ppo": to_dict(saved_ppo) | {"num_timesteps": 0}}))
-        now = json.loads(json.dumps({"env": to_dict(env_config), "ppo": to_dict(ppo) | {"num_timesteps": 0}}))
-        differences = config_differences(saved, now)  # tuples as lists: compared as JSON
-        if differences:
-            raise InputError(f"the run was started with other settings: {'; '.join(differences)}",
-                             file=str(run_dir / "config.json"),
-                             fix="resume with the run's own settings (the pipelines read them from config.json), "
-                                 "or start a new run with another --out")
-        offset, restore = _resume_point(run_dir, notice, set_aside=primary)
-        previous = json.loads(state_file.read_text()) if state_file.exists() else {}
-        resumes = previous.get("resumes", 0) + 1
-        # Training time of the earlier calls, up to their last checkpoint (a killed call's time
-        # after it is lost with its work).
-        wall_s_before = previous.get("wall_s_total", previous.get("wall_s", 0.0))
+        offset, restore, resumes, wall_s_before = _resume_state(run_dir, env_config, ppo, notice, primary)
     if primary:
         _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)})
     remaining = ppo.num_timesteps - offset
@@ -552,14 +596,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         clock["stopped"] = True
     if writer:
         writer.close()
-    final = latest_intact_checkpoint(run_dir)
-    if final is not None and primary:  # the policy: the last checkpoint (the final parameters) and the configs
-        with atomic_directory(run_dir / "policy") as tmp:
-            shutil.copytree(final[1], tmp, dirs_exist_ok=True)
-            recorded = json.loads(state_file.read_text()) if state_file.exists() else {}
-            _write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
-                                                 "global_step": final[0], "wall_s": recorded.get("wall_s_total"),
-                                                 "machine": this_machine})
+    if primary:
+        _write_policy(run_dir, env_config, ppo, this_machine)
     if clock["stopped"]:
         last["stopped_for_time"] = 1.0
         if primary and state_file.exists():
@@ -674,7 +712,7 @@ def load_policy_config(policy_dir: Path) -> EnvConfig:
     Raises:
       InputError: the folder is not a footforge policy.
     """
-    return from_dict(EnvConfig, _policy_meta(Path(policy_dir).resolve())["env"])
+    return env_config_from_dict(_policy_meta(Path(policy_dir).resolve())["env"])
 
 
 def policy_meta(policy_dir: Path) -> dict:
@@ -737,7 +775,7 @@ def load_policy_parameters(policy_dir: Path) -> SavedPolicy:
 
     policy_dir = Path(policy_dir).resolve()
     meta = _policy_meta(policy_dir)
-    env_config, ppo = from_dict(EnvConfig, meta["env"]), from_dict(PPOConfig, meta["ppo"])
+    env_config, ppo = env_config_from_dict(meta["env"]), from_dict(PPOConfig, meta["ppo"])
     if (policy_dir / CHECKPOINT_MANIFEST).is_file():  # policies from before manifests have none
         problem = checkpoint_problem(policy_dir, read=False)
         if problem:

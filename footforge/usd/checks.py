@@ -14,12 +14,11 @@ from pxr import Gf, Usd, UsdGeom, UsdPhysics, UsdValidation
 from footforge import units
 from footforge.models import massprops
 from footforge.usd.context import mj_name
-from footforge.usd.joints import servo_joint
+from footforge.usd.joints import AXES, servo_joint
 
 VALIDATOR_KEYWORDS = ("UsdCoreValidators", "UsdGeomValidators", "UsdPhysicsValidators", "UsdShadeValidators")
 FLOAT32_RTOL = 2.0 ** -23
 """One float32 ulp, relative: the precision of every UsdPhysics float attribute."""
-_AXES = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}
 
 
 def validate_stage(stage: Usd.Stage) -> list[dict]:
@@ -77,7 +76,7 @@ def read_stage(stage: Usd.Stage) -> dict:
                 usd_joint = UsdPhysics.RevoluteJoint(prim) if prim.IsA(UsdPhysics.RevoluteJoint) else (
                     UsdPhysics.PrismaticJoint(prim) if prim.IsA(UsdPhysics.PrismaticJoint) else None)
                 if usd_joint is not None:
-                    joint["axis"] = _AXES[usd_joint.GetAxisAttr().Get()]
+                    joint["axis"] = AXES[usd_joint.GetAxisAttr().Get()]
                     lo, hi = usd_joint.GetLowerLimitAttr(), usd_joint.GetUpperLimitAttr()
                     joint["limits"] = (lo.Get(), hi.Get()) if lo.HasAuthoredValue() else None
                     drive = UsdPhysics.DriveAPI(prim, "angular" if prim.IsA(UsdPhysics.RevoluteJoint) else "linear")

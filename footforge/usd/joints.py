@@ -20,7 +20,8 @@ from footforge import units
 from footforge.usd.bodies import body_in_group_frame, site_in_body_frame
 from footforge.usd.context import IDENTITY_QUAT, ExportContext, mj_name, mul_pose, neg_pose
 
-_AXES = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}
+AXES = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}
+"""UsdPhysics joint axis tokens and the unit vectors they stand for (in the joint frame)."""
 JNT = mujoco.mjtJoint
 
 
@@ -28,10 +29,10 @@ def axis_frame(axis: np.ndarray) -> tuple[str, np.ndarray]:
     """(token, wxyz rotation of the joint frame in the body) so that the token's axis of the
     rotated frame is `axis`. Coordinate axes keep an identity frame, for readable output."""
     a = np.asarray(axis, float) / np.linalg.norm(axis)
-    for token, e in _AXES.items():
+    for token, e in AXES.items():
         if np.allclose(a, e, rtol=0, atol=1e-12):
             return token, IDENTITY_QUAT.copy()
-    x = _AXES["X"]
+    x = AXES["X"]
     w = 1.0 + float(x @ a)
     if w < 1e-12:  # -X: half a turn about Z
         return "X", np.array([0.0, 0, 0, 1.0])

@@ -13,12 +13,14 @@ import numpy as np
 from footforge.atomic import atomic_directory
 from footforge.provenance import json_default
 from footforge.validate import fidelity as fidelity_lib
+from footforge.tables import markdown_table
 
 METRICS = ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm", "slip_mm")
 COLOURS = {"full": "black", "aof": "tab:blue", "aff": "tab:orange", "ball": "tab:green"}
 
 
-def _fmt(value, digits=3) -> str:
+def format_value(value, digits=3) -> str:
+    """A report figure as text: n/a for a missing or non-finite one, pass/FAIL for a verdict."""
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "n/a"
     if isinstance(value, bool):
@@ -31,15 +33,16 @@ def _fmt(value, digits=3) -> str:
 def failing_metrics(summary: dict) -> list[str]:
     """'name mean > threshold' for each metric whose mean exceeds its threshold, and the runs
     that failed, in words a user can act on."""
-    out = [f"{name} {_fmt(m['mean'])} > {_fmt(m['threshold'])}"
+    out = [f"{name} {format_value(m['mean'])} > {format_value(m['threshold'])}"
            for name, m in summary["metrics"].items() if m["passed"] is False]
     if summary["failed_runs"]:
         out.append("runs failed: " + ", ".join(summary["failed_runs"]))
     return out
 
 
-def blocks(report: dict, command: str) -> list[tuple]:
-    """The report as ('h', level, text) | ('p', text) | ('table', header, rows) | ('img', path, alt)."""
+def document_items(report: dict, command: str) -> list[tuple]:
+    """The report as a document both report.md and report.html render: a list of ("h", level, text),
+    ("p", text), ("table", header, rows) and ("img", path, alt) items."""
     out: list[tuple] = [("h", 1, "footforge validate"), ("p", f"Command: `{command}`"),
                         ("p", f"footforge {report['footforge']}, mujoco {report['versions'].get('mujoco')}, "
                               f"machine {report['machine']}, seed {report['seed']}, {report['jobs']} worker(s); "
@@ -48,16 +51,16 @@ def blocks(report: dict, command: str) -> list[tuple]:
                               "reference and every variant's mean errors within the thresholds.")]
     ref = report["reference"]
     out += [("h", 2, "The closed-chain reference"),
-            ("p", f"Largest closure opening {_fmt(ref['max_closure_gap_mm'])} mm (limit {ref['closure_limit_mm']} mm); "
-                  f"largest energy gain over the initial energy {_fmt(ref['max_energy_gain_j'])} J "
-                  f"(tolerance {ref['energy_gain_tolerance_j']} J): {_fmt(ref['passed'])}."),
+            ("p", f"Largest closure opening {format_value(ref['max_closure_gap_mm'])} mm (limit {ref['closure_limit_mm']} mm); "
+                  f"largest energy gain over the initial energy {format_value(ref['max_energy_gain_j'])} J "
+                  f"(tolerance {ref['energy_gain_tolerance_j']} J): {format_value(ref['passed'])}."),
             ("table", ["scenario", "max closure gap (mm)", "energy gain (J)", "failure"],
-             [[n, _fmt(p["max_closure_gap_mm"]), _fmt(p["energy_gain_j"]), p["failed"] or ""]
+             [[n, format_value(p["max_closure_gap_mm"]), format_value(p["energy_gain_j"]), p["failed"] or ""]
               for n, p in ref["per_scenario"].items()])]
     out += [("h", 2, "Fidelity summary (mean over scenarios, against the closed chain)"),
             ("table", ["variant", *METRICS, "speed vs full", "verdict"],
-             [[v, *[f"{_fmt(f['summary']['metrics'][m]['mean'])} (max {_fmt(f['summary']['metrics'][m]['max'])})"
-                    for m in METRICS], f"{report['speed'][v]['vs_full']:.1f}x", _fmt(f["summary"]["passed"])]
+             [[v, *[f"{format_value(f['summary']['metrics'][m]['mean'])} (max {format_value(f['summary']['metrics'][m]['max'])})"
+                    for m in METRICS], f"{report['speed'][v]['vs_full']:.1f}x", format_value(f["summary"]["passed"])]
               for v, f in report["fidelity"].items()]),
             ("p", "Thresholds (mean): " + ", ".join(f"{k} {v:g}" for k, v in report["thresholds"].items())
                   + ". Speed: simulated seconds per wall-clock second over the same scenarios, "
@@ -75,7 +78,7 @@ def blocks(report: dict, command: str) -> list[tuple]:
         for v, cal in report["calibration"].items():
             rows = []
             for key in ("force", "height_mm", "orientation_deg", "objective"):
-                rows.append([key] + [_fmt(cal[f"series_errors_{when}"][split].get(key))
+                rows.append([key] + [format_value(cal[f"series_errors_{when}"][split].get(key))
                                      for when in ("before", "after") for split in ("train", "held_out")])
             out += [("h", 3, v),
                     ("p", f"{cal['evaluations']} evaluations on {len(cal['train'])} training scenarios "
@@ -89,14 +92,14 @@ def blocks(report: dict, command: str) -> list[tuple]:
         out += [("h", 3, v), ("table", ["scenario", *METRICS],
                               [[n, "run failed"] if e.get("failed") else
                                [n, "obstacle missed (excluded)"] if e.get("missed_obstacle") else
-                               [n, *[_fmt(e.get(m)) for m in METRICS]]
+                               [n, *[format_value(e.get(m)) for m in METRICS]]
                                for n, e in f["per_scenario"].items()])]
     out.append(("h", 2, "Scalars per run"))
     keys = ("peak_force_n", "impulse_ns", "settling_time_s", "final_height_m", "final_pitch_deg", "final_roll_deg",
             "contacts", "cop_x_mm", "cop_y_mm", "spread_mm", "rebound_mm", "slip_mm", "max_penetration_mm")
     for v, runs in report["runs"].items():
         out += [("h", 3, v), ("table", ["scenario", *keys],
-                              [[n, *[_fmt(r["scalars"].get(k)) for k in keys]] for n, r in runs.items()])]
+                              [[n, *[format_value(r["scalars"].get(k)) for k in keys]] for n, r in runs.items()])]
     out.append(("h", 2, "Plots"))
     for s in report["scenarios"]:
         out.append(("img", f"plots/{s['name']}.png", s["name"]))
@@ -105,9 +108,9 @@ def blocks(report: dict, command: str) -> list[tuple]:
 
 def _param_rows(cal: dict) -> list[list[str]]:
     b, a = cal["parameters_before"], cal["parameters_after"]
-    rows = [[f"{j}.{k}", _fmt(b["joints"][j][k], 4), _fmt(a["joints"][j][k], 4)]
+    rows = [[f"{j}.{k}", format_value(b["joints"][j][k], 4), format_value(a["joints"][j][k], 4)]
             for j in b["joints"] for k in ("stiffness", "damping")]
-    return rows + [["sole_lift_m", _fmt(b["sole_lift_m"], 4), _fmt(a["sole_lift_m"], 4)]]
+    return rows + [["sole_lift_m", format_value(b["sole_lift_m"], 4), format_value(a["sole_lift_m"], 4)]]
 
 
 def to_markdown(items: list[tuple]) -> str:
@@ -118,8 +121,7 @@ def to_markdown(items: list[tuple]) -> str:
         elif item[0] == "p":
             lines += [item[1], ""]
         elif item[0] == "table":
-            lines += ["| " + " | ".join(item[1]) + " |", "|" + "---|" * len(item[1])]
-            lines += ["| " + " | ".join(row) + " |" for row in item[2]] + [""]
+            lines += markdown_table(item[1], item[2]) + [""]
         elif item[0] == "img":
             lines += [f"![{item[2]}]({item[1]})", ""]
     return "\n".join(lines)
@@ -161,11 +163,10 @@ def to_html(items: list[tuple]) -> str:
 
 def plot_scenario(report: dict, scenario: str, path: Path) -> None:
     """Vertical force of each variant over the reference, sole pitch and roll, final footprint."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: a library leaves the backend to its user
 
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    fig = Figure(figsize=(15, 4))
+    axes = fig.subplots(1, 3)
     # The main force axis shows the settling (up to 4x the weight); the inset shows the whole
     # range, impact peaks included, on a log scale.
     peaks = axes[0].inset_axes([0.5, 0.5, 0.47, 0.45])
@@ -194,7 +195,6 @@ def plot_scenario(report: dict, scenario: str, path: Path) -> None:
         ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     fig.savefig(path, dpi=80)
-    plt.close(fig)
 
 
 def _json_ready(report: dict) -> dict:
@@ -212,7 +212,7 @@ def write(report: dict, out_dir: Path, command: str, *, force: bool = False) -> 
         (tmp / "plots").mkdir()
         for s in report["scenarios"]:
             plot_scenario(report, s["name"], tmp / "plots" / f"{s['name']}.png")
-        items = blocks(report, command)
+        items = document_items(report, command)
         (tmp / "report.md").write_text(to_markdown(items))
         (tmp / "report.html").write_text(to_html(items))
         (tmp / "report.json").write_text(json.dumps(_json_ready(report), indent=1, default=json_default) + "\n")

@@ -2,19 +2,19 @@
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 
 from footforge import constants as C
 from footforge.mjcf import foot as foot_lib
 from footforge.inputs.params import VariantParams
 from footforge.mjcf.rig import build_rig
+from footforge.models.foot_source import FootSource
 from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
 from footforge.validate.simulate import RigCase
 
 
 
-def build_feet(source: foot_lib.FootSource, variants) -> dict[str, foot_lib.FootModel | None]:
+def build_feet(source: FootSource, variants) -> dict[str, foot_lib.FootModel | None]:
     """The closed chain and each requested variant (None for the ball), from one source."""
     full = foot_lib.build_full(source)
     feet: dict[str, foot_lib.FootModel | None] = {"full": full}
@@ -28,11 +28,7 @@ def build_feet(source: foot_lib.FootSource, variants) -> dict[str, foot_lib.Foot
 
 def sole_extent(full: foot_lib.FootModel) -> SoleExtent:
     """Half-length and half-width of the closed chain's sole collision geometry (reference pose)."""
-    model = foot_lib.compile_model(full.mjcf)
-    data = mujoco.MjData(model)
-    for joint, q in full.reference_qpos.items():
-        data.qpos[model.jnt_qposadr[model.joint(joint).id]] = q
-    mujoco.mj_kinematics(model, data)
+    model, data = foot_lib.posed_at_reference(full)
     sole = foot_lib.sole_bodies(full)
     pts = foot_lib.collision_points(model, data, sole)
     centre = data.xpos[model.body(full.root_body).id]

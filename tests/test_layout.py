@@ -1,0 +1,89 @@
+"""The package layout: each package imports only the ones below it, and the README's
+Architecture section lists every module of the tree."""
+
+import ast
+import re
+from pathlib import Path
+
+from conftest import REPO
+
+PACKAGE = REPO / "footforge"
+LOW = "low"  # the modules directly in footforge/ (errors, units, provenance, ...)
+ALLOWED = {
+    LOW: {LOW},
+    "inputs": {LOW},
+    "models": {LOW, "inputs"},
+    "mjcf": {LOW, "inputs", "models"},
+    "usd": {LOW, "models"},
+    "build": {LOW, "inputs", "models", "mjcf", "usd"},
+    "envs": {LOW},  # environments read a build from disk; they never run the build
+    "validate": {LOW, "inputs", "models", "mjcf", "envs"},
+    "rl": {LOW, "envs"},
+    "cli": {LOW, "inputs", "models", "mjcf", "usd", "build", "envs", "validate", "rl"},
+}
+"""Package -> the packages its modules may import (besides their own)."""
+
+
+def _package_of(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and (PACKAGE / parts[1]).is_dir() else LOW
+
+
+def _imports(path: Path) -> set[str]:
+    """Every footforge module `path` imports, at the top or inside functions."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "footforge":
+            if node.module == "footforge":
+                out |= {f"footforge.{a.name}" for a in node.names}
+            else:
+                out.add(node.module)
+        elif isinstance(node, ast.Import):
+            out |= {a.name for a in node.names if a.name.split(".")[0] == "footforge"}
+    return out
+
+
+def _modules() -> list[Path]:
+    return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
+
+
+def test_packages_import_only_the_layers_below():
+    assert set(ALLOWED) == {LOW} | {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file()}
+    upward = []
+    for path in _modules():
+        module = ".".join(path.relative_to(REPO).with_suffix("").parts)
+        source = _package_of(module)
+        for imported in _imports(path):
+            target = _package_of(imported)
+            if target != source and target not in ALLOWED[source]:
+                upward.append(f"{path.relative_to(REPO)} imports {imported} ({source} -> {target})")
+    assert not upward, "\n".join(upward)
+
+
+def test_the_layering_check_sees_an_upward_import(tmp_path):
+    """The check above can fail: a function-level import of the build pipeline is found."""
+    module = tmp_path / "m.py"
+    module.write_text("def f():\n    from footforge.build.pipeline import build\n    from footforge import envs\n")
+    assert _imports(module) == {"footforge.build.pipeline", "footforge.envs"}
+    assert _package_of("footforge.build.pipeline") == "build" and "build" not in ALLOWED["envs"]
+
+
+def test_readme_architecture_lists_every_module():
+    readme = (REPO / "README.md").read_text()
+    section = readme[readme.index("## Architecture"):]
+    tree = section[section.index("```") + 3:]
+    tree = tree[:tree.index("```")]
+    listed, folder = set(), None
+    for line in tree.splitlines()[1:]:
+        match = re.match(r"^( +)(\S+)", line)
+        if not match:
+            continue
+        indent, name = len(match.group(1)), match.group(2)
+        if name.endswith("/"):
+            folder = name[:-1] if indent == 2 else folder
+        else:
+            listed.add(f"{folder}/{name}" if indent == 4 else name)
+    actual = {str(p.relative_to(PACKAGE)) for p in _modules()
+              if not (p.name == "__init__.py" and p.parent != PACKAGE)}
+    assert listed == actual, (f"missing from the README: {sorted(actual - listed)}; "
+                              f"listed but absent: {sorted(listed - actual)}")
