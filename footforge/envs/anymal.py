@@ -58,8 +58,10 @@ foot out every so often, its contact vanishes, its leg kicks down within a step 
 contact throws the robot (MJX, float32, rough level 0, 6 robots on 6 tiles, 10 s: 3 fell, 2 slid
 315 and 534 mm; at 0.97/0.995 none fell and the tile (0, 0) robot slid 4.1 mm). On a plane the
 distance is exact and ball keeps the stiffer 0.99/0.999 (1.3 mm of slip against 3-9 mm at
-0.97/0.995, 6 robots, flat, float32). AOF's box corners flicker the same way and it still slides
-8-9 mm on level 0 in float32 (tiles 0, 1 and 5); float64_physics holds every feet there."""
+0.97/0.995, 6 robots, flat, float32). AOF still slides 7-8 mm on level 0 in float32 (tiles 0, 1 and 5),
+against about 4 mm on a plane; its sole boxes' contacts switch on and off as often on the plane
+(about 1000 times/s), and sphere soles halve that without holding it, so the flicker does not
+explain the difference (benchmarks/RESULTS.md, 2026-11-26). float64_physics holds every feet there."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
 STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (30, 30)}

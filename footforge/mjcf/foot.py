@@ -4,18 +4,13 @@
   site-to-site `connect` equalities (a pin = point coincidence; the pin axis is implied by the
   parallel chain pins), the roll coupling as a joint equality, the arch band as a fixed tendon
   spring. Its keyframe pose is the sidecar's slack reference pose.
-- `aff`: ankle pitch and roll kept; arches -> one `pitch` body, roll links and all chain links ->
-  one rigid `sole` body.
-- `aof`: as AFF, but roll links -> `roll` body, chain links split into `sole_front` and
-  `sole_back` bodies, each on a hinge about its roll link's transversal (y) axis at its pivot.
-Every derived body's mass, centre of mass and inertia are the composite (Pinocchio) of the links
-it replaces at the reference pose, so the derived foot at q = 0 has exactly the mass
-distribution of the closed chain at its reference pose. What collides is the parameter file's
-`collision` (params.FootContact), two independent choices: each sole body collides through the
-box that encloses the replaced links' collision geometry at that pose, or through spheres or
-capsules on that box's bottom face (what MJX collides cheapest with heightfields); and the parts
-above the sole (the ankle's own geometry, one box per arch and roll link) collide too, or not
-(shipped: the sole box alone). They carry the replaced links' visual meshes.
+- `aff`, `aof`: the bodies of footforge.models.derivation (which links each replaces, its hinge,
+  its composite mass properties at the reference pose), with the replaced links' visual meshes.
+What collides is the parameter file's `collision` (params.FootContact), two independent choices:
+each sole body collides through the box that encloses the replaced links' collision geometry at
+the reference pose, or through spheres or capsules on that box's bottom face (what MJX collides
+cheapest with heightfields); and the parts above the sole (the ankle's own geometry, one box per
+arch and roll link) collide too, or not (shipped: the sole box alone).
 """
 
 from __future__ import annotations
@@ -34,9 +29,9 @@ from footforge.inputs.params import FootContact, PassiveJoint
 from footforge.inputs.sidecar import FAMILIES, Sidecar
 from footforge.mjcf.elements import MeshAssets, add_body_tree, add_default_classes, add_geoms, inertial_attributes
 from footforge.mjcf.writing import compile_model
-from footforge.models import kinematics
+from footforge.models.derivation import DerivedBody, aof_sole_halves, derived_bodies
 from footforge.models.foot_source import FootSource
-from footforge.models.urdf import ParsedURDF, joint_axis, quat_wxyz
+from footforge.models.urdf import quat_wxyz
 
 DERIVED_JOINT_CLASS = "foot_passive"
 
@@ -166,104 +161,46 @@ def collision_points(model, data, body_names) -> np.ndarray:
 
 def build_derived(source: FootSource, variant: str, *, name: str = "foot",
                   full: FootModel | None = None) -> FootModel:
-    """AFF or AOF, derived from the closed chain at its reference pose (see module docstring).
+    """AFF or AOF as MJCF: the bodies of footforge.models.derivation, each with its hinge (the
+    parameter file's spring, damper and armature), the replaced links' visual meshes and its
+    colliders (the module docstring says which).
 
     `full` is the closed-chain foot of `source` when the caller already built it.
     """
-    parsed, sidecar, params = source.parsed, source.sidecar, source.params
+    parsed, params = source.parsed, source.params
     joints = params.joints_for(variant)
-    sole_lift = params.sole_lift_m[variant]
     contact = params.foot_contact[variant]
-    ref_model, ref_data = posed_at_reference(full or build_full(source, name="reference"))
-    q = source.reference.q
+    bodies = derived_bodies(source, variant)
+    reference = posed_at_reference(full or build_full(source, name="reference"))
     data = parsed.model.createData()
-    pin.forwardKinematics(parsed.model, data, q)
-    oMi = data.oMi
-    families = source.families
-    arch = [parsed.joint_id(n) for n in sidecar.arch_joints]
-    front, back = parsed.joint_id(sidecar.roll_front), parsed.joint_id(sidecar.roll_back)
-    chain = [j for j, f in families.items() if f == "chain"]
-    other = [j for j, f in families.items() if f == "other"]
+    pin.forwardKinematics(parsed.model, data, source.reference.q)
 
-    root = _new_root(name, sidecar, params.contact_solref_for(variant))
+    root = _new_root(name, source.sidecar, params.contact_solref_for(variant))
     root.default.add("default", dclass=DERIVED_JOINT_CLASS).joint.set_attributes(type="hinge", limited="true")
     assets = MeshAssets(root)
-    root_body = _root_body(source, root, assets, _hull_geoms(source, assets),
-                           collide=contact.upper_collisions)
-
-    def frame_at(point) -> pin.SE3:
-        return pin.SE3(np.eye(3), np.asarray(point, dtype=float))
-
-    def add_body(parent_body, parent_frame: pin.SE3, frame: pin.SE3, body_name: str, members,
-                 joint_name: str, axis, limit, envelope_groups):
-        rel = parent_frame.actInv(frame)
-        body = parent_body.add("body", name=body_name, pos=np.array(rel.translation), quat=quat_wxyz(rel.rotation))
-        body.add("inertial", **inertial_attributes(kinematics.composite_inertia(parsed, members, q, frame)))
-        j: PassiveJoint = joints[joint_name]
-        body.add("joint", name=joint_name, dclass=DERIVED_JOINT_CLASS, axis=frame.rotation.T @ axis,
-                 range=list(limit), stiffness=j.stiffness, damping=j.damping, armature=j.armature,
+    elements = {None: _root_body(source, root, assets, _hull_geoms(source, assets), collide=contact.upper_collisions)}
+    frames = {None: pin.SE3.Identity()}
+    for b in bodies:
+        rel = frames[b.parent].actInv(b.frame)
+        body = elements[b.parent].add("body", name=b.name, pos=np.array(rel.translation), quat=quat_wxyz(rel.rotation))
+        body.add("inertial", **inertial_attributes(b.inertia))
+        j: PassiveJoint = joints[b.joint]
+        body.add("joint", name=b.joint, dclass=DERIVED_JOINT_CLASS, axis=b.frame.rotation.T @ b.axis,
+                 range=list(b.range_rad), stiffness=j.stiffness, damping=j.damping, armature=j.armature,
                  springref=j.springref)
-        for member in members:  # the replaced links' looks
-            add_geoms(body, parsed, member, assets, offset=frame.actInv(oMi[member]), kinds=("visual",))
-        for group_name, group in envelope_groups:
-            is_sole = group_name.startswith("sole")
-            if not (is_sole or contact.upper_collisions):
-                continue
-            pts = collision_points(ref_model, ref_data, [parsed.link_of(m) for m in group])
-            if len(pts) == 0:
-                continue
-            local = (pts - frame.translation) @ frame.rotation
-            lo, hi = local.min(0), local.max(0)
-            center, half = (lo + hi) / 2 + [0.0, 0.0, sole_lift if is_sole else 0.0], (hi - lo) / 2
-            if is_sole and contact.sole != "box":
-                if contact.radius_m > min(half[:2]):
-                    raise InputError(f"radius_m {contact.radius_m:g} m is wider than the {variant} {group_name} "
-                                     f"plate (half sizes {half[0]:.4f} x {half[1]:.4f} m)",
-                                     file=str(params.source), element=f"{variant}.collision.radius_m",
-                                     fix=f"give at most {min(half[:2]):.4f} m")
-                for i, shape in enumerate(sole_primitives(center, half, contact)):
-                    body.add("geom", name=f"{group_name}_{i}_collision", dclass="collision", **shape)
-            else:
-                body.add("geom", name=f"{group_name}_collision", dclass="collision", type="box", pos=center,
-                         size=half)
-        return body
-
-    # The pitch hinge sits at the arch pivot, on the arch joints' common axis.
-    pivot = oMi[arch[0]].translation
-    pitch_axis = oMi[arch[0]].rotation @ joint_axis(parsed.model.joints[arch[0]])
-    pitch_frame = frame_at(pivot)
-    arch_limit = _joint_range(parsed, arch[0])
-    roll_limit = _joint_range(parsed, front)
-    front_pivot, back_pivot = oMi[front].translation, oMi[back].translation
-    roll_axis = front_pivot - back_pivot
-    roll_axis /= np.linalg.norm(roll_axis)
-    roll_frame = frame_at((front_pivot + back_pivot) / 2)
-    root_frame = pin.SE3.Identity()
-    pitch_body = add_body(root_body, root_frame, pitch_frame, "pitch", arch + other, "ankle_pitch",
-                          pitch_axis, arch_limit, [(parsed.link_of(a), [a]) for a in arch])
-    roll_groups = [(parsed.link_of(r), [r]) for r in (front, back)]
-    if variant == "aff":
-        add_body(pitch_body, pitch_frame, roll_frame, "sole", [front, back] + chain, "ankle_roll",
-                 roll_axis, roll_limit, roll_groups + [("sole", chain)])
-        split = {}
-    else:
-        roll_body = add_body(pitch_body, pitch_frame, roll_frame, "roll", [front, back], "ankle_roll",
-                             roll_axis, roll_limit, roll_groups)
-        com_x = {j: oMi[j].act(parsed.model.inertias[j]).lever[0] for j in chain}
-        split = {"sole_front": [j for j in chain if com_x[j] > params.aof_split_x],
-                 "sole_back": [j for j in chain if com_x[j] <= params.aof_split_x]}
-        for body_name, pivot_joint in (("sole_front", front), ("sole_back", back)):
-            axis = oMi[pivot_joint].rotation[:, 1]  # the roll link's transversal axis
-            add_body(roll_body, roll_frame, frame_at(oMi[pivot_joint].translation), body_name,
-                     split[body_name], body_name, axis, params.aof_sole_range,
-                     [(body_name, split[body_name])])
+        for member in b.members:  # the replaced links' looks
+            add_geoms(body, parsed, member, assets, offset=b.frame.actInv(data.oMi[member]), kinds=("visual",))
+        _add_envelope_colliders(body, b, source, variant, reference)
+        elements[b.name], frames[b.name] = body, b.frame
+    sole_lift = params.sole_lift_m[variant]
     clearance = sole_clearance(root)
     if clearance < 0.001:  # inf when only the sole collides
         raise InputError(f"sole_lift_m {sole_lift:g} m raises the {variant} sole to within 1 mm of the foot's other "
                          f"collision boxes (clearance {clearance * 1e3:.1f} mm)", file=str(params.source),
                          element=f"{variant}.sole_lift_m",
                          fix=f"keep sole_lift_m below {sole_lift + clearance - 0.001:.4f} m so the sole stays the lowest part")
-    names = ["ankle_pitch", "ankle_roll"] + ([] if variant == "aff" else ["sole_front", "sole_back"])
+    names = [b.joint for b in bodies]
+    split = aof_sole_halves(source) if variant == "aof" else {}
     info = {"replaced_links": {k: [parsed.link_of(j) for j in v] for k, v in split.items()},
             "sole_clearance_m": clearance if np.isfinite(clearance) else None,
             "contact": {"sole": contact.sole, "upper_collisions": contact.upper_collisions,
@@ -271,6 +208,37 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
             "reference_pose_closure_error_m": source.reference.closure_error_m}
     return _finish(FootModel(variant, root, parsed.root_link, {n: 0.0 for n in names}, names,
                              np.zeros(3), info))
+
+
+def _add_envelope_colliders(body, derived: DerivedBody, source: FootSource, variant: str, reference) -> None:
+    """The colliders of one derived body: per envelope, the box that encloses its links' collision
+    geometry at the reference pose (the sole's raised by sole_lift_m), or for the sole the spheres
+    or capsules on that box's bottom face (the parameter file's `collision`); the envelopes above
+    the sole only where `collision.upper_collisions`."""
+    parsed, params = source.parsed, source.params
+    contact = params.foot_contact[variant]
+    ref_model, ref_data = reference
+    frame = derived.frame
+    for group_name, group in derived.envelopes:
+        is_sole = group_name.startswith("sole")
+        if not (is_sole or contact.upper_collisions):
+            continue
+        pts = collision_points(ref_model, ref_data, [parsed.link_of(m) for m in group])
+        if len(pts) == 0:
+            continue
+        local = (pts - frame.translation) @ frame.rotation
+        lo, hi = local.min(0), local.max(0)
+        center, half = (lo + hi) / 2 + [0.0, 0.0, params.sole_lift_m[variant] if is_sole else 0.0], (hi - lo) / 2
+        if is_sole and contact.sole != "box":
+            if contact.radius_m > min(half[:2]):
+                raise InputError(f"radius_m {contact.radius_m:g} m is wider than the {variant} {group_name} "
+                                 f"plate (half sizes {half[0]:.4f} x {half[1]:.4f} m)",
+                                 file=str(params.source), element=f"{variant}.collision.radius_m",
+                                 fix=f"give at most {min(half[:2]):.4f} m")
+            for i, shape in enumerate(sole_primitives(center, half, contact)):
+                body.add("geom", name=f"{group_name}_{i}_collision", dclass="collision", **shape)
+        else:
+            body.add("geom", name=f"{group_name}_collision", dclass="collision", type="box", pos=center, size=half)
 
 
 def sole_primitives(center, half, contact: FootContact) -> list[dict]:
@@ -301,11 +269,6 @@ def sole_clearance(root: mjcf.RootElement) -> float:
             is_sole = model.geom(g).name.startswith("sole")
             lowest[is_sole] = min(lowest[is_sole], geom_points(model, data, g)[:, 2].min())
     return float(lowest[False] - lowest[True])
-
-
-def _joint_range(parsed: ParsedURDF, joint_id: int) -> tuple[float, float]:
-    idx = parsed.model.joints[joint_id].idx_q
-    return float(parsed.model.lowerPositionLimit[idx]), float(parsed.model.upperPositionLimit[idx])
 
 
 def sole_bodies(foot: FootModel) -> list[str]:
