@@ -51,3 +51,24 @@ def headless_by_default() -> None:
 _check_gl_backend()
 
 __version__ = "0.1.0"
+
+# The library's entry points, imported on first use so that `import footforge` stays light (no
+# MuJoCo, no JAX). The packages themselves (footforge.build, .validate, .envs, .rl) are imported
+# by name as usual; these are the classes and functions a script starts from.
+_EXPORTS = {
+    "BuildOptions": "footforge.build.pipeline",
+    "check_description": "footforge.build.check",
+    "ValidateOptions": "footforge.validate.runner",
+    "make_env": "footforge.envs",
+    "load_policy": "footforge.rl.train",
+}
+__all__ = ["__version__", "headless_by_default", *_EXPORTS]
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'footforge' has no attribute '{name}'")
+    import importlib
+
+    module = importlib.import_module(_EXPORTS[name])
+    return getattr(module, "make" if name == "make_env" else name)

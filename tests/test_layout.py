@@ -87,3 +87,18 @@ def test_readme_architecture_lists_every_module():
               if not (p.name == "__init__.py" and p.parent != PACKAGE)}
     assert listed == actual, (f"missing from the README: {sorted(actual - listed)}; "
                               f"listed but absent: {sorted(listed - actual)}")
+
+
+def test_the_package_exports_its_entry_points_lazily():
+    """`import footforge` loads neither MuJoCo nor JAX; its entry points load on first use."""
+    import subprocess
+    import sys
+
+    code = ("import sys, footforge; assert 'mujoco' not in sys.modules and 'jax' not in sys.modules; "
+            "from footforge.build.pipeline import BuildOptions; from footforge.envs import make; "
+            "from footforge.rl.train import load_policy; "
+            "assert footforge.BuildOptions is BuildOptions and footforge.make_env is make "
+            "and footforge.load_policy is load_policy; print(sorted(footforge.__all__))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
+    assert out.returncode == 0, out.stderr
+    assert "ValidateOptions" in out.stdout and "check_description" in out.stdout
