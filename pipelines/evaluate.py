@@ -66,6 +66,7 @@ def _run(args) -> int:
     from footforge.rl.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
     from footforge.outputs import check_output_folder
     from footforge.rl.policy_card import card_name, policy_card
+    from footforge.cli.builds import build_defaults_if_missing
     from footforge.rl.train import load_policy_config
 
     check_output_folder(args.out, force=args.force)  # before minutes of evaluation
@@ -73,8 +74,8 @@ def _run(args) -> int:
         from footforge.rl.render import check_renderer, render_frames, write_gif, write_strip
 
         check_renderer()  # before minutes of evaluation
-    for policy in args.policy:  # each one a policy folder, before the first one's minutes
-        load_policy_config(policy)
+    trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder
+    build_defaults_if_missing(args.feet or trained_on, args.build_root)
     results, recordings, cards = [], [], []
     for policy in args.policy:
         for feet in args.feet or [None]:

@@ -52,12 +52,13 @@ def _run(args) -> int:
     from footforge.atomic import atomic_directory
     from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
     from footforge.outputs import check_output_folder
+    from footforge.cli.builds import build_defaults_if_missing
     from footforge.rl.train import load_policy_config
 
     console = Console()
     check_output_folder(args.out, force=args.force)  # before minutes of simulation
-    for policy in args.policy:  # each one a policy folder, before the first one's minutes
-        load_policy_config(policy)
+    trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder
+    build_defaults_if_missing([*trained_on, "full"], args.build_root, console)
     results = []
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=console, transient=True) as progress:

@@ -122,6 +122,7 @@ def _written_by_play(path: Path) -> bool:
 def _run(args) -> int:
     import time
 
+    from footforge.cli.builds import build_defaults_if_missing
     from footforge.rl.play import Player, PlayConfig, check_feet, key_map_text, load_policy, play_headless
 
     started = time.perf_counter()
@@ -130,6 +131,7 @@ def _run(args) -> int:
     meta = policy.metadata
     print(f"{PROG}: {meta['policy_type']} policy trained on {meta['feet']} ({meta['task']}, "
           f"{meta['global_step'] / 1e6:.1f} M steps), on {feet} feet, {'terrain tiles' if args.terrain else 'flat ground'}")
+    build_defaults_if_missing([meta["feet"], feet], args.build_root)
     player = Player(policy, PlayConfig(feet=feet, terrain=args.terrain, build_root=args.build_root, seed=args.seed))
     if args.headless:
         player.warm_up()  # the viewer warms up itself, before its window opens

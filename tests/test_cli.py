@@ -172,6 +172,11 @@ def test_bad_params_and_args(capsys, tmp_path):
     assert code == 2 and "timeconst" in text
     code, text = run(capsys, "build", "--variant", "aff", "--arg", "novalue", "--out", tmp_path / "o")
     assert code == 2 and "NAME:=VALUE" in text
+    for fmt in (None, 2):  # a parameter file without its format, or of another one
+        other = {k: v for k, v in params.items() if k != "format"} | ({"format": fmt} if fmt else {})
+        p.write_text(yaml.safe_dump(other))
+        code, text = run(capsys, "build", "--variant", "aff", "--params", p, "--out", tmp_path / "o")
+        assert code == 2 and "format" in text and not (tmp_path / "o").exists(), text
 
 
 def test_version(capsys):

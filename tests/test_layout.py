@@ -90,11 +90,13 @@ def test_readme_architecture_lists_every_module():
 
 
 def test_the_package_exports_its_entry_points_lazily():
-    """`import footforge` loads neither MuJoCo nor JAX; its entry points load on first use."""
+    """`import footforge` loads neither MuJoCo nor JAX, nor does the environments' configuration;
+    the entry points load on first use."""
     import subprocess
     import sys
 
     code = ("import sys, footforge; assert 'mujoco' not in sys.modules and 'jax' not in sys.modules; "
+            "import footforge.envs.config; assert 'jax' not in sys.modules; "
             "from footforge.build.pipeline import BuildOptions; from footforge.envs import make; "
             "from footforge.rl.train import load_policy; "
             "assert footforge.BuildOptions is BuildOptions and footforge.make_env is make "

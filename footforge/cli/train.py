@@ -100,8 +100,10 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                 jax.distributed.initialize(**({} if args.coordinator == "auto" else {
                     "coordinator_address": args.coordinator, "num_processes": args.num_processes,
                     "process_id": args.process_id}))
-            if not args.resume:
-                _build_if_missing(env_config, console)
+            from footforge.cli.builds import build_defaults_if_missing
+
+            build_defaults_if_missing([env_config.feet], Path(env_config.build_dir).parent if env_config.build_dir else None,
+                                      console)
             from footforge.rl import compile_cache
             from footforge.envs import enable_float64_physics
 
@@ -131,22 +133,6 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     else:
         console.print(f"policy written to {args.out / 'policy'} (not evaluated: pipelines/evaluate.py does)")
     return 0
-
-
-def _build_if_missing(env_config, console) -> None:
-    """A new run on the default build folder (build/<feet>/) builds it when it has no scene.xml, as
-    `footforge build --variant <feet> --format mjcf` would; a folder given by --build-root must
-    hold a build already (the environment says how to make one)."""
-    from footforge.envs.anymal import build_dir
-
-    folder = build_dir(env_config)
-    if env_config.build_dir or (folder / "scene.xml").is_file():
-        return
-    from footforge.build import BuildOptions, build
-
-    with console.status(f"building {env_config.feet} into {folder} (footforge build --variant {env_config.feet})") as status:
-        build(BuildOptions(variant=env_config.feet, out_dir=folder, formats=("mjcf",)),
-              progress=lambda stage: status.update(f"building {env_config.feet} into {folder}: {stage}"))
 
 
 # The options that set a saved setting: flag, attribute of args, (config, field) it sets.

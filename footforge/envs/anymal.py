@@ -109,8 +109,13 @@ class Robot:
     floor_geom: int
 
 
+DEFAULT_BUILD_ROOT = Path("build")
+"""Where the environments look for a feet's build without EnvConfig.build_dir: build/<feet>/,
+relative to the working directory (the first README command writes build/aof/)."""
+
+
 def build_dir(config: EnvConfig) -> Path:
-    return Path(config.build_dir) if config.build_dir else Path("build") / config.feet
+    return Path(config.build_dir) if config.build_dir else DEFAULT_BUILD_ROOT / config.feet
 
 
 def ensure_built(config: EnvConfig) -> Path:

@@ -261,7 +261,9 @@ class EnvConfig:
     """B blind; P perceptive (height scan, rough task); BH, PH: + haptic (passive foot joint
     positions and velocities)."""
     build_dir: str | None = None
-    """Folder of the build outputs; default build/<feet> (built on first use if missing)."""
+    """Folder of the build outputs; default build/<feet> (anymal.DEFAULT_BUILD_ROOT). Environments
+    never build: a missing build is an input error that names the command making it (the
+    pipelines build the default folders first: footforge.cli.builds)."""
     sim_dt: float = 0.0025
     """Physics step, s (MuJoCo clamps contact time constants to at least 2 steps). The default is
     contact_model 'stance''s; envs.default_config and envs.with_contact_model set the step each

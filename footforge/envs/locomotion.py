@@ -376,7 +376,7 @@ class LocomotionEnv(Env):
             value = term.read(self, data, info)
             if cfg.noise and term.noise:
                 value = value + jax.random.uniform(k, value.shape, minval=-term.noise, maxval=term.noise)
-            chunks.append(value * (jp.asarray(term.scale) if isinstance(term.scale, tuple) else term.scale))
+            chunks.append(value * (jp.asarray(term.scale) if isinstance(term.scale, (tuple, list)) else term.scale))
         return jp.clip(jp.concatenate(chunks), -cfg.clip, cfg.clip)
 
     def base_height(self, data):

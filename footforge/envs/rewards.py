@@ -9,8 +9,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, NamedTuple
 
-import jax.numpy as jp
-
 if TYPE_CHECKING:
     from footforge.envs.config import RewardConfig
 
@@ -44,53 +42,58 @@ class Quantities(NamedTuple):
 
 def lin_vel_xy(q: Quantities, cfg: RewardConfig):
     """exp(-|command - velocity|^2 / sigma) of the planar velocity, base frame (m/s)."""
-    return jp.exp(-jp.sum(jp.square(q.command[:2] - q.lin_vel[:2])) / cfg.tracking_sigma)
+    import jax.numpy as jp  # here, not at the top: envs.config imports this module and stays free of JAX
+
+    error = q.command[:2] - q.lin_vel[:2]
+    return jp.exp(-(error * error).sum() / cfg.tracking_sigma)
 
 
 def yaw_rate(q: Quantities, cfg: RewardConfig):
     """exp(-(command - yaw rate)^2 / sigma), rad/s."""
-    return jp.exp(-jp.square(q.command[2] - q.ang_vel[2]) / cfg.tracking_sigma)
+    import jax.numpy as jp
+
+    return jp.exp(-(q.command[2] - q.ang_vel[2]) ** 2 / cfg.tracking_sigma)
 
 
 def lin_vel_z(q: Quantities, cfg: RewardConfig):
     """Vertical base velocity squared, (m/s)^2."""
-    return jp.square(q.lin_vel[2])
+    return q.lin_vel[2] ** 2
 
 
 def ang_vel_xy(q: Quantities, cfg: RewardConfig):
     """Roll and pitch rate squared, (rad/s)^2."""
-    return jp.sum(jp.square(q.ang_vel[:2]))
+    return (q.ang_vel[:2] ** 2).sum()
 
 
 def orientation(q: Quantities, cfg: RewardConfig):
     """|projected gravity_xy|^2: zero when the base is level (gravity along -z of the base)."""
-    return jp.sum(jp.square(q.gravity[:2]))
+    return (q.gravity[:2] ** 2).sum()
 
 
 def base_height(q: Quantities, cfg: RewardConfig):
     """(h - target)^2, m^2, with h the base height over the ground."""
-    return jp.square(q.base_height - cfg.base_height_target_m)
+    return (q.base_height - cfg.base_height_target_m) ** 2
 
 
 def torques(q: Quantities, cfg: RewardConfig):
     """sum tau^2, (N m)^2."""
-    return jp.sum(jp.square(q.torques))
+    return (q.torques ** 2).sum()
 
 
 def joint_acc(q: Quantities, cfg: RewardConfig):
     """sum of squared joint-velocity changes over one policy step, (rad/s)^2: how the paper's
     baseline computes its "joint accelerations" term (the change, not divided by the step)."""
-    return jp.sum(jp.square(q.joint_vel - q.last_joint_vel))
+    return ((q.joint_vel - q.last_joint_vel) ** 2).sum()
 
 
 def action_rate(q: Quantities, cfg: RewardConfig):
     """sum (a - a_prev)^2."""
-    return jp.sum(jp.square(q.action - q.last_action))
+    return ((q.action - q.last_action) ** 2).sum()
 
 
 def hip(q: Quantities, cfg: RewardConfig):
     """sum |q_HAA - default|, rad."""
-    return jp.sum(jp.abs(q.haa_offset))
+    return abs(q.haa_offset).sum()
 
 
 def terms(cfg: RewardConfig) -> dict:

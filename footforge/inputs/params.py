@@ -12,6 +12,9 @@ from pathlib import Path
 from footforge.inputs.description import descriptions_dir
 from footforge.inputs.yaml_reader import YamlReader, read_yaml
 
+PARAMS_FORMAT = 1
+"""The parameter file's `format:` this footforge reads."""
+
 
 def default_params_path() -> Path:
     return descriptions_dir() / "softfoot_q" / "config" / "variant_params.yaml"
@@ -97,7 +100,7 @@ class VariantParams:
     contact_solref: tuple[float, float]
     """MuJoCo solref (timeconst s, damping ratio) of the robot's and feet's collision geoms in the
     AFF, AOF and ball models: the sole pad's contact stiffness, dominant over the ground's (see
-    urdf_import.CONTACT_SOLMIX). The closed chain has its own (full.contact_solref)."""
+    footforge.mjcf.elements.CONTACT_SOLMIX). The closed chain has its own (full.contact_solref)."""
     contact_solimp: tuple[float, float, float]
     """MuJoCo solimp (dmin, dmax, width m) of the robot models' collision geoms (the drop-test
     rigs keep MuJoCo's default, under which the feet were calibrated)."""
@@ -170,9 +173,12 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     top = YamlReader(read_yaml(path, what="parameter file", fix="pass an existing file to --params"),
                      "", path)
     top.check_keys({"format", "full", "simplified", "aff", "aof", "rig", "contact"})
+    fmt = top.get("format")
+    if fmt.data != PARAMS_FORMAT:
+        raise fmt.fail(f"format {fmt.data!r} is not {PARAMS_FORMAT}, the one this footforge reads",
+                       f"write the file in format {PARAMS_FORMAT} (see the shipped {default_params_path().name})")
     full = top.get("full")
-    full.check_keys({"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp",
-                                  "contact_solref"}).get("timestep")
+    full.check_keys({"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp", "contact_solref"})
     iterations = full.get("iterations").float(min_value=1)
     settings = FullChainSettings(
         timestep=full.get("timestep").float(min_value=1e-6),

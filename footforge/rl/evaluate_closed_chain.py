@@ -64,8 +64,9 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
                           progress: Callable[[str, int, int], None] | None = None) -> dict:
     """Runs `policy_dir`'s policy on the feet it was trained on and on the closed chain.
 
-    build_root: folder with one build per feet, <root>/<feet>/ (default build/<feet>, built on
-    first use; a missing <root>/<feet> is an input error, as for the other pipelines).
+    build_root: folder with one build per feet, <root>/<feet>/ (default build/<feet>, which
+    pipelines/evaluate_closed_chain.py builds first where missing; a missing build is an input
+    error here).
     terrain_tiles: a terrain (e.g. TERRAIN_TILES) instead of flat ground.
     progress(feet, policy steps done, total) is called after every policy step.
 
@@ -124,7 +125,7 @@ def policy_environment(config, build_root: Path | None = None, terrain_tiles: Te
 
 
 def _build_dir(feet: str, build_root: Path | None) -> str | None:
-    """<build_root>/<feet>, or None: the environments' default, build/<feet>, built on first use."""
+    """<build_root>/<feet>, or None: the environments' default, build/<feet>."""
     return str(Path(build_root) / feet) if build_root else None
 
 

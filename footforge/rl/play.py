@@ -51,7 +51,8 @@ class PlayConfig:
     slope, rough slope, stairs down, obstacles, generated as the rough task's terrain) instead of
     flat ground; the robot starts on the first tile (the smooth slope at difficulty 0.5)."""
     build_root: Path | None = None
-    """Folder with one build per feet, <root>/<feet>/; None: build/<feet>, built on first use."""
+    """Folder with one build per feet, <root>/<feet>/; None: build/<feet> (pipelines/play.py builds
+    a missing one first; here a missing build is an input error)."""
     seed: int = 0
     """Seeds the observation noise (each restart after a fall takes the next seed)."""
 

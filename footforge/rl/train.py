@@ -410,7 +410,7 @@ def load_run_config(run_dir: Path) -> tuple[EnvConfig, "PPOConfig"]:
 
 
 def config_differences(saved: dict, now: dict, prefix: str = "") -> list[str]:
-    """'field: saved -> now' for every leaf that differs between two asdict()/JSON forms."""
+    """'field: saved -> now' for every leaf that differs between two to_dict()/JSON forms."""
     out = []
     for key in sorted(set(saved) | set(now)):
         a, b = saved.get(key), now.get(key)
