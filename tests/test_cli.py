@@ -184,3 +184,19 @@ def test_version(capsys):
 
     code, text = run(capsys, "--version")
     assert code == 0 and text.startswith(f"footforge {footforge.__version__} (mujoco ")
+
+
+def test_pipelines_build_the_default_builds_once(tmp_path, monkeypatch):
+    """Without --build-root the pipelines make build/<feet>/ where it is missing, and leave an
+    existing one alone; with a build root of the user's they build nothing."""
+    from footforge.cli.builds import build_defaults_if_missing
+
+    monkeypatch.chdir(tmp_path)
+    build_defaults_if_missing(["ball"], tmp_path / "mine")
+    assert not (tmp_path / "build").exists() and not (tmp_path / "mine").exists()
+    build_defaults_if_missing(["ball", "ball"], None)
+    scene = tmp_path / "build" / "ball" / "scene.xml"
+    assert scene.is_file()
+    built_at = scene.stat().st_mtime_ns
+    build_defaults_if_missing(["ball"], None)
+    assert scene.stat().st_mtime_ns == built_at
