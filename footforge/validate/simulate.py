@@ -149,6 +149,47 @@ def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
     mujoco.mj_forward(model, data)
 
 
+class _RigState:
+    """What a drop test records of the rig's state at a sample: the mount's height, the hanging
+    parts' vertical momentum, the sole's orientation and position, the ground contacts' count,
+    penetration, centre of pressure and spread, the closure gap and the energy."""
+
+    def __init__(self, model: mujoco.MjModel, sole_bodies, sole_local):
+        self.model, self.sole_bodies, self.sole_local = model, sole_bodies, sole_local
+        self.root = int(model.body_rootid[model.body("carriage").id])
+        self.hanging_mass = float(model.body_subtreemass[self.root])
+        self.mount = model.site("mount").id
+        connect = [e for e in range(model.neq) if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT
+                   and model.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE]
+        self.site_a, self.site_b = model.eq_obj1id[connect], model.eq_obj2id[connect]
+        self._com_jac = np.zeros((3, model.nv))
+
+    def record(self, series: dict, i: int, data: mujoco.MjData, pos, force, penetration) -> np.ndarray:
+        """Fills sample i of `series` from `data` and its ground contacts (positions, forces,
+        penetrations); returns the footprint: (x, y relative to the mount, normal force) per contact."""
+        # The current velocities through the centre-of-mass Jacobian (data.cvel and
+        # subtree_linvel still hold the previous step's velocities after mj_step).
+        mujoco.mj_jacSubtreeCom(self.model, data, self._com_jac, self.root)
+        series["momentum_z_ns"][i] = self.hanging_mass * float(self._com_jac[2] @ data.qvel)
+        series["height_m"][i] = data.site_xpos[self.mount][2]
+        sole_world = _sole_world(data, self.sole_bodies, self.sole_local)
+        series["pitch_rad"][i], series["roll_rad"][i] = _sole_orientation(sole_world)
+        if len(sole_world):
+            series["sole_x_m"][i], series["sole_y_m"][i] = sole_world[:, :2].mean(axis=0)
+        series["contacts"][i] = len(pos)
+        series["penetration_m"][i] = penetration.max(initial=0.0)
+        weights = np.maximum(force[:, 2], 0.0)
+        planar = pos[:, :2] - data.site_xpos[self.mount][:2]
+        if weights.sum() > 1e-9:
+            cop = weights @ planar / weights.sum()
+            series["cop_x_m"][i], series["cop_y_m"][i] = cop
+            series["spread_m"][i] = float(np.sqrt(weights @ ((planar - cop) ** 2).sum(axis=1) / weights.sum()))
+        gaps = np.linalg.norm(data.site_xpos[self.site_a] - data.site_xpos[self.site_b], axis=1)
+        series["closure_gap_m"][i] = gaps.max(initial=0.0)
+        series["energy_j"][i] = data.energy.sum()
+        return np.c_[planar, force[:, 2]]
+
+
 def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     """Simulates one case; returns time series (sampled every `sample_dt_s`) and scalars.
 
@@ -173,10 +214,6 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     sole_bodies, sole_local = _sole_points(model, data, case.sole_bodies)
     slider = model.joint("slider")
     _place(model, data, int(slider.qposadr[0]), foot_mask, scenario.drop_height_m)
-    connect = [e for e in range(model.neq) if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT
-               and model.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE]
-    site_a, site_b = model.eq_obj1id[connect], model.eq_obj2id[connect]
-    mount = model.site("mount").id
     weight = float(-model.opt.gravity[2] * mujoco.mj_getTotalmass(model))  # payload, carriage and foot
     steps = int(round(scenario.duration_s / model.opt.timestep))
     every = max(1, int(round(sample_dt_s / model.opt.timestep)))
@@ -187,9 +224,8 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
                                               "height_m", "pitch_rad", "roll_rad", "contacts",
                                               "cop_x_m", "cop_y_m", "spread_m", "penetration_m", "closure_gap_m", "energy_j",
                                               "sole_x_m", "sole_y_m")}
-    root = int(model.body_rootid[model.body("carriage").id])
-    hanging_mass = float(model.body_subtreemass[root])
-    com_jac = np.zeros((3, model.nv))
+    rig = _RigState(model, sole_bodies, sole_local)
+    hanging_mass = rig.hanging_mass
     failed, wall, footprint = None, 0.0, np.zeros((0, 3))
     obstacle = int(model.geom("obstacle").id) if scenario.obstacle not in ("flat", "slope") else -1
     obstacle_impulse = 0.0  # through the obstacle, over the whole run
@@ -213,27 +249,7 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
                 series["force_z_n"][i] = impulse / (every * model.opt.timestep)
                 series["force_peak_n"][i], series["impulse_ns"][i] = peak, impulse
             impulse, peak = 0.0, 0.0
-            # The current velocities through the centre-of-mass Jacobian (data.cvel and
-            # subtree_linvel still hold the previous step's velocities after mj_step).
-            mujoco.mj_jacSubtreeCom(model, data, com_jac, root)
-            series["momentum_z_ns"][i] = hanging_mass * float(com_jac[2] @ data.qvel)
-            series["height_m"][i] = data.site_xpos[mount][2]
-            sole_world = _sole_world(data, sole_bodies, sole_local)
-            series["pitch_rad"][i], series["roll_rad"][i] = _sole_orientation(sole_world)
-            if len(sole_world):
-                series["sole_x_m"][i], series["sole_y_m"][i] = sole_world[:, :2].mean(axis=0)
-            series["contacts"][i] = len(pos)
-            series["penetration_m"][i] = penetration.max(initial=0.0)
-            weights = np.maximum(force[:, 2], 0.0)
-            planar = pos[:, :2] - data.site_xpos[mount][:2]
-            if weights.sum() > 1e-9:
-                cop = weights @ planar / weights.sum()
-                series["cop_x_m"][i], series["cop_y_m"][i] = cop
-                series["spread_m"][i] = float(np.sqrt(weights @ ((planar - cop) ** 2).sum(axis=1) / weights.sum()))
-            gaps = np.linalg.norm(data.site_xpos[site_a] - data.site_xpos[site_b], axis=1)
-            series["closure_gap_m"][i] = gaps.max(initial=0.0)
-            series["energy_j"][i] = data.energy.sum()
-            footprint = np.c_[planar, force[:, 2]]
+            footprint = rig.record(series, i, data, pos, force, penetration)
         if k == steps:
             break
         t0 = time.perf_counter()
