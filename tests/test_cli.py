@@ -200,3 +200,19 @@ def test_pipelines_build_the_default_builds_once(tmp_path, monkeypatch):
     built_at = scene.stat().st_mtime_ns
     build_defaults_if_missing(["ball"], None)
     assert scene.stat().st_mtime_ns == built_at
+
+
+def test_existing_default_builds_need_no_build_packages(tmp_path, monkeypatch):
+    """The offline GPU machine trains from builds made beforehand and has none of the build's
+    packages (lxml, xacro, coacd, pinocchio): with build/<feet>/ present, the pipelines' first-use
+    check imports none of them."""
+    import subprocess
+    import sys
+
+    (tmp_path / "build" / "ball").mkdir(parents=True)
+    (tmp_path / "build" / "ball" / "scene.xml").write_text("<mujoco/>")
+    code = ("import sys; sys.modules.update(lxml=None, xacro=None, coacd=None, pinocchio=None); "
+            "from footforge.cli.builds import build_defaults_if_missing; "
+            "build_defaults_if_missing(['ball'], None); print('ok')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr

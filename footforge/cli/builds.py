@@ -16,12 +16,14 @@ def build_defaults_if_missing(variants: Iterable[str], build_root: Path | None, 
     stale one with the command that rebuilds it)."""
     if build_root is not None:
         return
-    from footforge.build import BuildOptions, build
-
     for variant in dict.fromkeys(variants):
         folder = DEFAULT_BUILD_ROOT / variant
         if (folder / "scene.xml").is_file():
             continue
+        # Only now: the build's packages (lxml, xacro, coacd, pinocchio) are not on the offline
+        # GPU machine, which trains from builds made beforehand (scripts/device).
+        from footforge.build import BuildOptions, build
+
         message = f"building {variant} into {folder} (footforge build --variant {variant} --format mjcf)"
         if console is None:
             print(message, flush=True)
