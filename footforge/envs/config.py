@@ -7,7 +7,7 @@ cfg/task YAML). PPO hyperparameters live apart, in footforge.rl.train.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from typing import Callable, Literal
 
 from footforge import constants as C
@@ -462,9 +462,8 @@ def upgrade_saved(env: dict) -> dict:
                 obs[key] = value
         env["observations"] = obs
     if "rewards" in env:
-        env["rewards"] = {key: {"scale": value} if key in _REWARD_TERMS and not isinstance(value, dict) else value
+        reward_terms = rewards.terms(RewardConfig())
+        env["rewards"] = {key: {"scale": value} if key in reward_terms and not isinstance(value, dict) else value
                           for key, value in env["rewards"].items()}
     return env
 
-
-_REWARD_TERMS = tuple(f.name for f in fields(RewardConfig) if f.type in ("RewardTerm", RewardTerm))

@@ -304,8 +304,7 @@ class LocomotionEnv(Env):
         info.update(episode_step=jp.where(ended, 0, episode_step), time_out=time_out.astype(jp.float32),
                     target=data.ctrl[self._ctrl_order])  # this step's targets, or the restart's
         info, obs = self.policy_observe(data, info, keys, action, ended, fresh)
-        obs = jax.tree_util.tree_map(lambda o: jp.nan_to_num(o, nan=0.0, posinf=0.0, neginf=0.0),
-                                     self._with_privileged(obs, data))
+        obs = self._with_privileged(obs, data)  # policy_observe zeroed the policy's non-finite values
         return policy_side(state.replace(pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32),
                                          metrics=metrics, info=info))
 
@@ -344,7 +343,8 @@ class LocomotionEnv(Env):
     def _with_privileged(self, obs, data):
         if not self.config.privileged_critic:
             return obs
-        return {"state": obs, "privileged_state": jp.concatenate([obs, self.privileged(data)])}
+        privileged = jp.nan_to_num(self.privileged(data), nan=0.0, posinf=0.0, neginf=0.0)
+        return {"state": obs, "privileged_state": jp.concatenate([obs, privileged])}
 
     def privileged(self, data):
         """Critic-only quantities no robot measures directly: the true base linear velocity
