@@ -295,8 +295,15 @@ def test_contact_models_are_refused_where_they_diverge(built):
         assert anymal.stance_contact_solimp(stance, on_heightfield=True) == (0.97, 0.995, 0.001)
         stiff = replace(stance, float64_physics=True)
         assert anymal.stance_contact_solimp(stiff, on_heightfield=True) == (0.99, 0.999, 0.001)
-        if feet != "ball":
+        # The adaptive feet in float32 rest on a softer normal, every geom alike
+        # (STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE); ball feet and float64 keep the build's solref.
+        built_solref = load_robot(replace(stance, contact_model="fast", sim_dt=0.005, decimation=4)).model.geom_solref
+        if feet == "ball":
+            assert np.array_equal(model.geom_solref, built_solref)
+        else:
+            assert np.all(model.geom_solref == (-10000.0, -400.0)) and not np.any(built_solref == -400.0)
             assert np.allclose(load_robot(stiff).model.geom_solimp[:, :3], (0.99, 0.999, 0.001))
+            assert np.array_equal(load_robot(stiff).model.geom_solref, built_solref)
     # Finer settings than stance needs are kept.
     fine = replace(EnvConfig(feet="ball"), sim_dt=0.001, decimation=20, solver_iterations=50, solver_ls_iterations=50)
     kept = envs.with_contact_model(fine, "stance")

@@ -233,6 +233,24 @@ def test_ball_robots_stand_on_level_0_in_float32(built):
     assert not result.fell and result.drop_after_settle_m < 0.010 and result.slip_after_settle_m < 0.005, result
 
 
+@pytest.mark.slow  # one rough environment compiled per feet: about 1.5 minutes each
+@pytest.mark.parametrize("feet", ["aff", "aof"])
+def test_the_adaptive_feet_stand_on_level_0_in_float32(built, feet):
+    """Issue 12's stance target on level 0 in the rough task's default physics (float32,
+    contact_model 'stance'), from the `stand` keyframe, zero actions for 10 s: no fall, and after
+    the first 0.5 s the base sinks less than 10 mm and no foot slides more than 5 mm. Spawn seed 1,
+    the one that slid most. With the build's contact solref AOF slid 8.0 mm here (MJX's
+    heightfield manifold jumping across the sole; anymal.STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE)."""
+    from footforge.validate.stance import env_stance, env_stance_start
+
+    env, first = env_stance_start("rough", feet, built[feet][0], seed=1)
+    assert first.pipeline_state.qpos.dtype == jp.float32
+    result = env_stance(env, first, seconds=10.0)
+    assert not result.fell, result
+    assert result.drop_after_settle_m < 0.010, result
+    assert result.slip_after_settle_m < 0.005, result
+
+
 class _Counter(Env):
     """A stand-in environment: its state counts steps and it ends every third step."""
 

@@ -58,10 +58,31 @@ foot out every so often, its contact vanishes, its leg kicks down within a step 
 contact throws the robot (MJX, float32, rough level 0, 6 robots on 6 tiles, 10 s: 3 fell, 2 slid
 315 and 534 mm; at 0.97/0.995 none fell and the tile (0, 0) robot slid 4.1 mm). On a plane the
 distance is exact and ball keeps the stiffer 0.99/0.999 (1.3 mm of slip against 3-9 mm at
-0.97/0.995, 6 robots, flat, float32). AOF still slides 7-8 mm on level 0 in float32 (tiles 0, 1 and 5),
-against about 4 mm on a plane; its sole boxes' contacts switch on and off as often on the plane
-(about 1000 times/s), and sphere soles halve that without holding it, so the flicker does not
-explain the difference (benchmarks/RESULTS.md, 2026-11-26). float64_physics holds every feet there."""
+0.97/0.995, 6 robots, flat, float32). With the build's solref AOF slid 7-8 mm on level 0 in
+float32 (spawns 0, 1 and 2), against about 4 mm on a plane: not because its contacts switch on and
+off more often (about 1000 times/s on both) but because on the heightfield the points MJX keeps
+jump across the sole; STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE says why and holds it (3.5-4.3 mm).
+float64_physics holds every feet there."""
+STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE = (-10000.0, -400.0)
+"""'stance' contact solref of the adaptive feet in float32 MJX (stance_contact_solref says where),
+in MuJoCo's direct form (-stiffness 1/s^2, -damping 1/s): the damping of the build's time
+constant at the 2.5 ms step (2 / 5 ms = 400 1/s, the most the step allows: MuJoCo clamps a time
+constant to at least two steps, and at 800 1/s AOF sank 183 mm and slid 256 mm in 10 s), with a
+quarter of its stiffness (1e4 instead of 4e4 1/s^2: damping ratio 2 instead of 1).
+
+Why: the soles rest only micrometres deep. On a heightfield MJX collides a sole box with each
+terrain prism under it and keeps 4 of the clipped points, chosen afresh every step starting from
+the first penetrating one, so as shallow points come and go the 4 jump between the box's corners
+and points where prism edges cross it; each jump redistributes the foot's load, an impulse that
+the float32 solve does not hold exactly (one 2.5 ms step moved a standing AOF foot 225 um). A
+softer normal lets the sole settle deeper, where fewer points come and go, and gives the jumps
+less to throw. The friction's creep does not get worse, since it goes with the damping (at
+200 1/s AOF slid 8.8 mm). One AOF robot, 10 s of zero actions from `stand`, sinking / slip after
+0.5 s, mm (rough level 0, spawn seeds 0, 1, 2; flat): 3.3 / 7.7, 3.1 / 8.0, 3.0 / 6.9 and
+1.8 / 4.1 before; 1.5 / 3.5, 1.7 / 4.3, 1.7 / 4.0 and 1.6 / 3.5 with this (stiffness 2.5e3 the
+same within 0.1 mm, 2e4 4.8 mm of slip on seed 1); AFF on level 0 4.7 -> 4.0 mm (seed 0), flat
+2.6 mm both (benchmarks/RESULTS.md, 2026-11-26, second session). Ball feet keep the build's
+solref: their single sphere per foot slid 31 mm on flat ground and 184 mm on level 0 with this."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
 STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (30, 30)}
@@ -218,6 +239,9 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
         model.opt.impratio = STANCE_CONTACT_IMPRATIO
         model.geom_solimp[:, :3] = stance_contact_solimp(config, on_heightfield=terrain is not None)
+        solref = stance_contact_solref(config)
+        if solref is not None:  # every geom alike, so MuJoCo's mixing of two geoms' solref changes nothing
+            model.geom_solref[:] = solref
         # Semi-implicit Euler (joint damping still implicit: eulerdamp stays on), as MuJoCo
         # Playground's quadrupeds. implicitfast adds the actuators' velocity derivative (kv) to the
         # mass matrix after the constraint solve, so the contact forces, solved for the plain
@@ -269,6 +293,15 @@ def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[f
     if config.float64_physics or (config.feet == "ball" and not on_heightfield):
         return STANCE_CONTACT_SOLIMP
     return STANCE_CONTACT_SOLIMP_FLOAT32
+
+
+def stance_contact_solref(config: EnvConfig) -> tuple[float, float] | None:
+    """Contact solref of contact_model 'stance' for config's feet and precision:
+    STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE for the adaptive feet in float32 (whose docstring has the
+    measurements), else None: the build's (0.004, 1), clamped by MuJoCo to the 5 ms of two steps."""
+    if config.feet != "ball" and not config.float64_physics:
+        return STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE
+    return None
 
 
 def min_solver_iterations(contact_model: str, feet: str) -> tuple[int, int] | None:

@@ -322,13 +322,14 @@ class EnvConfig:
       campaign's policies trained with it (their saved configuration keeps it).
     - stance (default, every feet): a pyramidal cone with impratio 10 and the build's solimp
       0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; in float32 the adaptive
-      feet, and every feet on a heightfield: 0.97/0.995/0.001, anymal.stance_contact_solimp),
-      semi-implicit Euler integration, at sim_dt <= 2.5 ms with at least the feet's Newton and
+      feet, and every feet on a heightfield: 0.97/0.995/0.001, anymal.stance_contact_solimp;
+      in float32 the adaptive feet also rest on a softer normal, MuJoCo's direct solref (-1e4,
+      -400), anymal.stance_contact_solref), semi-implicit Euler integration, at sim_dt <= 2.5 ms with at least the feet's Newton and
       line-search iterations (ball 8/16, AFF 16/16, AOF 30/30: with fewer its friction diverges
       under a policy's actions). Zero-action robots in MJX, 10 s from
       the reset's random velocities (benchmarks/stance_mjx.py, benchmarks/stance_env.py;
       benchmarks/RESULTS.md, 2026-11-25), sinking / sliding: ball 2.1 / 2.5 mm (float32); in one
-      robot's 10 s on flat ground in float32 AFF 1.2 / 2.6 mm and AOF 1.8 / 4.1 mm, with
+      robot's 10 s on flat ground in float32 AFF 1.3 / 2.6 mm and AOF 1.6 / 3.5 mm, with
       float64_physics 0.4 / 0.9 and 0.5 / 1.0 mm (fast: 150 / 174 and 169 / 182 mm). The adaptive
       feet hold in float32 since their passive joints carry an armature of 1e-3 kg m^2 (the
       parameter file's; with 1e-5 the light links' ill-conditioned mass matrix let MJX's float32
@@ -356,9 +357,10 @@ class EnvConfig:
     --contact-models fast stance`). On flat ground the adaptive feet meet the stance target
     (sinking < 10 mm, slip < 5 mm in 10 s) in float32 and in float64 (`--float64-physics`). On the
     rough terrain's level 0 float64 holds every feet (ball 0.8 / 1.3 mm, AFF 0.8 / 1.5, AOF
-    0.7 / 2.2); in float32 the heightfield's contacts are solved less exactly: AFF holds
-    (2.1 / 4.7 mm), AOF slides 7.7 mm and a ball robot has a slip event after about 2 s
-    (benchmarks/stance_env.py, benchmarks/RESULTS.md, 2026-11-25, fifth session)."""
+    0.7 / 2.2) and so does float32 (ball 2.4 / 4.1 mm; over three spawns AFF 1.3-1.4 / 2.7-4.0,
+    AOF 1.5-1.7 / 3.5-4.3, where the build's solref let AOF slide 6.9-8.0 mm: MJX's heightfield
+    contact points jumping across the sole, anymal.STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE)
+    (benchmarks/stance_env.py, benchmarks/RESULTS.md, 2026-11-26, second session)."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
     whole process, set before JAX makes its first array by
@@ -367,7 +369,8 @@ class EnvConfig:
     without it refuses to start. The policy's side stays float32: the environment and the
     training wrapper hand observations, rewards, metrics and info over in float32
     (envs.wrappers.policy_side), and the networks' parameters are made float32
-    (train.network_factory). The adaptive feet's stance needs it (contact_model)."""
+    (train.network_factory). Under contact_model 'stance' float64 holds the adaptive feet at the
+    stiffer impedance and the build's solref, about twice as still as float32 (contact_model)."""
     mjx_impl: MjxImpl = "jax"
     """MJX's backend (mujoco.mjx.put_model's impl): "jax", MJX in JAX on any device (the default,
     and everything measured so far); "warp", MuJoCo Warp's kernels, NVIDIA GPUs only, with
