@@ -1,6 +1,6 @@
 """MJX environment throughput per task, foot variant, policy type, contact model and batch size:
 compile time and policy steps per second (and physics steps per second: a policy step is 4 physics
-steps for ball feet under contact_model 'fast', 8 otherwise), on whatever JAX
+steps of 5 ms under contact_model 'fast', 8 of 2.5 ms under 'stance'), on whatever JAX
 device is present; one JSON line. Rough terrain uses the default 10 x 20 tile heightfield; the
 figures of one run are comparable with each other (ratios), not with another machine's.
 
