@@ -4,15 +4,18 @@ from the task's start, per feet, at the environment's default physics (or --cont
 The starts are footforge.validate.stance.env_stance_start's (flat: the task's reset; rough: level 0 from
 the `stand` keyframe; the randomised rough start is tests/test_rough.py's survival test). Figures
 after the first 0.5 s: the base's sinking and the largest foot slip; target < 10 mm and < 5 mm.
-One JSON line per (task, feet).
+One JSON line per (task, feet, seed); the seed moves the rough task's spawn on tile (0, 0) and
+its heading, and draws the flat reset's joint velocities.
 
     python benchmarks/stance_env.py --tasks flat rough --feet ball aff aof
+    python benchmarks/stance_env.py --tasks rough --feet aff aof --seed 0 1 2     # three spawns
     python benchmarks/stance_env.py --feet aff aof --float64-physics     # JAX's x64 mode, set first
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import platform
 import sys
@@ -27,28 +30,27 @@ def main(argv=None) -> int:
     p.add_argument("--contact-model", choices=["stance", "fast", "build"], help="default: the environments' own")
     p.add_argument("--float64-physics", action="store_true")
     p.add_argument("--build-root", default="build", help="builds of each feet: <root>/<feet>/")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, nargs="+", default=[0], help="one run per seed")
     args = p.parse_args(argv)
     if args.seconds <= 0.5:
         p.error("--seconds must exceed the 0.5 s the robot is given to settle")
 
     from footforge.validate.stance import env_stance, env_stance_start
 
-    for task in args.tasks:
-        for feet in args.feet:
-            env, state = env_stance_start(task, feet, f"{args.build_root}/{feet}", contact_model=args.contact_model,
-                                          float64_physics=args.float64_physics, seed=args.seed)
-            config = env.config
-            t0 = time.time()
-            result = env_stance(env, state, seconds=args.seconds)
-            print(json.dumps({"benchmark": "stance_env", "machine": platform.platform(), "task": task, "feet": feet,
-                              "contact_model": config.contact_model, "precision": str(state.pipeline_state.qpos.dtype),
-                              "sim_dt": config.sim_dt, "iterations": [config.solver_iterations,
-                                                                      config.solver_ls_iterations],
-                              "seconds": args.seconds, "drop_mm": round(1e3 * result.drop_after_settle_m, 2),
-                              "slip_mm": round(1e3 * result.slip_after_settle_m, 2),
-                              "base_height_min_m": round(result.base_height_min_m, 4), "fell": result.fell,
-                              "wall_s": round(time.time() - t0, 1)}), flush=True)
+    for task, feet, seed in itertools.product(args.tasks, args.feet, args.seed):
+        env, state = env_stance_start(task, feet, f"{args.build_root}/{feet}", contact_model=args.contact_model,
+                                      float64_physics=args.float64_physics, seed=seed)
+        config = env.config
+        t0 = time.time()
+        result = env_stance(env, state, seconds=args.seconds)
+        print(json.dumps({"benchmark": "stance_env", "machine": platform.platform(), "task": task, "feet": feet,
+                          "seed": seed, "contact_model": config.contact_model,
+                          "precision": str(state.pipeline_state.qpos.dtype), "sim_dt": config.sim_dt,
+                          "iterations": [config.solver_iterations, config.solver_ls_iterations],
+                          "seconds": args.seconds, "drop_mm": round(1e3 * result.drop_after_settle_m, 2),
+                          "slip_mm": round(1e3 * result.slip_after_settle_m, 2),
+                          "base_height_min_m": round(result.base_height_min_m, 4), "fell": result.fell,
+                          "wall_s": round(time.time() - t0, 1)}), flush=True)
     return 0
 
 
