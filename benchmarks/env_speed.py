@@ -111,7 +111,7 @@ def main() -> None:
                                                           for model in args.contact_models for on in shanks
                                                           for r in roots):
                 config = envs.default_config(task, feet, policy, contact)
-                env = envs.from_config(replace(config, float64_physics=args.float64_physics,
+                env = envs.from_config(replace(envs.with_float64_physics(config, args.float64_physics),
                                                shank_collisions=shank == "on", mjx_impl=args.mjx_impl,
                                                build_dir=f"{root}/{feet}" if root else config.build_dir))
                 name = (f"{task}_{feet}_{policy}" + (f"_{label}" if label else "")

@@ -157,6 +157,43 @@ def test_ground_contacts_count_base_and_knees():
     assert bool(base) and int(knees) == 0
 
 
+def test_base_and_knee_contacts_are_measured_on_flat_ground(rollouts):
+    """The base's and thighs' colliders are off in MJX (they only end episodes, and were most of
+    the contact slots every Newton iteration solves): their ground contact is geometric. Checked
+    against CPU MuJoCo's own collisions on the build's full model, pose by pose."""
+    import mujoco
+    from types import SimpleNamespace
+
+    from footforge.envs.anymal import GEOM_FOOT, load_robot
+
+    env, states, _ = rollouts["aof"]
+    mjx_model, category = env.robot.model, env.robot.geom_category
+    full = load_robot(env.config, for_mjx=False).model  # every collider of the build
+    body = (category > 0) & (category < GEOM_FOOT)  # base and thighs
+    assert body.sum() >= 5 and not (mjx_model.geom_contype[body] | mjx_model.geom_conaffinity[body]).any()
+    assert (full.geom_contype[body] | full.geom_conaffinity[body]).all()
+    assert int(mjx_model.geom_contype.sum() + mjx_model.geom_conaffinity.sum()) < int(
+        full.geom_contype.sum() + full.geom_conaffinity.sum())
+    data = mujoco.MjData(full)
+
+    def both(z, quat=(1.0, 0.0, 0.0, 0.0)):  # (geometric flags, MuJoCo's contact flags) at one pose
+        data.qpos[:] = np.asarray(states[0].pipeline_state.qpos)
+        data.qpos[2], data.qpos[3:7] = z, quat
+        mujoco.mj_forward(full, data)
+        flags = env.contact_flags(SimpleNamespace(geom_xpos=data.geom_xpos, geom_xmat=data.geom_xmat.reshape(-1, 3, 3)))
+        pairs = jp.asarray(data.contact.geom[: data.ncon].copy()) if data.ncon else jp.zeros((0, 2), jp.int32)
+        dists = jp.asarray(data.contact.dist[: data.ncon].copy())
+        touching = ground_contacts(jp.asarray(category), env.robot.floor_geom, pairs, dists)
+        return (bool(flags[0]), int(flags[1])), (bool(touching[0]), int(touching[1]))
+
+    standing, standing_mujoco = both(float(env.robot.stand_qpos[2]))
+    assert standing == standing_mujoco == (False, 0)
+    sunk, sunk_mujoco = both(0.05)  # base 5 cm over the ground: its box and the thighs reach under it
+    assert sunk == sunk_mujoco == (True, 4)
+    rolled, rolled_mujoco = both(0.6, (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0))  # on its side, 0.6 m up
+    assert rolled == rolled_mujoco == (False, 0)
+
+
 def test_base_on_the_ground_terminates_and_time_out_is_a_truncation(rollouts):
     env, states, step = rollouts["ball"]
     state = states[0]
@@ -269,20 +306,27 @@ def test_zero_action_robot_holds_its_stance_with_the_build_contact(built, feet):
 
 def test_contact_models_are_refused_where_they_diverge(built):
     """contact_model 'stance' runs at sim_dt <= 2.5 ms with at least its feet's Newton and
-    line-search iterations (ball 8/16, AFF 16/16, AOF 30/30, where it was measured stable):
-    anything else is refused before any model is loaded, naming the keys to change.
-    envs.with_contact_model sets what it needs."""
+    line-search iterations in its precision (float32 8/16 on every feet; float64 AFF and AOF
+    16/16, where they were measured stable): anything else is refused before any model is
+    loaded, naming the keys to change. envs.with_contact_model and envs.with_float64_physics set
+    what it needs."""
     from footforge.envs.anymal import load_robot
 
-    for feet, (iterations, ls_iterations) in (("ball", (8, 16)), ("aff", (16, 16)), ("aof", (30, 30))):
-        config = EnvConfig(feet=feet, build_dir=str(built[feet][0]))
+    for feet, float64_iterations in (("ball", 8), ("aff", 16), ("aof", 16)):
+        config = EnvConfig(feet=feet, build_dir=str(built[feet][0]), solver_iterations=4, solver_ls_iterations=8)
         stance = envs.with_contact_model(config, "stance")
         assert (stance.contact_model, stance.sim_dt, stance.decimation) == ("stance", 0.0025, 8)
-        assert (stance.solver_iterations, stance.solver_ls_iterations) == (iterations, ls_iterations)
+        assert (stance.solver_iterations, stance.solver_ls_iterations) == (8, 16)
         assert stance.policy_dt == pytest.approx(config.policy_dt)
-        with pytest.raises(InputError, match=f"solver_iterations >= {iterations} and solver_ls_iterations >= "
-                                             f"{ls_iterations} .* on {feet} feet"):
-            load_robot(replace(stance, solver_iterations=iterations - 1))
+        with pytest.raises(InputError, match=r"solver_iterations >= 8 and solver_ls_iterations >= 16 in float32 "
+                                             rf"physics .* on {feet} feet"):
+            load_robot(replace(stance, solver_iterations=7))
+        stiff = envs.with_float64_physics(stance)
+        assert (stiff.float64_physics, stiff.solver_iterations, stiff.solver_ls_iterations) == (True, float64_iterations, 16)
+        if float64_iterations > 8:
+            with pytest.raises(InputError, match="solver_iterations >= 16 .* in float64 physics") as e:
+                load_robot(replace(stance, float64_physics=True))
+            assert "with_float64_physics" in e.value.fix
         with pytest.raises(InputError, match=r"sim_dt <= 0.0025 s \(given 0.005\)") as e:
             load_robot(replace(stance, sim_dt=0.005, decimation=4))
         assert "decimation=8" in e.value.fix
@@ -293,7 +337,6 @@ def test_contact_models_are_refused_where_they_diverge(built):
         assert model.opt.integrator == 0 and np.allclose(model.geom_solimp[:, :3], solimp)
         # ... and for every feet on a heightfield, whose MJX contacts exist only while penetrating.
         assert anymal.stance_contact_solimp(stance, on_heightfield=True) == (0.97, 0.995, 0.001)
-        stiff = replace(stance, float64_physics=True)
         assert anymal.stance_contact_solimp(stiff, on_heightfield=True) == (0.99, 0.999, 0.001)
         # The adaptive feet in float32 rest on a softer normal, every geom alike
         # (STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE); ball feet and float64 keep the build's solref.
@@ -311,24 +354,28 @@ def test_contact_models_are_refused_where_they_diverge(built):
 
 
 def test_the_adaptive_feet_s_stance_diverges_under_actions_with_fewer_iterations(built):
-    """Why 'stance' needs 16 Newton iterations on AFF feet (STANCE_CONTACT_MIN_ITERATIONS): under an
-    untrained policy's random actions (footforge.envs.stability, CPU MuJoCo, float64) an
-    unconverged solve of its stiff friction (solimp 0.99/0.999, float64_physics's) throws AFF
-    robots at 8/16 iterations (with every foot box colliding, 7 of 8 within 0.35 s; with the sole
-    alone, 3 of 8 within 8 s), and none diverge at 16/16."""
+    """Why float64 'stance' needs 16 Newton iterations on AFF feet
+    (STANCE_CONTACT_MIN_ITERATIONS_FLOAT64): under an untrained policy's random actions
+    (footforge.envs.stability, CPU MuJoCo) an unconverged solve of its stiff friction (solimp
+    0.99/0.999, float64_physics's) throws AFF robots at 8/16 iterations (with every foot box
+    colliding, 7 of 8 within 0.35 s; with the sole alone, 3 of 8 within 8 s), and none diverge at
+    16/16. At float32's impedance and solref (the default) the same 8/16 holds: none diverge."""
     from footforge.envs import anymal
     from footforge.envs.stability import divergence_times
 
-    stance = envs.with_contact_model(EnvConfig(feet="aff", build_dir=str(built["aff"][0]), float64_physics=True),
-                                     "stance")
+    float32 = envs.with_contact_model(EnvConfig(feet="aff", build_dir=str(built["aff"][0])), "stance")
+    stance = envs.with_float64_physics(float32)
+    assert (float32.solver_iterations, stance.solver_iterations) == (8, 16)
     assert divergence_times(stance, robots=4, seconds=4.0, seed=0) == [None] * 4
-    minimum = anymal.STANCE_CONTACT_MIN_ITERATIONS
+    minimum = anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64
     try:  # the refusal lifted, to show what it prevents
-        anymal.STANCE_CONTACT_MIN_ITERATIONS = minimum | {"aff": (8, 16)}
+        anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = minimum | {"aff": (8, 16)}
         fewer = divergence_times(replace(stance, solver_iterations=8), robots=8, seconds=8.0, seed=0)
     finally:
-        anymal.STANCE_CONTACT_MIN_ITERATIONS = minimum
+        anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = minimum
     assert sum(t is not None for t in fewer) >= 2, fewer
+    # The same robots and actions at float32's contact and 8/16 iterations: none diverges.
+    assert divergence_times(float32, robots=8, seconds=8.0, seed=0) == [None] * 8
 
 
 def test_float64_physics_is_refused_without_jax_s_x64_mode(built):
@@ -529,10 +576,13 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     # A policy step the feet's step does not divide keeps the policy's own physics.
     odd = envs.on_feet(replace(ball, sim_dt=0.006, decimation=3), "aof")
     assert (odd.feet, odd.sim_dt, odd.decimation) == ("aof", 0.006, 3)
-    # A stance policy gets the step and iterations the stance needs on the other feet (AOF 30/30).
-    stance_on_aof = envs.on_feet(envs.with_contact_model(ball, "stance"), "aof")
+    # A stance policy gets the step and iterations the stance needs on the other feet (float64
+    # AOF 16/16, where ball needs 8/16).
+    stance = envs.with_float64_physics(envs.with_contact_model(ball, "stance"))
+    assert (stance.solver_iterations, stance.solver_ls_iterations) == (8, 16)
+    stance_on_aof = envs.on_feet(stance, "aof")
     assert (stance_on_aof.contact_model, stance_on_aof.solver_iterations, stance_on_aof.solver_ls_iterations,
-            stance_on_aof.sim_dt, stance_on_aof.decimation) == ("stance", 30, 30, 0.0025, 8)
+            stance_on_aof.sim_dt, stance_on_aof.decimation) == ("stance", 16, 16, 0.0025, 8)
     built_configs = []
     monkeypatch.setattr("footforge.rl.train.load_policy", lambda d: (None, ball, None))
     monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)

@@ -559,10 +559,11 @@ def test_contact_model_flag_sets_the_model_s_physics_and_resume_keeps_it(written
     assert main("flat", "", ["--feet", "aof", "--out", str(tmp_path / "a")]) == 0
     env = seen["env"]
     assert (env.contact_model, env.sim_dt, env.decimation) == ("stance", 0.0025, 8)
-    assert (env.solver_iterations, env.solver_ls_iterations) == (30, 30)
+    assert (env.solver_iterations, env.solver_ls_iterations) == (8, 16)
     assert not env.float64_physics and switched == [False]
     assert main("flat", "", ["--feet", "aof", "--float64-physics", "--out", str(tmp_path / "b")]) == 0
     assert seen["env"].float64_physics and switched == [False, True]
+    assert (seen["env"].solver_iterations, seen["env"].solver_ls_iterations) == (16, 16)  # float64's minimum
     assert main("flat", "", ["--feet", "ball", "--contact-model", "fast", "--out", str(tmp_path / "c")]) == 0
     env = seen["env"]
     assert (env.contact_model, env.sim_dt, env.decimation, env.solver_iterations, env.solver_ls_iterations) == \

@@ -158,7 +158,7 @@ def _new_configs(task: str, args):
     if task == "rough":
         env_config = replace(env_config, terrain=_override(env_config.terrain, args.terrain))
     if args.float64_physics:
-        env_config = replace(env_config, float64_physics=True)
+        env_config = envs.with_float64_physics(env_config)
     if args.mjx_impl:
         env_config = replace(env_config, mjx_impl=args.mjx_impl)
     overrides = {field: getattr(args, attr) for _, attr, (section, field) in _SETTINGS

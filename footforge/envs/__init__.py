@@ -92,9 +92,9 @@ def on_feet(config, feet: str):
     """`config` (a policy's training configuration) moved to `feet`: the same policy step and
     contact model, at the physics step `feet` need with it (physics()) unless the policy's own is
     finer, and with at least the solver iterations its contact model needs on `feet`
-    (with_contact_model). A ball policy trained with 'stance' (2.5 ms x 8, 8/16 iterations)
-    evaluated on AOF feet thus steps AOF at 2.5 ms with 30/30 iterations, and still acts every
-    20 ms; a policy trained at a finer step than its feet need keeps its own."""
+    (with_contact_model). A ball policy trained with float64 'stance' (2.5 ms x 8, 8/16
+    iterations) evaluated on AOF feet thus steps AOF at 2.5 ms with 16/16 iterations, and still
+    acts every 20 ms; a policy trained at a finer step than its feet need keeps its own."""
     sim_dt = min(config.sim_dt, physics(feet, config.contact_model)["sim_dt"])
     decimation = config.policy_dt / sim_dt
     if abs(decimation - round(decimation)) > 1e-6:  # a policy step the feet's step does not divide
@@ -106,8 +106,9 @@ def on_feet(config, feet: str):
 def with_contact_model(config, contact_model: str):
     """`config` with `contact_model` (EnvConfig.contact_model) and what it needs beyond config's
     own physics: for 'stance' a step of at most STANCE_CONTACT_MAX_SIM_DT (the policy step kept);
-    for 'stance' and 'build' at least anymal.min_solver_iterations. Settings already finer than
-    those are kept (envs.default_config sets a model's own physics, physics())."""
+    for 'stance' and 'build' at least anymal.min_solver_iterations (in config's precision).
+    Settings already finer than those are kept (envs.default_config sets a model's own physics,
+    physics())."""
     from footforge.envs.anymal import STANCE_CONTACT_MAX_SIM_DT, min_solver_iterations
 
     changes = {"contact_model": contact_model}
@@ -118,12 +119,20 @@ def with_contact_model(config, contact_model: str):
                              f"divide the policy step {config.policy_dt:g} s",
                              fix="use a policy step (sim_dt x decimation) that is a multiple of 2.5 ms")
         changes |= {"sim_dt": STANCE_CONTACT_MAX_SIM_DT, "decimation": int(round(decimation))}
-    needed = min_solver_iterations(contact_model, config.feet)
+    needed = min_solver_iterations(contact_model, config.feet, config.float64_physics)
     if needed:
         iterations, ls_iterations = needed
         changes |= {"solver_iterations": max(config.solver_iterations, iterations),
                     "solver_ls_iterations": max(config.solver_ls_iterations, ls_iterations)}
     return replace(config, **changes)
+
+
+def with_float64_physics(config, on: bool = True):
+    """`config` with EnvConfig.float64_physics `on`, and the solver iterations its contact model
+    needs in that precision (float64 'stance' on the adaptive feet: 16/16, against float32's 8/16,
+    anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64); iterations already finer are kept. JAX's x64
+    mode is still the caller's to turn on (enable_float64_physics)."""
+    return with_contact_model(replace(config, float64_physics=on), config.contact_model)
 
 
 def enable_float64_physics(config) -> None:

@@ -2,9 +2,13 @@
 
 The model is the build's scene.xml (robot.xml plus a floor), never a second hand-written model.
 For MJX the only changes are the step, the solver iterations, and switching off collisions that
-no task needs (hips, and shank tubes on flat ground; the feet, the base and the thighs keep theirs:
-the feet walk, the base and thighs end episodes on contact). On a heightfield the shank tubes
-collide as capsules (MJX has no cylinder-heightfield collision).
+no task needs to be physical: hips; shank tubes on flat ground; the base and the thighs, whose
+ground contact only ends episodes and is measured geometrically instead
+(footforge.envs.locomotion.LocomotionEnv.contact_flags). Their colliders would otherwise be the
+most of MJX's contact slots (83 of ball feet's 87 on flat ground), each of them constraint rows of
+every Newton iteration (benchmarks/step_profile.py). The feet keep theirs; on a heightfield the
+shank tubes collide as capsules (MJX has no cylinder-heightfield collision). CPU MuJoCo
+(load_robot(for_mjx=False)) keeps every collider of the build.
 """
 
 from __future__ import annotations
@@ -85,16 +89,21 @@ same within 0.1 mm, 2e4 4.8 mm of slip on seed 1); AFF on level 0 4.7 -> 4.0 mm 
 solref: their single sphere per foot slid 31 mm on flat ground and 184 mm on level 0 with this."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
-STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (30, 30)}
-"""Newton and line-search iterations 'stance' needs per feet (2.5 ms). Below them an unconverged
-solve of its stiff friction diverges under a policy's actions: ball at 6 Newton iterations (MJX,
-float32: 1 of 8 robots fell at rest, 1 diverged acting); AFF at 8/16 (CPU MuJoCo, 7 of 8 robots
-within 0.35 s of random actions; with only the sole colliding, 3 of 8 within 8 s); AOF at 16/50 (5 of 8 within 8 s). The light passive links of the
-adaptive feet couple many stiff friction rows, which take more iterations to converge
-(benchmarks/RESULTS.md, 2026-11-25, the seventh look). Those figures are at solimp 0.99/0.999
-(float64_physics's); at the adaptive feet's softer float32 impedance (0.95/0.99) AFF at 8/16 and
-AOF at 16/50 did not diverge (CPU MuJoCo, 8 robots, 10 s), but MJX there is measured at 16/16
-and 30/30 only, so the minima stay."""
+STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (8, 16), "aof": (8, 16)}
+"""Newton and line-search iterations 'stance' needs per feet (2.5 ms), float32 physics (the
+default). Below them an unconverged solve of its stiff friction diverges under a policy's
+actions: ball at 6 Newton iterations (MJX, float32: 1 of 8 robots fell at rest, 1 diverged
+acting). The adaptive feet needed 16/16 (AFF) and 30/30 (AOF) until 2026-11-26, measured when
+their passive joints' armature was 1e-5 kg m^2 and their float32 contact the stiffer default
+solref; with the armature of 1e-3 and STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE, 8/16 holds: random
+actions for 10 s, 0 of 16 AFF and 0 of 16 AOF robots diverged in MJX (0 of 8 each in CPU
+MuJoCo, 8 s), and a robot standing 10 s sinks and slides as at 30/30 (AOF flat 1.58 / 3.46 mm
+both; benchmarks/RESULTS.md, 2026-11-26, third session). The Newton solve's cost grows with its
+iterations (benchmarks/step_profile.py: AOF's solve was 80% of its flat step at 30/30)."""
+STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = {"ball": (8, 16), "aff": (16, 16), "aof": (16, 16)}
+"""The same under float64_physics, whose adaptive feet keep the stiffer impedance (0.99/0.999)
+and the build's solref: at 8/16, 3 of 8 AFF and 2 of 8 AOF robots diverged within 8 s of random
+actions (CPU MuJoCo), none at 16/16."""
 STANCE_CONTACT_MAX_SIM_DT = 0.0025
 """Largest physics step of 'stance', s: at 5 ms (its friction's time constant then 10 ms) an
 unconverged step lets a ball foot chatter and walk (47 mm of slip in 6 s at 16/50 iterations)."""
@@ -211,9 +220,10 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     under the same geom name. MJX collides heightfields with spheres, capsules, boxes and meshes
     only, and a heightfield costs one prism test per sample under a geom's bounding sphere: the
     feet (small spheres or boxes) keep their collisions, the shank tubes collide as capsules
-    (_shank_tubes_as_capsules); the base's and thighs' (cylinders, a 0.6 m box) are switched off
-    and their ground contact is measured geometrically instead (footforge.envs.rough).
-    for_mjx=False keeps the model's own geoms, for MuJoCo on the CPU.
+    (_shank_tubes_as_capsules). On either ground the base's and thighs' collisions (cylinders,
+    a 0.6 m box) are switched off for MJX and their ground contact is measured geometrically
+    instead (LocomotionEnv.contact_flags). for_mjx=False keeps the model's own geoms, for MuJoCo
+    on the CPU.
     """
     check_contact_model(config)
     folder = ensure_built(config)
@@ -264,9 +274,9 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
             category[g] = GEOM_THIGH + C.LEGS.index(body.split("_")[0])
         elif body.endswith("_SHANK") and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE:
             category[g] = GEOM_SHANK + C.LEGS.index(body.split("_")[0])
-        # Hips and shank tubes: no task needs them to touch the ground. On a heightfield the base
-        # and thighs are checked geometrically (module docstring).
-        if category[g] == GEOM_NONE or (terrain is not None and for_mjx and category[g] < GEOM_FOOT):
+        # Hips and shank tubes: no task needs them to touch the ground. In MJX the base and
+        # thighs are checked geometrically (module docstring).
+        if category[g] == GEOM_NONE or (for_mjx and category[g] < GEOM_FOOT):
             model.geom_contype[g] = model.geom_conaffinity[g] = 0
     joints = [model.joint(n) for n in C.ACTUATED_JOINTS]
     actuators = np.array([model.actuator(n).id for n in C.ACTUATED_JOINTS])
@@ -304,10 +314,11 @@ def stance_contact_solref(config: EnvConfig) -> tuple[float, float] | None:
     return None
 
 
-def min_solver_iterations(contact_model: str, feet: str) -> tuple[int, int] | None:
-    """(Newton, line-search) iterations `contact_model` needs on `feet`, or None (fast: any)."""
+def min_solver_iterations(contact_model: str, feet: str, float64_physics: bool = False) -> tuple[int, int] | None:
+    """(Newton, line-search) iterations `contact_model` needs on `feet` in float32 or float64
+    physics, or None (fast: any)."""
     if contact_model == "stance":
-        return STANCE_CONTACT_MIN_ITERATIONS[feet]
+        return (STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 if float64_physics else STANCE_CONTACT_MIN_ITERATIONS)[feet]
     return BUILD_CONTACT_MIN_ITERATIONS if contact_model == "build" else None
 
 
@@ -320,13 +331,15 @@ def check_contact_model(config: EnvConfig) -> None:
                          f"{config.sim_dt}): at a longer step its friction chatters",
                          fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
                              f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, or contact_model='fast'")
-    needed = min_solver_iterations(model, config.feet)
+    needed = min_solver_iterations(model, config.feet, config.float64_physics)
     if needed and (config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]):
+        precision = "float64" if config.float64_physics else "float32"
         raise InputError(
             f"contact_model '{model}' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
-            f"{needed[1]} (given {config.solver_iterations} and {config.solver_ls_iterations}): with fewer "
-            f"its stiff friction diverges on {config.feet} feet",
-            fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}, or contact_model='fast'")
+            f"{needed[1]} in {precision} physics (given {config.solver_iterations} and "
+            f"{config.solver_ls_iterations}): with fewer its stiff friction diverges on {config.feet} feet",
+            fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]} (envs.with_float64_physics "
+                f"sets them with float64), or contact_model='fast'")
 
 
 def check_mjx_impl(config: EnvConfig) -> None:

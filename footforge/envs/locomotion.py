@@ -17,6 +17,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jp
 import mujoco
+import numpy as np
 from brax import math as brax_math
 from brax.envs.base import Env, State
 from mujoco import mjx
@@ -25,6 +26,7 @@ from footforge import constants as C
 from footforge.envs import observations, rewards
 from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, check_mjx_impl, load_robot
 from footforge.envs.config import EnvConfig, check_feet_and_policy
+from footforge.geometry import box_corners
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
 
@@ -89,6 +91,9 @@ class LocomotionEnv(Env):
         self._privileged_size = 3 + 4 + config.height_scan.num_points + 1
         self._weight_n = float(r.model.body_subtreemass[0] * -r.model.opt.gravity[2])
         self._geom_category = jp.asarray(r.geom_category)
+        geoms, local, category = _surface_points(r.model, r.geom_category)
+        self._probe_geom, self._probe_local, self._probe_category = (jp.asarray(geoms), jp.asarray(local),
+                                                                     jp.asarray(category))
         self._stand = jp.asarray(r.stand_qpos)
         self._ctrl_order = jp.asarray(r.actuator_ids)
         self.default_q = jp.asarray(r.default_q)
@@ -414,9 +419,19 @@ class LocomotionEnv(Env):
         return terms, errors
 
     def contact_flags(self, data):
-        """(base touches the ground, number of legs whose thigh touches it)."""
-        contact = data._impl.contact  # mujoco-mjx 3.17 keeps MJX's contacts in the JAX implementation
-        return ground_contacts(self._geom_category, self.robot.floor_geom, contact.geom, contact.dist)
+        """(a base point is under the ground, number of legs with a thigh point under it).
+
+        Geometric, on flat ground as on the heightfield: the base's and thighs' colliders are off
+        in MJX (footforge.envs.anymal), since their contact only ends episodes. Sample points
+        (_surface_points): box corners, 8 points around each rim of a cylinder, the corners of the
+        bounding box of anything else. OmniIsaacGymEnvs' Anymal ends an episode on a base contact
+        force above 1 N; a point under the ground is that contact without the solve."""
+        world = data.geom_xpos[self._probe_geom] + jp.einsum(
+            "pij,pj->pi", data.geom_xmat[self._probe_geom], self._probe_local)
+        below = world[:, 2] < self.terrain_height(world[:, :2])
+        base = jp.any(below & (self._probe_category == GEOM_BASE))
+        knees = sum(jp.any(below & (self._probe_category == GEOM_THIGH + i)).astype(jp.int32) for i in range(4))
+        return base, knees
 
     def foot_contacts(self, data):
         """Per leg (LF, RF, LH, RH): does its foot touch the ground."""
@@ -440,11 +455,32 @@ def _floor_hits(geom_category, floor_geom, geoms, dist):
 
 def ground_contacts(geom_category, floor_geom, geoms, dist):
     """(any base geom touches the floor, number of legs with a thigh geom touching it), from
-    MJX's fixed-size contact arrays (geom pairs (ncon, 2), signed distances (ncon,))."""
+    fixed-size contact arrays (geom pairs (ncon, 2), signed distances (ncon,)): for CPU MuJoCo's
+    models, where the base and thighs collide (footforge.rl.evaluate_closed_chain)."""
     hit, other = _floor_hits(geom_category, floor_geom, geoms, dist)
     base = jp.any(hit & (other == GEOM_BASE))
     knees = sum(jp.any(hit & (other == GEOM_THIGH + i)).astype(jp.int32) for i in range(4))
     return base, knees
+
+
+def _surface_points(model: mujoco.MjModel, geom_category: np.ndarray):
+    """Sample points on the base and thigh geoms: (geom ids, points in the geom frame, category)."""
+    geoms, points, category = [], [], []
+    for g in np.flatnonzero((geom_category == GEOM_BASE) | ((geom_category >= GEOM_THIGH) & (geom_category < GEOM_THIGH + 4))):
+        size = model.geom_size[g]
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            local = box_corners(size)
+        elif model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER:
+            angles = np.arange(8) * np.pi / 4
+            rim = np.stack([size[0] * np.cos(angles), size[0] * np.sin(angles)], axis=1)
+            local = np.concatenate([np.hstack([rim, np.full((8, 1), z)]) for z in (-size[1], size[1])])
+        else:  # the corners of its bounding box in the geom frame
+            centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+            local = box_corners(half, centre)
+        geoms += [g] * len(local)
+        points.append(local)
+        category += [geom_category[g]] * len(local)
+    return np.array(geoms), np.concatenate(points), np.array(category)
 
 
 def foot_contacts(geom_category, floor_geom, geoms, dist):

@@ -10,24 +10,20 @@ time-outs as truncations) on footforge.envs.terrain's heightfield, with these di
 - Perceptive policies (P, PH) observe the height scan, read from the heightfield's samples on
   MuJoCo's own triangulation of it.
 - The base height of the reward is measured from the terrain under the base.
-- The base's and thighs' collisions are off (MJX cannot collide their cylinders with a
-  heightfield, and a 0.6 m box would test ~50 prisms): a point of their surfaces below the
-  terrain counts as a contact. Sample points: box corners, 8 points around each rim of a
-  cylinder, the corners of the bounding box of anything else.
+- The base's and thighs' contacts are measured against the terrain's surface (their colliders
+  are off in MJX on either ground; MJX could not collide their cylinders with a heightfield
+  anyway, and a 0.6 m box would test ~50 prisms): LocomotionEnv.contact_flags.
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jp
-import mujoco
-import numpy as np
 from brax import math as brax_math
 from mujoco import mjx
 
-from footforge.geometry import box_corners
 from footforge.envs import curriculum
-from footforge.envs.anymal import GEOM_BASE, GEOM_THIGH, load_robot
+from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 from footforge.envs.locomotion import LocomotionEnv
 from footforge.envs.wrappers import policy_side
@@ -43,9 +39,6 @@ class RoughEnv(LocomotionEnv):
         self.terrain = generate(config.terrain)
         super().__init__(config, load_robot(config, self.terrain))
         self._heights = jp.asarray(self.terrain.heights_m, jp.float32)
-        geoms, local, category = _surface_points(self.robot.model, self.robot.geom_category)
-        self._probe_geom, self._probe_local, self._probe_category = (jp.asarray(geoms), jp.asarray(local),
-                                                                     jp.asarray(category))
         self._stand_z = float(self.robot.stand_qpos[2])
 
     # Ground -------------------------------------------------------------------------------
@@ -55,15 +48,6 @@ class RoughEnv(LocomotionEnv):
 
     def base_height(self, data):
         return data.qpos[2] - self.terrain_height(data.qpos[:2])
-
-    def contact_flags(self, data):
-        """(a base point is under the terrain, number of legs with a thigh point under it)."""
-        world = data.geom_xpos[self._probe_geom] + jp.einsum(
-            "pij,pj->pi", data.geom_xmat[self._probe_geom], self._probe_local)
-        below = world[:, 2] < self.terrain_height(world[:, :2])
-        base = jp.any(below & (self._probe_category == GEOM_BASE))
-        knees = sum(jp.any(below & (self._probe_category == GEOM_THIGH + i)).astype(jp.int32) for i in range(4))
-        return base, knees
 
     def reset_on_tile(self, rng, level, column, forward_mps: float | None = None):
         """A reset on tile (level, column) instead of the curriculum's draw (for evaluation). With
@@ -121,23 +105,3 @@ class RoughEnv(LocomotionEnv):
         return {"terrain/level_per_step": level.astype(jp.float32)} | {
             f"terrain/at_level_{l}_per_step": (level == l).astype(jp.float32)
             for l in range(self.config.terrain.num_levels)}
-
-
-def _surface_points(model: mujoco.MjModel, geom_category: np.ndarray):
-    """Sample points on the base and thigh geoms: (geom ids, points in the geom frame, category)."""
-    geoms, points, category = [], [], []
-    for g in np.flatnonzero((geom_category == GEOM_BASE) | ((geom_category >= GEOM_THIGH) & (geom_category < GEOM_THIGH + 4))):
-        size = model.geom_size[g]
-        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
-            local = box_corners(size)
-        elif model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER:
-            angles = np.arange(8) * np.pi / 4
-            rim = np.stack([size[0] * np.cos(angles), size[0] * np.sin(angles)], axis=1)
-            local = np.concatenate([np.hstack([rim, np.full((8, 1), z)]) for z in (-size[1], size[1])])
-        else:  # the corners of its bounding box in the geom frame
-            centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-            local = box_corners(half, centre)
-        geoms += [g] * len(local)
-        points.append(local)
-        category += [geom_category[g]] * len(local)
-    return np.array(geoms), np.concatenate(points), np.array(category)

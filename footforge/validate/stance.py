@@ -144,7 +144,7 @@ def env_stance_start(task: str, feet: str, build_dir: str, *, contact_model: str
     from footforge.envs.terrain import TerrainConfig
 
     config = envs.default_config(task, feet, "B", contact_model)
-    config = replace(config, build_dir=str(build_dir), float64_physics=float64_physics,
+    config = replace(envs.with_float64_physics(config, float64_physics), build_dir=str(build_dir),
                      pushes=replace(config.pushes, enabled=False))
     if task == "rough":
         config = replace(config, reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
