@@ -14,10 +14,12 @@ import mujoco
 import numpy as np
 import pytest
 from brax.envs.base import Env, State
+from mujoco import mjx
 from conftest import REPO, float64_stance
 
 from footforge import envs
 from footforge.envs import curriculum, observations
+from footforge.envs.anymal import GEOM_FOOT, GEOM_SHANK
 from footforge.envs.config import CurriculumConfig
 from footforge.envs.locomotion import foot_contacts, ground_contacts
 from footforge.envs.terrain import TerrainConfig, column_kinds
@@ -105,6 +107,53 @@ def test_height_scan_agrees_with_mujoco_ray_casts(rough):
             assert abs(scan_height - ray_height) < 0.005, (x, y)
             checked += 1
     assert checked > 1000
+
+
+def test_box_heightfield_subgrids_are_fitted_without_losing_a_contact(rough):
+    """anymal.fit_heightfield_subgrids: AOF's back sole box is tested against 2 x 2 terrain cells
+    instead of MJX's 3 x 3 (its bounding radius is 13 um over half a cell), the other geoms keep
+    theirs, and MJX finds the same penetrating contacts (geom pairs, depths, points) as with its
+    own subgrids, at random poses over every level: tilted, turned, feet in and above the ground."""
+    from mujoco.mjx._src import collision_driver
+
+    env, _, _ = rough["aof"]
+    model, fitted, default = env.robot.model, env.sys, mjx.put_model(env.robot.model)
+
+    def subgrids(m):
+        return sorted(k.subgrid_size for k in collision_driver._geom_groups(m) if k.subgrid_size)
+    assert subgrids(default) == [(2, 2), (3, 3), (4, 4)]  # front soles, back soles, shank tubes
+    assert subgrids(fitted) == [(2, 2), (4, 4)]
+    rng = np.random.default_rng(0)
+    feet = np.flatnonzero((env.robot.geom_category >= GEOM_FOOT) & (env.robot.geom_category < GEOM_SHANK))
+    poses = []
+    for _ in range(64):
+        q = np.array(env.robot.stand_qpos)
+        q[:2] = env.terrain.tile_center(rng.integers(SMALL.num_levels), rng.integers(SMALL.num_columns)) + rng.uniform(
+            -1.5, 1.5, 2)
+        mujoco.mju_euler2Quat(q[3:7], np.array([rng.normal(0, 0.15), rng.normal(0, 0.15), rng.uniform(-np.pi, np.pi)]),
+                              "xyz")
+        q[7:] += rng.normal(0, 0.1, len(q) - 7)
+        cpu = mujoco.MjData(model)
+        cpu.qpos[:] = q
+        mujoco.mj_kinematics(model, cpu)
+        lowest = min(cpu.geom_xpos[g][2] for g in feet) - 0.02
+        q[2] += env.terrain.height_at(*q[:2]) - lowest + rng.uniform(-0.03, 0.01)
+        poses.append(q)
+
+    def contacts(m):
+        def one(qpos):
+            d = mjx.kinematics(m, mjx.make_data(m).replace(qpos=qpos))
+            return collision_driver.collision(m, d)._impl.contact
+        c = jax.jit(jax.vmap(one))(jp.asarray(np.array(poses), jp.float32))
+        return np.asarray(c.geom), np.asarray(c.dist), np.asarray(c.pos)
+    (ga, da, pa), (gb, db, pb) = contacts(default), contacts(fitted)
+    found = 0
+    for robot in range(len(poses)):  # the slots' order follows MJX's grouping, which changed
+        a = sorted((tuple(ga[robot, i]), float(da[robot, i]), tuple(pa[robot, i])) for i in np.flatnonzero(da[robot] < 0))
+        b = sorted((tuple(gb[robot, i]), float(db[robot, i]), tuple(pb[robot, i])) for i in np.flatnonzero(db[robot] < 0))
+        assert a == b, robot
+        found += len(a)
+    assert found > 100
 
 
 def test_base_and_knee_contacts_are_measured_on_the_terrain(rough):

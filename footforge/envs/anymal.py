@@ -296,6 +296,26 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         foot_sites=np.array(foot_sites(model)))
 
 
+def fit_heightfield_subgrids(mjx_model, model: mujoco.MjModel):
+    """`mjx_model` (mjx.put_model(model), the "jax" implementation) with each box's heightfield
+    subgrid sized to what MJX's box-heightfield collision can reach, no larger.
+
+    MJX tests a box against the terrain prisms of a fixed subgrid of n x n cells, n =
+    ceil(2 r / cell) + 1 with r the box's bounding-sphere radius (ModelJAX.geom_rbound_hfield,
+    geom_rbound by default), but starts that subgrid at the box's centre minus its largest
+    half-size a (collision_convex.hfield_convex), not minus r. From that start, n - 1 >= (a + r) /
+    cell cells already reach past the box's far side in any orientation, so r_fit = (a + r) / 2
+    gives the same cells the box can touch. On the 0.1 m terrain this takes AOF's back sole box
+    (a 37.6 mm, r 50.013 mm: 13 um over one cell's 50 mm) from 3 x 3 cells (18 prisms) to the 2 x 2
+    (8 prisms) of its front box; every other footforge geom keeps its subgrid. The near side is
+    MJX's own: a yawed box's corner can reach up to r - a beyond the start, with or without this.
+    Spheres and capsules start at their own bound and keep it."""
+    fitted = np.array(mjx_model._impl.geom_rbound_hfield, copy=True)  # mujoco-mjx 3.17: a static numpy field
+    boxes = model.geom_type == mujoco.mjtGeom.mjGEOM_BOX
+    fitted[boxes] = (model.geom_size[boxes].max(axis=1) + model.geom_rbound[boxes]) / 2
+    return mjx_model.replace(_impl=mjx_model._impl.replace(geom_rbound_hfield=fitted))
+
+
 def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[float, float, float]:
     """Contact impedance (solimp's first three) of contact_model 'stance' for config's feet and
     precision: the stiff STANCE_CONTACT_SOLIMP where MJX solves it exactly enough (float64; ball

@@ -24,7 +24,8 @@ from mujoco import mjx
 
 from footforge import constants as C
 from footforge.envs import observations, rewards
-from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, check_mjx_impl, load_robot
+from footforge.envs.anymal import (GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
+                                   load_robot)
 from footforge.envs.config import EnvConfig, check_feet_and_policy
 from footforge.geometry import box_corners
 from footforge.envs.wrappers import policy_side
@@ -84,6 +85,8 @@ class LocomotionEnv(Env):
         self.robot = robot or load_robot(config)
         r = self.robot
         self.sys = mjx.put_model(r.model, impl=config.mjx_impl)
+        if config.mjx_impl == "jax":  # MJX Warp collides heightfields its own way
+            self.sys = fit_heightfield_subgrids(self.sys, r.model)
         self._n_passive = len(r.passive_qpos)
         self._obs_size = observations.size(config, self._n_passive)
         # Privileged (critic-only) observations: true base velocity (3), each foot's normal
