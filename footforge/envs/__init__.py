@@ -129,8 +129,8 @@ def with_contact_model(config, contact_model: str):
 
 def with_float64_physics(config, on: bool = True):
     """`config` with EnvConfig.float64_physics `on`, and the solver iterations its contact model
-    needs in that precision (float64 'stance' on the adaptive feet: 16/16, against float32's 8/16,
-    anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64); iterations already finer are kept. JAX's x64
+    needs in that precision (float64 'stance' on the adaptive feet: 16/16, where AOF takes 8/16 in
+    float32; anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64); iterations already finer are kept. JAX's x64
     mode is still the caller's to turn on (enable_float64_physics)."""
     return with_contact_model(replace(config, float64_physics=on), config.contact_model)
 

@@ -89,17 +89,19 @@ same within 0.1 mm, 2e4 4.8 mm of slip on seed 1); AFF on level 0 4.7 -> 4.0 mm 
 solref: their single sphere per foot slid 31 mm on flat ground and 184 mm on level 0 with this."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
-STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (8, 16), "aof": (8, 16)}
+STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (8, 16)}
 """Newton and line-search iterations 'stance' needs per feet (2.5 ms), float32 physics (the
 default). Below them an unconverged solve of its stiff friction diverges under a policy's
-actions: ball at 6 Newton iterations (MJX, float32: 1 of 8 robots fell at rest, 1 diverged
-acting). The adaptive feet needed 16/16 (AFF) and 30/30 (AOF) until 2026-11-26, measured when
-their passive joints' armature was 1e-5 kg m^2 and their float32 contact the stiffer default
-solref; with the armature of 1e-3 and STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE, 8/16 holds: random
-actions for 10 s, 0 of 16 AFF and 0 of 16 AOF robots diverged in MJX (0 of 8 each in CPU
-MuJoCo, 8 s), and a robot standing 10 s sinks and slides as at 30/30 (AOF flat 1.58 / 3.46 mm
-both; benchmarks/RESULTS.md, 2026-11-26, third session). The Newton solve's cost grows with its
-iterations (benchmarks/step_profile.py: AOF's solve was 80% of its flat step at 30/30)."""
+actions, or lets a standing robot creep: ball at 6 Newton iterations (MJX, float32: 1 of 8
+robots fell at rest, 1 diverged acting). AOF needed 30/30 until 2026-11-26, measured when its
+passive joints' armature was 1e-5 kg m^2 and its float32 contact the stiffer default solref; with
+the armature of 1e-3 and STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE, 8/16 holds: random actions for
+10 s, 0 of 16 robots diverged in MJX (0 of 8 in CPU MuJoCo, 8 s), and one robot standing 10 s
+from four spawns sinks 1.6 mm and slides 3.3-3.5 mm on flat ground, 3.3-4.3 mm on rough level 0,
+as at 30/30. AFF keeps 16/16: at 8/16 none diverged either, but one flat-ground spawn (seed 0)
+slid 45 mm in 10 s (2.6 mm at 16/16; benchmarks/RESULTS.md, 2026-11-26, third session). The
+Newton solve's cost grows with its iterations (benchmarks/step_profile.py: AOF's solve was 80%
+of its flat step at 30/30)."""
 STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = {"ball": (8, 16), "aff": (16, 16), "aof": (16, 16)}
 """The same under float64_physics, whose adaptive feet keep the stiffer impedance (0.99/0.999)
 and the build's solref: at 8/16, 3 of 8 AFF and 2 of 8 AOF robots diverged within 8 s of random

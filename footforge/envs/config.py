@@ -298,8 +298,8 @@ class EnvConfig:
     observation see the clipped value): rl_games clips to the baselines' action space [-1, 1]."""
     solver_iterations: int = 8
     """MJX Newton iterations per step (Playground uses 1-4); at least what contact_model needs on
-    the feet (anymal.min_solver_iterations: stance 8 on every feet in float32, AFF and AOF 16 under
-    float64_physics; envs.default_config, envs.with_contact_model and envs.with_float64_physics set
+    the feet (anymal.min_solver_iterations: stance ball 8, AFF 16, AOF 8 in float32, AFF and AOF
+    16 under float64_physics; envs.default_config, envs.with_contact_model and envs.with_float64_physics set
     it), refused with fewer."""
     solver_ls_iterations: int = 16
     """MJX line-search iterations per Newton iteration (stance: 16 on every feet)."""
@@ -326,8 +326,8 @@ class EnvConfig:
       feet, and every feet on a heightfield: 0.97/0.995/0.001, anymal.stance_contact_solimp;
       in float32 the adaptive feet also rest on a softer normal, MuJoCo's direct solref (-1e4,
       -400), anymal.stance_contact_solref), semi-implicit Euler integration, at sim_dt <= 2.5 ms with at least the feet's Newton and
-      line-search iterations (8/16 on every feet; AFF and AOF 16/16 under float64_physics: with
-      fewer its friction diverges under a policy's actions). Zero-action robots in MJX, 10 s from
+      line-search iterations (ball 8/16, AFF 16/16, AOF 8/16; AFF and AOF 16/16 under
+      float64_physics: with fewer its friction diverges under a policy's actions). Zero-action robots in MJX, 10 s from
       the reset's random velocities (benchmarks/stance_mjx.py, benchmarks/stance_env.py;
       benchmarks/RESULTS.md, 2026-11-25), sinking / sliding: ball 2.1 / 2.5 mm (float32); in one
       robot's 10 s on flat ground in float32 AFF 1.3 / 2.6 mm and AOF 1.6 / 3.5 mm, with
