@@ -27,9 +27,9 @@ from footforge.envs import observations, rewards
 from footforge.envs.anymal import (GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
                                    load_robot)
 from footforge.envs.config import EnvConfig, check_feet_and_policy
-from footforge.geometry import box_corners
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
+from footforge.geometry import box_corners
 
 N_ACTUATED = len(C.ACTUATED_JOINTS)
 
@@ -427,8 +427,7 @@ class LocomotionEnv(Env):
         Geometric, on flat ground as on the heightfield: the base's and thighs' colliders are off
         in MJX (footforge.envs.anymal), since their contact only ends episodes. Sample points
         (_surface_points): box corners, 8 points around each rim of a cylinder, the corners of the
-        bounding box of anything else. OmniIsaacGymEnvs' Anymal ends an episode on a base contact
-        force above 1 N; a point under the ground is that contact without the solve."""
+        bounding box of anything else."""
         world = data.geom_xpos[self._probe_geom] + jp.einsum(
             "pij,pj->pi", data.geom_xmat[self._probe_geom], self._probe_local)
         below = world[:, 2] < self.terrain_height(world[:, :2])
