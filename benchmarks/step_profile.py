@@ -80,7 +80,6 @@ def profile(env, batch: int, repeats: int, settle_steps: int) -> dict:
     mj = env.robot.model
     m = env.sys  # the environment's own MJX model (anymal.fit_heightfield_subgrids applied)
     jax.block_until_ready(data)
-    sample = jax.tree.map(lambda x: x[0], data)
     ms, compile_s = {}, {}
     staged = data
     for name, fn in _stages().items():
@@ -92,8 +91,8 @@ def profile(env, batch: int, repeats: int, settle_steps: int) -> dict:
     t, per_policy_step = _time(lambda s: step(s, actions), state, repeats)
     compile_s["env_step"], ms["env_step"] = t, per_policy_step / env.config.decimation
     active = int((data._impl.contact.dist[0] < 0).sum())
-    return {"nv": mj.nv, "ncon": int(sample._impl.contact.dist.shape[0]), "ncon_active_robot0": active,
-            "nefc": int(sample._impl.efc_J.shape[0]), "iterations": mj.opt.iterations,
+    return {"nv": mj.nv, "ncon": int(data._impl.contact.dist.shape[1]), "ncon_active_robot0": active,
+            "nefc": int(data._impl.efc_J.shape[1]), "iterations": mj.opt.iterations,
             "ls_iterations": mj.opt.ls_iterations, "solver": int(mj.opt.solver), "cone": int(mj.opt.cone),
             "ms_per_physics_step": {k: round(v, 2) for k, v in ms.items()},
             "stages_sum_ms": round(sum(v for k, v in ms.items() if k not in ("step", "env_step")), 2),

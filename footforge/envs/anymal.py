@@ -361,8 +361,9 @@ def check_contact_model(config: EnvConfig) -> None:
             f"contact_model '{model}' needs solver_iterations >= {needed[0]} and solver_ls_iterations >= "
             f"{needed[1]} in {precision} physics (given {config.solver_iterations} and "
             f"{config.solver_ls_iterations}): with fewer its stiff friction diverges on {config.feet} feet",
-            fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]} (envs.with_float64_physics "
-                f"sets them with float64), or contact_model='fast'")
+            fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}"
+                + (" (envs.with_float64_physics sets them with float64)" if config.float64_physics else "")
+                + ", or contact_model='fast'")
 
 
 def check_mjx_impl(config: EnvConfig) -> None:
