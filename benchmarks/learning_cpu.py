@@ -1,15 +1,31 @@
-"""Does PPO learn on this machine? The longest flat-ground training a 2-core CPU affords.
+"""Does PPO learn to walk? One flat-ground training with a preset of commands and a variant of
+the task's settings (an ablation), on whatever JAX device is present.
 
-Ball feet, flat task, the paper's networks and PPO settings, with a command range a few million
-steps can reach (forward -1..1 m/s, lateral -0.5..0.5 m/s, heading-driven yaw rate; the task's
-default is -2..2 m/s forward, which takes the GPU budget). Prints one line per evaluation
-(deterministic policy, --eval-envs robots, whole 20 s episodes): env steps, wall time, mean
-episode length, forward tracking error, return, mean base height; then one JSON line with the
-whole curve. The observation holds the PD targets, as the flat task's default
-(ObservationConfig.pd_targets); --no-pd-targets leaves them out, as before 2026-11-25.
+Presets (the commands a robot is trained and judged on):
+- forward: vx fixed at 0.6 m/s, vy 0, heading 0 (no yaw), pushes off: the easiest walking task.
+- full:    vx U(-1, 1), vy U(-0.5, 0.5) m/s, heading-driven yaw rate, pushes on (the task's
+           heading range, gain and push schedule).
 
-    python benchmarks/learning_cpu.py --out /tmp/learning --timesteps 5000000 --max-minutes 90
-    python benchmarks/learning_cpu.py --out /tmp/learning --timesteps 5000000 --resume   # goes on
+Variants: tokens joined by '+', applied in order to the flat task's defaults (envs.default_config):
+- today:    nothing (the defaults as they stand);
+- position: position actions, target = default + 0.5 a (OmniIsaacGymEnvs' AnymalTerrain, legged_gym,
+            Playground), PD targets not observed (they are a function of the last action);
+- velocity: velocity actions, target += 13.5 a dt, PD targets observed (OmniIsaacGymEnvs' Anymal);
+- ppo:      rsl_rl's settings as legged_gym uses them (learning rate 1e-3 with the adaptive-KL
+            schedule at KL 0.01, entropy 0.01) and the policy's output layer initialised at 0.01x;
+- bound:    the policy mean bounded to +-1.5 (Brax's softsign mean_clip_scale);
+- rewards:  the tracking terms doubled (lin_vel_xy 2, yaw_rate 1: Playground's Go1 weighs tracking
+            3 and 1.5 against similar penalties) and base height -10 -> -2 (unpublished in the paper;
+            -10 was a guess), so that fewer steps clip to zero;
+- noclip:   the summed reward not clipped at zero;
+- stance / fast: the contact model (EnvConfig.contact_model) with its own physics step.
+
+Prints one line per training-episode log (steps, wall s, episode length, forward error, base height),
+then one JSON line with the curve. The verdict (walks / stands / falls) of the final policy is
+measured afterwards by pipelines/evaluate.py.
+
+    python benchmarks/learning_cpu.py --out /tmp/l --preset forward --variant position --timesteps 3000000
+    python benchmarks/learning_cpu.py --out /tmp/l --timesteps 5000000 --resume   # goes on
 """
 
 from __future__ import annotations
@@ -23,6 +39,46 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+PRESETS = ("forward", "full")
+TOKENS = ("today", "position", "velocity", "ppo", "bound", "rewards", "noclip", "stance", "fast")
+
+
+def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
+    """(EnvConfig, PPOConfig) of a preset and a '+'-joined variant (see the module's docstring)."""
+    from footforge import envs
+    from footforge.rl import train
+
+    cfg = envs.default_config("flat", feet, "B")
+    if preset == "forward":
+        cfg = replace(cfg, commands=replace(cfg.commands, lin_vel_x_range=(0.6, 0.6), lin_vel_y_range=(0.0, 0.0),
+                                            heading_range=(0.0, 0.0)),
+                      pushes=replace(cfg.pushes, enabled=False))
+    else:
+        cfg = replace(cfg, commands=replace(cfg.commands, lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-0.5, 0.5)))
+    ppo = train.default_ppo("flat", **ppo_overrides)
+    for token in variant.split("+"):
+        if token == "position":
+            cfg = replace(cfg, action="position", action_scale=0.5,
+                          observations=replace(cfg.observations, pd_targets=False))
+        elif token == "velocity":
+            cfg = replace(cfg, action="velocity", action_scale=13.5,
+                          observations=replace(cfg.observations, pd_targets=True))
+        elif token == "ppo":
+            ppo = replace(ppo, learning_rate=1e-3, adaptive_kl=0.01, entropy_cost=0.01, policy_output_init_scale=0.01)
+        elif token == "bound":
+            ppo = replace(ppo, policy_mean_clip=1.5)
+        elif token == "rewards":
+            r = cfg.rewards
+            cfg = replace(cfg, rewards=r.with_scales(lin_vel_xy=2 * r.lin_vel_xy.scale, yaw_rate=2 * r.yaw_rate.scale,
+                                                     base_height=-2.0))
+        elif token == "noclip":
+            cfg = replace(cfg, rewards=replace(cfg.rewards, clip_total_at_zero=False))
+        elif token in ("stance", "fast"):
+            cfg = envs.with_contact_model(replace(cfg, **envs.physics(feet, token)), token)
+        elif token != "today":
+            raise SystemExit(f"learning_cpu: unknown variant token '{token}' (known: {', '.join(TOKENS)})")
+    return cfg, ppo
+
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -30,16 +86,21 @@ def main(argv=None) -> int:
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint "
                    "(parameters only: Brax restarts Adam and the adaptive learning rate)")
     p.add_argument("--feet", default="ball", choices=("ball", "aff", "aof"))
+    p.add_argument("--preset", default="full", choices=PRESETS, help="commands (default full)")
+    p.add_argument("--variant", default="today", help=f"'+'-joined tokens among {', '.join(TOKENS)} (default today)")
     p.add_argument("--timesteps", type=int, default=5_000_000)
     p.add_argument("--num-envs", type=int, default=128)
-    p.add_argument("--eval-every", type=int, default=500_000, help="env steps between evaluations")
+    p.add_argument("--unroll-length", type=int, default=24)
+    p.add_argument("--batch-size", type=int, help="trajectories per minibatch (default num_envs / 2)")
+    p.add_argument("--minibatches", type=int, default=4)
+    p.add_argument("--eval-every", type=int, default=500_000, help="env steps between checkpoints (and evaluations)")
     p.add_argument("--eval-envs", type=int, default=64)
+    p.add_argument("--no-evaluations", action="store_true",
+                   help="no deterministic evaluations (the curve is the training episodes'; on a GPU one costs "
+                        "about 20 PPO iterations)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-minutes", type=float,
                    help="stop at the checkpoint before this wall time (train's max_wall_s)")
-    p.add_argument("--no-pd-targets", action="store_true",
-                   help="leave the PD targets out of the observation (ObservationConfig.pd_targets), as before "
-                        "2026-11-25's fifth session")
     p.add_argument("--build-dir", type=Path, help="footforge build of the feet (default build/<feet>)")
     args = p.parse_args(argv)
     if args.out.exists() and not args.resume:
@@ -48,42 +109,58 @@ def main(argv=None) -> int:
         p.error(f"--resume: --out {args.out} holds no run to continue")
     if args.max_minutes is not None and args.max_minutes <= 0:
         p.error(f"--max-minutes must be positive, got {args.max_minutes:g}")
+    bad = [t for t in args.variant.split("+") if t not in TOKENS]
+    if bad:
+        p.error(f"--variant: unknown token(s) {', '.join(bad)} (known: {', '.join(TOKENS)})")
 
     import jax
 
-    from footforge import envs
     from footforge.rl import train
 
-    cfg = envs.default_config("flat", args.feet, "B")
-    cfg = replace(cfg, build_dir=str(args.build_dir) if args.build_dir else None,
-                  commands=replace(cfg.commands, lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-0.5, 0.5)),
-                  observations=replace(cfg.observations, pd_targets=not args.no_pd_targets))
-    ppo = train.default_ppo("flat", num_envs=args.num_envs, num_timesteps=args.timesteps, unroll_length=24,
-                            batch_size=args.num_envs // 2, num_minibatches=4, checkpoint_every_steps=args.eval_every,
-                            num_eval_envs=args.eval_envs, seed=args.seed)
+    cfg, ppo = configure(args.feet, args.preset, args.variant, dict(
+        num_envs=args.num_envs, num_timesteps=args.timesteps, unroll_length=args.unroll_length,
+        batch_size=args.batch_size or args.num_envs // 2, num_minibatches=args.minibatches,
+        checkpoint_every_steps=args.eval_every, num_eval_envs=args.eval_envs, seed=args.seed))
+    if args.build_dir:
+        cfg = replace(cfg, build_dir=str(args.build_dir))
+    if args.resume:  # the run's own settings
+        cfg, saved = train.load_run_config(args.out)
+        ppo = replace(saved, num_timesteps=args.timesteps)
     t0 = time.time()
-    print("env steps | wall s | episode length (policy steps) | forward error m/s | return | base height m", flush=True)
+    print(f"{args.feet} {args.preset} {args.variant} on {jax.default_backend()} ({jax.device_count()} device(s))",
+          flush=True)
+    print("env steps | wall s | episode length (policy steps) | forward error m/s | base height m | source", flush=True)
 
     def progress(step, total, metrics, evaluation):
-        if not evaluation or "eval/episode_reward" not in metrics:
+        if "eval/episode_reward" in metrics and evaluation:
+            src, length = "eval", metrics["eval/avg_episode_length"]
+            err, height = metrics["eval/episode_error/lin_vel_x_per_step"], metrics.get(
+                "eval/episode_base_height_m_per_step", float("nan"))
+        elif "episode/length" in metrics:
+            src, length = "train", metrics["episode/length"]
+            err = metrics.get("episode/error/lin_vel_x_per_step", float("nan"))
+            height = metrics.get("episode/base_height_m_per_step", float("nan"))
+        else:
             return
-        print(f"{step:>9,} | {time.time() - t0:6.0f} | {metrics['eval/avg_episode_length']:6.1f} | "
-              f"{metrics['eval/episode_error/lin_vel_x_per_step']:.3f} | {metrics['eval/episode_reward']:.3f} | "
-              f"{metrics.get('eval/episode_base_height_m_per_step', float('nan')):.3f}",
-              flush=True)
+        print(f"{step:>9,} | {time.time() - t0:6.0f} | {length:6.1f} | {err:.3f} | {height:.3f} | {src}", flush=True)
 
-    train.train(cfg, ppo, args.out, progress=progress, resume=args.resume,
+    train.train(cfg, ppo, args.out, progress=progress, resume=args.resume, evaluate=not args.no_evaluations,
                 max_wall_s=args.max_minutes * 60 if args.max_minutes else None)
-    curve = [{"env_steps": e["global_step"], "wall_s": round(e["wall_s"], 1),
-              "episode_length": e["eval/avg_episode_length"],
-              "forward_error_mps": e["eval/episode_error/lin_vel_x_per_step"], "return": e["eval/episode_reward"],
-              "base_height_m": e.get("eval/episode_base_height_m_per_step")}
-             for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines())
-             if "eval/episode_reward" in e]
-    print(json.dumps({"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(), "jax_devices": jax.device_count(),
-                      "feet": args.feet, "pd_targets": cfg.observations.pd_targets, "timesteps": args.timesteps,
-                      "num_envs": args.num_envs,
-                      "wall_s": round(time.time() - t0, 1), "curve": curve}))
+    curve = []
+    for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines()):
+        key = "eval/" if "eval/episode_reward" in e else "episode/" if "episode/length" in e else None
+        if key is None:
+            continue
+        curve.append({"env_steps": e["global_step"], "wall_s": round(e["wall_s"], 1), "source": key[:-1],
+                      "episode_length": e.get("eval/avg_episode_length", e.get("episode/length")),
+                      "forward_error_mps": e.get(f"{key}episode_error/lin_vel_x_per_step" if key == "eval/"
+                                                 else "episode/error/lin_vel_x_per_step"),
+                      "base_height_m": e.get(f"{key}episode_base_height_m_per_step" if key == "eval/"
+                                             else "episode/base_height_m_per_step")})
+    print(json.dumps({"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(),
+                      "backend": jax.default_backend(), "jax_devices": jax.device_count(), "feet": args.feet,
+                      "preset": args.preset, "variant": args.variant, "timesteps": ppo.num_timesteps,
+                      "num_envs": ppo.num_envs, "wall_s": round(time.time() - t0, 1), "curve": curve}))
     return 0
 
 

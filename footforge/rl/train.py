@@ -89,6 +89,14 @@ class PPOConfig:
     """The paper's flat-task network; state-independent Gaussian std."""
     value_hidden_layers: tuple[int, ...] = (256, 128, 64)
     init_noise_std: float = 1.0
+    policy_mean_clip: float | None = None
+    """Bounds the policy mean to +-this with Brax's softsign (mean_clip_scale: c x m / (1 + |m|));
+    None leaves it unbounded. rl_games (the paper's framework) keeps the mean near the action
+    bounds with its bounds loss; Brax's PPO has no such loss, and an unbounded mean far past the
+    environment's clip (EnvConfig.action_clip) gets no gradient from the clipped action."""
+    policy_output_init_scale: float = 1.0
+    """Factor on the initial weights of the policy's output (mean) layer; below 1 the first
+    actions sit near zero (the default pose under position actions) instead of up to +-3."""
     checkpoint_every_steps: int = 5_000_000
     """Environment steps between checkpoints (each one is also an evaluation)."""
     num_eval_envs: int = 128
@@ -168,22 +176,29 @@ def network_factory(ppo: PPOConfig, privileged: bool = False):
         # decay rates float64 too, which turns the float32 parameters' moments float64 and breaks
         # PPO's minibatch scan. Every parameter is made float32 (a no-op without x64).
         networks = ppo_networks.make_ppo_networks(*args, **kwargs)
-        return dataclasses.replace(networks, policy_network=_float32_init(networks.policy_network),
+        return dataclasses.replace(networks, policy_network=_float32_init(networks.policy_network,
+                                                                           ppo.policy_output_init_scale),
                                    value_network=_float32_init(networks.value_network))
 
     return functools.partial(
         float32_networks, policy_hidden_layer_sizes=ppo.policy_hidden_layers,
         value_hidden_layer_sizes=ppo.value_hidden_layers, activation=linen.elu,
-        distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std, **keys)
+        distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std,
+        **({"mean_clip_scale": ppo.policy_mean_clip} if ppo.policy_mean_clip is not None else {}), **keys)
 
 
-def _float32_init(network):
-    """`network` (Brax's FeedForwardNetwork) whose init returns float32 parameters."""
+def _float32_init(network, output_scale: float = 1.0):
+    """`network` (Brax's FeedForwardNetwork) whose init returns float32 parameters, the policy's
+    output (mean) layer, "Dense_0", scaled by `output_scale` (PPOConfig.policy_output_init_scale)."""
     import jax
     import jax.numpy as jp
 
     def init(*args, **kwargs):
         params = network.init(*args, **kwargs)
+        if output_scale != 1.0:
+            inner = dict(params["params"])
+            inner["Dense_0"] = jax.tree_util.tree_map(lambda x: x * output_scale, inner["Dense_0"])
+            params = dict(params) | {"params": inner}
         return jax.tree_util.tree_map(lambda x: x.astype(jp.float32) if jp.issubdtype(x.dtype, jp.floating) else x,
                                       params)
     return dataclasses.replace(network, init=init)
