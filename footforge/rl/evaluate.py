@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 
 from footforge.envs.config import check_policy_on_feet
+from footforge.rl.verdict import judge
 from footforge.errors import InputError
 from footforge.tables import markdown_table
 
@@ -78,6 +79,11 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     levels = robot_ids % config.terrain.num_levels
     columns = (robot_ids // config.terrain.num_levels) % config.terrain.num_columns
 
+    from footforge.envs import rewards as reward_module
+
+    reward_terms = tuple(reward_module.terms(config.rewards))
+    clip = config.rewards.clip_total_at_zero
+
     def one_step(carry, key):
         # The robots keep walking without resets; a fallen (or diverged) one is masked from then on.
         state, prev_qd, alive, feet_xy, base_xy, touched = carry
@@ -98,7 +104,11 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
                "base_height": m["base_height_m_per_step"], "alive": alive,
                "slip": jp.sum(jp.linalg.norm(xy - feet_xy, axis=1) * (touching & touched)),
                "travel": jp.linalg.norm(new_base_xy - base_xy), "contacts": touching,
-               "base_vx_error": state.info["command"][0] - lin[0], "diverged": diverged}
+               "base_vx_error": state.info["command"][0] - lin[0], "diverged": diverged,
+               "command_vx": state.info["command"][0], "vx": lin[0],
+               "command_speed": jp.linalg.norm(state.info["command"][:2]),
+               # The summed reward before its clip at zero (RewardConfig.clip_total_at_zero).
+               "clipped": clip & (sum(m[f"reward/{t}"] for t in reward_terms) < 0)}
         return (state, qd, alive, xy, new_base_xy, touching), row
 
     def rollout(key, level, column):
@@ -118,11 +128,14 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     travel = float(np.where(alive, rows["travel"], 0.0).sum())  # NaN x 0 would be NaN: select
     slippage = float(np.where(alive, rows["slip"], 0.0).sum() / travel) if travel > 0 else float("nan")
     vx_error = np.where(alive, rows["base_vx_error"], np.nan)
+    walking = judge(rows["contacts"], alive, rows["base_height"], rows["command_vx"], rows["vx"], rows["command_speed"])
     return {"policy": str(policy_dir), "trained_on": env_config.feet, "feet": feet, "policy_type": env_config.policy,
             "num_envs": num_envs, "seconds": seconds, "seed": seed, "policy_dt_s": env_config.policy_dt,
             "push_interval_s": env_config.pushes.interval_s,
             "task": config.task, "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
             "diverged": int(rows["diverged"].any(axis=1).sum()),
+            "walking": walking.to_dict() | {"line": walking.line()},
+            "clipped_fraction": float(rows["clipped"][alive].mean()) if alive.any() else float("nan"),
             **({"by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns)} if rough else {}),
             "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": np.nanmean(vx_error, axis=0)}}
 
