@@ -6,23 +6,30 @@ Presets (the commands a robot is trained and judged on):
 - full:    vx U(-1, 1), vy U(-0.5, 0.5) m/s, heading-driven yaw rate, pushes on (the task's
            heading range, gain and push schedule).
 
-Variants: tokens joined by '+', applied in order to the flat task's defaults (envs.default_config):
+Variants: tokens joined by '+', applied in order to the flat task's defaults (envs.default_config);
+each token sets absolute values, so a variant means the same whatever the defaults. The H100
+ablations of 2026-11-26 ran before the defaults changed: their `position+fast` is today's
+`position+paper_ppo+paper_rewards+fast`.
 - today:    nothing (the defaults as they stand);
 - position: position actions, target = default + 0.5 a (OmniIsaacGymEnvs' AnymalTerrain, legged_gym,
             Playground), PD targets not observed (they are a function of the last action);
 - velocity: velocity actions, target += 13.5 a dt, PD targets observed (OmniIsaacGymEnvs' Anymal);
 - ppo:      rsl_rl's settings as legged_gym uses them (learning rate 1e-3 with the adaptive-KL
-            schedule at KL 0.01, entropy 0.01) and the policy's output layer initialised at 0.01x;
+            schedule at KL 0.01, entropy 0.01) and the policy's output layer initialised at 0.01x
+            (PPOConfig's defaults since 2026-11-26);
+- paper_ppo: the paper's baseline's (3e-4, KL 0.008, entropy 0.001, output layer as Brax makes it);
 - bound:    the policy mean bounded to +-1.5 (Brax's softsign mean_clip_scale);
-- rewards:  the tracking terms doubled (lin_vel_xy 2, yaw_rate 1: Playground's Go1 weighs tracking
-            3 and 1.5 against similar penalties) and base height -10 -> -2 (unpublished in the paper;
-            -10 was a guess), so that fewer steps clip to zero;
+- rewards:  tracking lin_vel_xy 2, yaw_rate 1 (Playground's Go1 weighs tracking 3 and 1.5 against
+            similar penalties) and base height -2 (unpublished in the paper; -10 was a guess):
+            envs.FLAT_TUNED_REWARDS, the flat task's default since 2026-11-26;
+- paper_rewards: the baseline's tracking 1 and 0.5 and base height -10;
 - noclip:   the summed reward not clipped at zero;
 - stance / fast: the contact model (EnvConfig.contact_model) with its own physics step.
 
 Prints one line per training-episode log (steps, wall s, episode length, forward error, base height),
-then one JSON line with the curve. The verdict (walks / stands / falls) of the final policy is
-measured afterwards by pipelines/evaluate.py.
+then one JSON line: steps, wall_s, and the final policy's walking verdict (deterministic, 32 robots x
+20 s: footforge.rl.verdict; verdict, forward_error, vx_slope, episode_length of 1,000 steps,
+base_height_m, stance_fraction per foot, gait, clipped_fraction), then the curve.
 
     python benchmarks/learning_cpu.py --out /tmp/l --preset forward --variant position --timesteps 3000000
     python benchmarks/learning_cpu.py --out /tmp/l --timesteps 5000000 --resume   # goes on
@@ -40,7 +47,8 @@ from dataclasses import replace
 from pathlib import Path
 
 PRESETS = ("forward", "full")
-TOKENS = ("today", "position", "velocity", "ppo", "bound", "rewards", "noclip", "stance", "fast")
+TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards", "paper_rewards", "noclip",
+          "stance", "fast")
 
 
 def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
@@ -65,12 +73,14 @@ def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
                           observations=replace(cfg.observations, pd_targets=True))
         elif token == "ppo":
             ppo = replace(ppo, learning_rate=1e-3, adaptive_kl=0.01, entropy_cost=0.01, policy_output_init_scale=0.01)
+        elif token == "paper_ppo":
+            ppo = replace(ppo, learning_rate=3e-4, adaptive_kl=0.008, entropy_cost=0.001, policy_output_init_scale=1.0)
         elif token == "bound":
             ppo = replace(ppo, policy_mean_clip=1.5)
         elif token == "rewards":
-            r = cfg.rewards
-            cfg = replace(cfg, rewards=r.with_scales(lin_vel_xy=2 * r.lin_vel_xy.scale, yaw_rate=2 * r.yaw_rate.scale,
-                                                     base_height=-2.0))
+            cfg = replace(cfg, rewards=cfg.rewards.with_scales(**envs.FLAT_TUNED_REWARDS))
+        elif token == "paper_rewards":
+            cfg = replace(cfg, rewards=cfg.rewards.with_scales(lin_vel_xy=1.0, yaw_rate=0.5, base_height=-10.0))
         elif token == "noclip":
             cfg = replace(cfg, rewards=replace(cfg.rewards, clip_total_at_zero=False))
         elif token in ("stance", "fast"):
@@ -102,6 +112,8 @@ def main(argv=None) -> int:
     p.add_argument("--max-minutes", type=float,
                    help="stop at the checkpoint before this wall time (train's max_wall_s)")
     p.add_argument("--build-dir", type=Path, help="footforge build of the feet (default build/<feet>)")
+    p.add_argument("--no-verdict", action="store_true",
+                   help="skip the final policy's walking verdict (pipelines/evaluate.py measures it later)")
     args = p.parse_args(argv)
     if args.out.exists() and not args.resume:
         p.error(f"--out {args.out} exists; give a new folder, or --resume")
@@ -157,10 +169,22 @@ def main(argv=None) -> int:
                                                  else "episode/error/lin_vel_x_per_step"),
                       "base_height_m": e.get(f"{key}episode_base_height_m_per_step" if key == "eval/"
                                              else "episode/base_height_m_per_step")})
-    print(json.dumps({"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(),
-                      "backend": jax.default_backend(), "jax_devices": jax.device_count(), "feet": args.feet,
-                      "preset": args.preset, "variant": args.variant, "timesteps": ppo.num_timesteps,
-                      "num_envs": ppo.num_envs, "wall_s": round(time.time() - t0, 1), "curve": curve}))
+    train_s = round(time.time() - t0, 1)
+    result = {"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(),
+              "backend": jax.default_backend(), "jax_devices": jax.device_count(), "feet": args.feet,
+              "preset": args.preset, "variant": args.variant, "steps": curve[-1]["env_steps"] if curve else 0,
+              "num_envs": ppo.num_envs, "wall_s": train_s}
+    if not args.no_verdict:  # the final policy, deterministic, 32 robots x 20 s (footforge.rl.verdict)
+        from footforge.rl.evaluate import evaluate
+
+        r = evaluate(args.out / "policy", num_envs=32, seconds=20.0, seed=args.seed, build_dir=cfg.build_dir)
+        w = r["walking"]
+        result |= {"verdict": w["verdict"], "verdict_line": w["line"], "forward_error": w["forward_error_mps"],
+                   "vx_slope": w["vx_slope"], "episode_length": round(w["uptime"] * 1000, 1),
+                   "base_height_m": w["base_height_m"], "stance_fraction": w["stance_fraction"],
+                   "gait": w["gait"], "pair_agreement": w["pair_agreement"],
+                   "clipped_fraction": r["clipped_fraction"], "falls": r["falls"], "eval_wall_s": round(time.time() - t0 - train_s, 1)}
+    print(json.dumps(result | {"curve": curve}))
     return 0
 
 

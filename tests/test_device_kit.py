@@ -61,10 +61,12 @@ def test_results_tarball_keeps_the_latest_checkpoint_and_unpacks(tmp_path):
         kit.unpack(tmp_path / "missing.tar.gz", fresh)
 
 
-@pytest.mark.slow
+@pytest.mark.device_kit
 def test_cpu_dry_run_of_the_gpu_kit(tmp_path):
     """scripts/device/dryrun.sh: JAX 0.11.2 venv + the kit's wheels, train, resume, evaluate.
-    Needs a package index and Python 3.12; 17 minutes measured on 2 busy cores (mostly compiling)."""
+    Needs a package index and Python 3.12; 17-25 minutes on 2 busy cores (mostly installing and
+    compiling). Run before a GPU campaign (`python -m pytest -m device_kit`, or dryrun.sh itself);
+    CI leaves it out (pyproject's markers)."""
     env = dict(os.environ)
     env.pop("PYTHONPATH", None)
     env.setdefault("PREPARE_PYTHON", sys.executable)

@@ -40,18 +40,21 @@ def test_observation_layout_is_documented_and_sized():
     assert observations.size(b, 16) == 48  # the baseline's 48
     assert observations.size(bh, 8) == 48 + 16 and observations.size(bh, 16) == 48 + 32
     assert [name for name, _ in observations.layout(bh, 16)][-2:] == ["foot_joint_pos", "foot_joint_vel"]
-    # The flat task's velocity actions add the 12 PD targets (ObservationConfig.pd_targets); the
-    # rough task's position targets are default + scale x the observed last action already.
+    # Velocity actions need the 12 PD targets observed (ObservationConfig.pd_targets); under both
+    # tasks' position actions the target is default + scale x the observed last action already.
     flat, rough = envs.default_config("flat", "aof", "BH"), envs.default_config("rough", "aof", "PH")
-    assert flat.observations.pd_targets and not rough.observations.pd_targets
-    assert observations.layout(flat, 16)[7] == ("pd_target", 12) and observations.size(flat, 16) == 48 + 12 + 32
-    assert "pd_target" not in dict(observations.layout(rough, 16))
+    assert flat.action == rough.action == "position"
+    assert not flat.observations.pd_targets and not rough.observations.pd_targets
+    velocity = dataclasses.replace(flat, action="velocity", observations=ObservationConfig(pd_targets=True))
+    assert observations.layout(velocity, 16)[7] == ("pd_target", 12)
+    assert observations.size(velocity, 16) == 48 + 12 + 32 and observations.size(flat, 16) == 48 + 32
+    assert "pd_target" not in dict(observations.layout(flat, 16))
     # Each group is declared once, in ObservationConfig: its reading function says what it holds
     # and in which unit, and every group is read by some policy type.
     groups = [f.name for f in dataclasses.fields(ObservationConfig) if isinstance(getattr(bh.observations, f.name),
                                                                                 ObservationTerm)]
     assert all(observations.description(bh, name) for name in groups)
-    read = {name for config in (b, bh, flat, rough) for name, _ in observations.layout(config, 16)}
+    read = {name for config in (b, bh, velocity, rough) for name, _ in observations.layout(config, 16)}
     assert read == set(groups)
 
 
@@ -102,18 +105,20 @@ def test_reset_and_step_every_registered_env(rollouts, built):
         quiet = replace(env.config.observations, noise=False)
         full = LocomotionEnv(replace(env.config, observations=quiet), env.robot).observe(
             states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
-        # The PD targets' slice (velocity actions, ObservationConfig.pd_targets) holds the targets
-        # integrated from the actions, default + sum of clip(a) x 13.5 x dt within the joint
-        # ranges, which the joint angles do not reveal: they lag them by torque / kp.
-        layout = observations.layout(env.config, n_passive)
-        start = sum(w for _, w in layout[:[n for n, _ in layout].index("pd_target")])
-        target = np.asarray(env.robot.default_q, np.float64)
+        # Position actions: the last step's targets are default + 0.5 x its clipped action within
+        # the joint ranges. With ObservationConfig.pd_targets (for velocity actions) the PD
+        # targets' slice holds them minus the defaults: what the joint angles do not reveal, as
+        # they lag the targets by torque / kp.
         lo, hi = env.robot.q_limits[:, 0], env.robot.q_limits[:, 1]
-        for k in jax.random.split(jax.random.PRNGKey(1), 3):  # the fixture's actions
-            action = np.clip(np.asarray(jax.random.normal(k, (env.action_size,))), -1.0, 1.0)
-            target = np.clip(target + env.config.action_scale * action * env.config.policy_dt, lo, hi)
+        last = np.clip(np.asarray(jax.random.normal(jax.random.split(jax.random.PRNGKey(1), 3)[-1],
+                                                    (env.action_size,))), -1.0, 1.0)  # the fixture's last action
+        target = np.clip(np.asarray(env.robot.default_q, np.float64) + 0.5 * last, lo, hi)
         np.testing.assert_allclose(states[-1].info["target"], target, atol=1e-5)
-        np.testing.assert_allclose(full[start:start + 12], target - env.robot.default_q, atol=1e-5)
+        seeing = LocomotionEnv(replace(env.config, observations=replace(quiet, pd_targets=True)), env.robot)
+        layout = observations.layout(seeing.config, n_passive)
+        start = sum(w for _, w in layout[:[n for n, _ in layout].index("pd_target")])
+        seen = seeing.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
+        np.testing.assert_allclose(seen[start:start + 12], target - env.robot.default_q, atol=1e-5)
         q = np.asarray(states[-1].pipeline_state.qpos[env.robot.actuated_qpos])
         assert np.abs(target - q).max() > 0.05
         for task, f, policy in envs.registry():
@@ -210,25 +215,32 @@ def test_base_on_the_ground_terminates_and_time_out_is_a_truncation(rollouts):
     assert float(after.metrics["reward/fall"]) == 0.0 and float(after.reward) >= 0.0  # a time-out is no fall
 
 
-def test_velocity_actions_integrate_onto_the_previous_target(rollouts):
-    """Flat task: target_t = target_t-1 + 13.5 x clip(a, +-1) x dt, whatever the joints do; the
-    reward and the next observation see the clipped action."""
+def test_position_actions_set_the_target_and_velocity_actions_integrate_onto_it(rollouts):
+    """Flat task (position actions): target = default + 0.5 x clip(a, +-1), whatever the previous
+    target; the reward and the next observation see the clipped action. Velocity actions (the
+    flat baseline's, an option): target_t = target_t-1 + 13.5 x clip(a) x dt."""
     env, states, step = rollouts["ball"]
-    state = states[0]
-    dt, scale = env.config.policy_dt, env.config.action_scale
+    state = states[1]  # targets away from the defaults
+    lo, hi = env.robot.q_limits[:, 0], env.robot.q_limits[:, 1]
     action = jp.linspace(-3.0, 3.0, 12)  # half of it beyond the clip
     after = step(state, action)
     clipped = np.clip(np.asarray(action), -1.0, 1.0)
-    expected = np.clip(np.asarray(state.info["target"]) + scale * clipped * dt, env.robot.q_limits[:, 0],
-                       env.robot.q_limits[:, 1])
+    expected = np.clip(np.asarray(env.robot.default_q) + 0.5 * clipped, lo, hi)
     np.testing.assert_allclose(after.info["target"], expected, atol=1e-6)
     np.testing.assert_allclose(after.pipeline_state.ctrl[env.robot.actuator_ids], expected, atol=1e-6)
     np.testing.assert_allclose(after.info["last_action"], clipped, atol=1e-7)
-    # A zero action keeps the target where it was, although the joints moved.
+    # A zero action returns the target to the defaults, although the joints are elsewhere.
     again = step(after, jp.zeros(12))
-    np.testing.assert_allclose(again.info["target"], after.info["target"], atol=1e-7)
-    moved = np.abs(np.asarray(again.pipeline_state.qpos[env.robot.actuated_qpos]) - expected).max()
+    np.testing.assert_allclose(again.info["target"], env.robot.default_q, atol=1e-7)
+    moved = np.abs(np.asarray(again.pipeline_state.qpos[env.robot.actuated_qpos]) - env.robot.default_q).max()
     assert moved > 1e-3
+    # The same clipped action under velocity actions moves the previous target at 13.5 rad/s.
+    velocity = LocomotionEnv(replace(env.config, action="velocity", action_scale=13.5), env.robot)
+    previous = np.asarray(state.info["target"])
+    integrated = velocity.joint_targets(previous, velocity.clip_action(action))
+    np.testing.assert_allclose(integrated, np.clip(previous + 13.5 * clipped * env.config.policy_dt, lo, hi),
+                               atol=1e-6)
+    np.testing.assert_allclose(velocity.joint_targets(previous, jp.zeros(12)), np.clip(previous, lo, hi), atol=1e-7)
 
 
 @pytest.fixture(scope="module")

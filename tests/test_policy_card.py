@@ -32,12 +32,13 @@ def test_card_of_a_trained_run(tmp_path):
     files = ["comparison.png", "contacts_0.png", "push_response_0.png", "contacts_1.png", "push_response_1.png",
              "video_1.gif", "strip_1.png", "video_10.gif"]
     results = [_result(policy, "aof", 0.0), _result(policy, "aff", 0.5)]
+    results[0]["walking"] = {"line": "walks: trot, forward error 0.09 m/s"}  # evaluate()'s verdict
     card = policy_card(policy, list(enumerate(results)), files)
 
     assert card.startswith("# Policy card: flat_aof_B\n")
     assert "983,040 of 1,000,000" in card and "2 h 3 min, over 2 calls" in card
     assert "1 x NVIDIA H100 (gpu, 1 process), 16 CPU cores" in card and "wall-time budget" in card
-    assert "return 12.500" in card and "policy 256-128-64" in card and "velocity actions x 13.5 rad/s" in card
+    assert "return 12.500" in card and "policy 256-128-64" in card and "position actions x 0.5 rad" in card
     assert "50 Hz control (2.5 ms x 8)" in card and "randomised: nothing" in card and "stance contact model" in card
     for name in INDICES:
         row = next(line for line in card.splitlines() if line.startswith(f"| {name} ("))
@@ -45,6 +46,8 @@ def test_card_of_a_trained_run(tmp_path):
         assert cells[0].startswith(f"{results[0]['indices'][name]['mean']:.4g} ± ")
         assert cells[1].startswith(f"{results[1]['indices'][name]['mean']:.4g} ± ")
     assert "on aff feet (zero-shot)" in card and "| falls | 1/8 | 1/8 |" in card
+    assert "- on aof feet: 8 robots, 2 s, seed 0, 1 fell; walks: trot, forward error 0.09 m/s" in card.splitlines()
+    assert "| verdict | walks: trot, forward error 0.09 m/s | not judged |" in card
     links = re.findall(r"\]\(([^)]+)\)", card)
     assert links == ["comparison.png", "contacts_0.png", "push_response_0.png", "contacts_1.png",
                      "push_response_1.png", "video_1.gif", "strip_1.png"]  # not video_10: another result's

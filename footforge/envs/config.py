@@ -136,7 +136,7 @@ class ObservationConfig:
     last_action: ObservationTerm = ObservationTerm(observations.last_action, N_ACTUATED)
     """The previous policy output."""
     pd_target: ObservationTerm = ObservationTerm(observations.pd_target, N_ACTUATED, read_by="pd_targets")
-    """With pd_targets (the flat task's velocity actions): the actuated joints' PD targets minus
+    """With pd_targets (for velocity actions): the actuated joints' PD targets minus
     the defaults, rad, noiseless (the controller knows them)."""
     height_scan: ObservationTerm = ObservationTerm(observations.height_scan, "scan_points", read_by="perceptive",
                                                    scale=5.0, noise=0.06)
@@ -153,9 +153,9 @@ class ObservationConfig:
     height_clip_m: float = 1.0
     """The height scan's values are clipped to +-this, m (before the scale)."""
     pd_targets: bool = False
-    """Observe the actuated joints' PD targets (pd_target). envs.default_config turns it on for the
-    flat task's velocity actions, off elsewhere (and in configurations saved before it existed,
-    whose networks do not read it). Why: under velocity actions the target is the integral of
+    """Observe the actuated joints' PD targets (pd_target): turn it on with velocity actions
+    (EnvConfig.action); off by default (and in configurations saved before it existed, whose
+    networks do not read it). Why: under velocity actions the target is the integral of
     every past action (EnvConfig.action), a state of the controller that neither q nor the last
     action reveals. OmniIsaacGymEnvs' flat Anymal needs no such input because its drive is so
     stiff (about 22.9k N m/rad) that q equals the target; at ANYmal C's kp 80 N m/rad the two
@@ -278,9 +278,13 @@ class EnvConfig:
     metrics. Far above anything a walking or falling ANYmal does; in the H100 campaign
     (benchmarks/RESULTS.md, 2026-11-24) AOF training episodes logged finite velocities of up to
     1e14 m/s that a NaN check alone let through into the returns and metrics."""
-    action: Literal["velocity", "position"] = "velocity"
+    action: Literal["velocity", "position"] = "position"
     """How the 12 policy outputs a (clipped to +-action_clip) become the PD targets (rad), kept
-    within the joint ranges:
+    within the joint ranges. Both tasks use position actions (envs.default_config). The flat
+    baseline's velocity actions stay an option: on ANYmal C's soft drive (kp 80 N m/rad, kd 2)
+    their integral turns exploration noise into a random walk of the targets, and PPO learned to
+    stand, not walk, with them (48 M steps on an H100; benchmarks/RESULTS.md), where position
+    actions walked within 1.5 M CPU steps (fixed 0.6 m/s command) and 11 M GPU steps (full commands).
 
     - velocity (flat task): joint velocities integrated onto the previous *target*,
       target_t = target_t-1 + action_scale x a x policy_dt, with target_0 the joint angles the

@@ -216,13 +216,14 @@ def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, s
 
 def comparison_markdown(results: list[dict]) -> str:
     """One row per (policy, feet): every index as mean +- std (the paper's Figure 8 as a table)."""
-    head = ["policy", "type", "trained on", "feet", *INDICES, "slippage", "falls"]
+    head = ["policy", "type", "trained on", "feet", *INDICES, "slippage", "falls", "verdict"]
     rows = []
     for r in results:
         cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
         cells += [f"{r['indices'][k]['mean']:.3f} ± {r['indices'][k]['std']:.3f}" for k in INDICES]
         diverged = f" ({r['diverged']} diverged)" if r.get("diverged") else ""
-        cells += [f"{r['slippage']:.3f}", f"{r['falls']}/{r['num_envs']}{diverged}"]
+        cells += [f"{r['slippage']:.3f}", f"{r['falls']}/{r['num_envs']}{diverged}",
+                  r["walking"]["line"] if "walking" in r else "not judged"]
         rows.append(cells)
     return "\n".join(markdown_table(head, rows)) + "\n"
 

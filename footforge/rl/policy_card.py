@@ -39,14 +39,18 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
     lines += ["", "## Evaluation", ""]
     for _, r in evaluations:
         lines.append(f"- on {r['feet']} feet{' (zero-shot)' if r['feet'] != r['trained_on'] else ''}: "
-                     f"{r['num_envs']} robots, {r['seconds']:g} s, seed {r['seed']}, {r['falls']} fell")
+                     f"{r['num_envs']} robots, {r['seconds']:g} s, seed {r['seed']}, {r['falls']} fell"
+                     + (f"; {r['walking']['line']}" if "walking" in r else ""))
     rows = [[f"{index} ({INDEX_UNITS[index]})"] + [f"{r['indices'][index]['mean']:.4g} ± {r['indices'][index]['std']:.4g}"
                                                    for _, r in evaluations] for index in INDICES]
     rows.append(["slippage (-)"] + [f"{r['slippage']:.4g}" for _, r in evaluations])
     rows.append(["falls"] + [f"{r['falls']}/{r['num_envs']}" for _, r in evaluations])
+    rows.append(["verdict"] + [r["walking"]["line"] if "walking" in r else "not judged" for _, r in evaluations])
     lines += [""] + markdown_table(["index"] + [f"on {r['feet']}" for _, r in evaluations], rows)
     lines += ["", "Mean ± standard deviation over every policy step of every robot still standing "
-              "(footforge/rl/evaluate.py defines the indices).", "", "## Plots", ""]
+              "(footforge/rl/evaluate.py defines the indices). The verdict (walks, stands or falls) comes "
+              "from the forward error, the time up, the base height and each foot's share of the ground "
+              "(footforge/rl/verdict.py).", "", "## Plots", ""]
     lines += [f"- {text}: [{f}]({f})" for text, f in _plots(evaluations, files)]
     return "\n".join(lines) + "\n"
 

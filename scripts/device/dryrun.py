@@ -14,8 +14,11 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 # What the GPU machine has (DEVELOPERS' notes on the machine), JAX at its version.
-MACHINE_PACKAGES = ["jax==0.11.2", "flax", "optax", "orbax-checkpoint", "numpy", "scipy", "matplotlib",
-                    "tensorboard", "onnx", "onnxruntime", "rich", "pyyaml"]
+# Pinned to the set that ran scripts/device/ablations.sh's dry run on 2026-11-26 (the GPU
+# machine's own versions may differ: KINDS.md of the device tool lists some).
+MACHINE_PACKAGES = ["jax==0.11.2", "jaxlib==0.11.2", "flax==0.12.12", "optax==0.2.8", "orbax-checkpoint==0.12.8",
+                    "numpy==2.5.5", "scipy==1.18.1", "matplotlib==3.11.2", "tensorboard==2.21.0", "onnx==1.23.2",
+                    "onnxruntime==1.32.0", "rich==15.0.0", "pyyaml==6.0.4"]
 # Each job compiles Brax PPO anew, about 5 minutes on 2 busy cores: a 9-minute budget would stop
 # the first job after its first checkpoint (the budget's estimate of an epoch includes the
 # compilation), so the dry run gives each job 30 minutes; tests/test_train.py tests the stop.
