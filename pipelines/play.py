@@ -149,6 +149,7 @@ def _run(args) -> int:
     print(f"{PROG}: {result['steps']} policy steps ({args.seconds:g} s, {result['physics_steps_per_policy_step']} "
           f"physics steps each) under command {result['command']}: base height {min(heights):.3f} to "
           f"{max(heights):.3f} m, mean vx {sum(states['vx']) / len(heights):+.3f} m/s, falls {result['falls']}")
+    print(f"{PROG}: verdict: {result['walking']['line']}")
     print(f"{PROG}: setup {setup:.1f} s (export, build, compilation), run {result['wall_s']:.1f} s "
           f"(real-time factor {result['real_time_factor']:.2f})")
     from footforge.atomic import atomic_file

@@ -82,6 +82,23 @@ def test_headless_ball_policy_stands_and_is_filmed(built, tmp_path):
     assert other.read_bytes() == b"GIF89a user's"
 
 
+def test_headless_ball_policy_walks_forward_by_the_verdict(built, tmp_path):
+    """A real rollout judged (footforge.rl.verdict): the shipped ball policy under a 0.6 m/s forward
+    command for 4 s in CPU MuJoCo moves forward at about that speed, every foot stepping, and play
+    says so in one line and in its log."""
+    log = tmp_path / "walk.json"
+    proc = _play(POLICY, "--headless", "--seconds", 4, "--command", 0.6, 0, 0, "--build-root",
+                 built["ball"][0].parent, "--log", log)
+    assert proc.returncode == 0, proc.stderr
+    walking = _states(log)["walking"]
+    assert walking["verdict"] == "walks", walking
+    assert f"play: verdict: {walking['line']}" in proc.stdout and walking["line"].startswith("walks: ")
+    assert walking["forward_error_mps"] < 0.25 and walking["uptime"] == 1.0
+    assert all(0.2 <= f <= 0.9 for f in walking["stance_fraction"].values()), walking["stance_fraction"]
+    vx = np.array(_states(log)["states"]["vx"])[50:]  # after the first second
+    assert 0.4 < vx.mean() < 0.8
+
+
 def test_headless_on_the_closed_chain(built, tmp_path):
     """The ball policy on the 34-joint closed chain at its build's 0.25 ms (80 physics steps per
     policy step) through the same runner: finite and standing for half a second."""

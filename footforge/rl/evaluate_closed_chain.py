@@ -311,7 +311,7 @@ class Controller:
         import jax
         import jax.numpy as jp
 
-        from footforge.envs.locomotion import ground_contacts, reset_keys
+        from footforge.envs.locomotion import foot_contacts, ground_contacts, reset_keys
 
         env = copy.copy(env)
         env.robot = robot  # ANYmal's joints (defaults, ranges) are the same on every feet
@@ -348,6 +348,7 @@ class Controller:
         self._start = jax.jit(jax.vmap(start))
         self._act = jax.jit(act)
         self._touching = jax.jit(jax.vmap(touching))
+        self._feet = jax.jit(jax.vmap(lambda geoms, dists: foot_contacts(category, floor, geoms, dists)))
         self._settle = jax.jit(jax.vmap(settle))
         self._split = lambda seed, n: jax.random.split(jax.random.PRNGKey(seed), n)
 
@@ -365,6 +366,11 @@ class Controller:
         """Per robot: base contact or `terminate_on_knees` thigh contacts with the floor, from its
         contacts (robots, n, 2) geom pairs and (robots, n) signed distances."""
         return np.asarray(self._touching(geoms, dists))
+
+    def feet_on_ground(self, geoms: np.ndarray, dists: np.ndarray) -> np.ndarray:
+        """Per robot and leg (LF, RF, LH, RH): does its foot touch the floor, from its contacts
+        as in touching()."""
+        return np.asarray(self._feet(geoms, dists))
 
     def settle(self, qpos, qvel, info, keys, action, actuator_force, command: np.ndarray | None = None):
         """(info, observations, index rows as numpy) after the physics of a policy step;

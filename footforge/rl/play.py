@@ -241,7 +241,8 @@ class Player:
     def step(self, command) -> dict:
         """One policy step under `command` (vx, vy, yaw rate; clipped to the training ranges).
         Returns {"fell", "base_height_m" (above the ground under the base), "vx", "vy", "yaw_rate"
-        (base frame, m/s and rad/s), "command"}; after a fall the robot is back at its start."""
+        (base frame, m/s and rad/s), "command", "feet_on_ground" (LF, RF, LH, RH)}; after a fall
+        the robot is back at its start."""
         import mujoco
 
         from footforge.rl.evaluate_closed_chain import observed_states, padded_contacts
@@ -252,11 +253,14 @@ class Player:
         d.ctrl[self.robot.actuator_ids] = targets[0]
         for _ in range(self.decimation):
             mujoco.mj_step(self.model, d)
-        fell = diverged(d, self.policy.config.diverged_speed) or bool(self._control.touching(*padded_contacts([d]))[0])
+        contacts = padded_contacts([d])
+        fell = diverged(d, self.policy.config.diverged_speed) or bool(self._control.touching(*contacts)[0])
+        feet = self._control.feet_on_ground(*contacts)[0].tolist()
         self._info, self._obs, row = self._control.settle(*observed_states([d], self._imu), self._info, keys, action,
                                                           d.actuator_force[None], command)
         record = {"fell": fell, "base_height_m": float(row["base_height"][0]), "vx": float(row["vx"][0]),
-                  "vy": float(row["vy"][0]), "yaw_rate": float(row["yaw_rate"][0]), "command": command[0].tolist()}
+                  "vy": float(row["vy"][0]), "yaw_rate": float(row["yaw_rate"][0]), "command": command[0].tolist(),
+                  "feet_on_ground": feet}
         if fell:
             self.reset(command[0])
         return record
@@ -266,25 +270,33 @@ def play_headless(player: Player, *, seconds: float, command=(0.0, 0.0, 0.0)) ->
     """Runs `player` (warmed up: Player.warm_up) for `seconds` under a fixed command. Returns
     {"steps", "policy_dt_s", "falls", "fall_times_s", "wall_s", "real_time_factor" (simulated over
     wall-clock seconds), "states": per policy step "time_s", "base_pos_m"
-    (world, after the step), "base_height_m", "vx", "vy", "yaw_rate", "fell"}, and "qpos" (steps,
-    nq) for rendering (not JSON)."""
+    (world, after the step), "base_height_m", "vx", "vy", "yaw_rate", "fell", "feet_on_ground"},
+    "walking" (footforge.rl.verdict's verdict of the run, its "line" included; the robot counts as
+    down from its first fall), and "qpos" (steps, nq) for rendering (not JSON)."""
+    from footforge.rl.verdict import judge
+
     steps = int(round(seconds / player.policy_dt))
     qpos = np.empty((steps, player.model.nq))
-    states = {k: [] for k in ("time_s", "base_pos_m", "base_height_m", "vx", "vy", "yaw_rate", "fell")}
+    keys = ("base_height_m", "vx", "vy", "yaw_rate", "fell", "feet_on_ground")
+    states = {k: [] for k in ("time_s", "base_pos_m", *keys)}
     start = time.perf_counter()
     for t in range(steps):
         record = player.step(command)
         qpos[t] = player.data.qpos
         states["time_s"].append((t + 1) * player.policy_dt)
         states["base_pos_m"].append(player.data.qpos[:3].tolist())
-        for k in ("base_height_m", "vx", "vy", "yaw_rate", "fell"):
+        for k in keys:
             states[k].append(record[k])
     wall = time.perf_counter() - start
     falls = [t for t, fell in zip(states["time_s"], states["fell"]) if fell]
+    commanded = player._command(command)[0]
+    walking = judge(np.array([states["feet_on_ground"]], bool), ~np.cumsum(states["fell"])[None].astype(bool),
+                    np.array([states["base_height_m"]]), np.full((1, steps), commanded[0]), np.array([states["vx"]]),
+                    np.full((1, steps), float(np.linalg.norm(commanded[:2]))))
     return {"steps": steps, "policy_dt_s": player.policy_dt, "physics_steps_per_policy_step": player.decimation,
             "command": player._command(command)[0].tolist(), "falls": len(falls), "fall_times_s": falls,
             "wall_s": wall, "real_time_factor": steps * player.policy_dt / wall if wall > 0 else float("nan"),
-            "states": states, "qpos": qpos}
+            "states": states, "walking": walking.to_dict() | {"line": walking.line()}, "qpos": qpos}
 
 
 # The viewer's keys (GLFW key codes, as mujoco.viewer's key_callback receives them): (code, key name,

@@ -12,7 +12,8 @@ Verdict (one of VERDICTS):
 Gait, from the feet's contact phases while commanded to move: the share of steps in which two feet
 are in the same state (both on the ground or both in the air), for the diagonal, lateral (front,
 hind) and same-side pairs. A trot moves diagonal pairs together, a pace same-side pairs, a bound
-front and hind pairs; a gait with each foot stepping and no pair locked is a walk.
+front and hind pairs; a gait with each foot stepping and no pair locked is four-beat (a walk's
+footfall, or an irregular one).
 """
 
 from __future__ import annotations
@@ -50,7 +51,8 @@ class WalkingVerdict:
     reason: str
     """Why, in a few words (for a stands or falls: the first criterion missed)."""
     gait: str
-    """trot, pace, bound, walk, stand (no foot steps) or none (no moving steps to judge)."""
+    """trot, pace, bound, four-beat (each foot stepping, no pair locked), stand (no foot steps) or
+    none (no moving steps to judge)."""
     forward_error_mps: float
     """Mean |vx command - vx| over the standing robots' steps, m/s."""
     uptime: float
@@ -132,7 +134,7 @@ def _gait(stance: dict, agreement: dict) -> str:
     kind = max(agreement, key=agreement.get)
     if agreement[kind] >= PAIR_LOCKED and all(MIN_STANCE <= s <= MAX_STANCE for s in values):
         return names[kind]
-    return "walk"
+    return "four-beat"
 
 
 def _mean(values, where) -> float:
