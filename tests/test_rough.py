@@ -243,7 +243,7 @@ def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
     assert min(heights) > 0.25, (feet, min(heights))
 
 
-@pytest.mark.slow  # a subprocess per feet (x64 is process-wide), each compiling one rough environment: 3-6 minutes
+@pytest.mark.contact_physics  # a subprocess per feet (x64 is process-wide), each compiling one rough environment: 3-6 minutes
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_the_stance_holds_on_level_0_in_float64(built, feet):
     """Issue 12's stance target on the rough terrain's level 0 (the spawn platform), from the
