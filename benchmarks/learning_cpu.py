@@ -24,6 +24,8 @@ ablations of 2026-11-26 ran before the defaults changed: their `position+fast` i
             envs.FLAT_TUNED_REWARDS, the flat task's default since 2026-11-26;
 - paper_rewards: the baseline's tracking 1 and 0.5 and base height -10;
 - noclip:   the summed reward not clipped at zero;
+- airtime:  legged_gym's feet-air-time term at its scale 1.0 (RewardConfig.feet_air_time; not among
+            the paper's terms, off by default);
 - stance / fast: the contact model (EnvConfig.contact_model) with its own physics step.
 
 Prints one line per training-episode log (steps, wall s, episode length, forward error, base height),
@@ -48,7 +50,7 @@ from pathlib import Path
 
 PRESETS = ("forward", "full")
 TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards", "paper_rewards", "noclip",
-          "stance", "fast")
+          "airtime", "stance", "fast")
 
 
 def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
@@ -81,6 +83,8 @@ def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
             cfg = replace(cfg, rewards=cfg.rewards.with_scales(**envs.FLAT_TUNED_REWARDS))
         elif token == "paper_rewards":
             cfg = replace(cfg, rewards=cfg.rewards.with_scales(lin_vel_xy=1.0, yaw_rate=0.5, base_height=-10.0))
+        elif token == "airtime":
+            cfg = replace(cfg, rewards=cfg.rewards.with_scales(feet_air_time=1.0))
         elif token == "noclip":
             cfg = replace(cfg, rewards=replace(cfg.rewards, clip_total_at_zero=False))
         elif token in ("stance", "fast"):

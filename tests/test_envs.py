@@ -149,8 +149,38 @@ def test_reward_terms_on_known_states():
     # Each term is declared once, in RewardConfig: its function is the one above, its scale a number.
     terms = rewards.terms(cfg)
     assert list(terms) == ["lin_vel_xy", "yaw_rate", "lin_vel_z", "ang_vel_xy", "orientation", "base_height",
-                           "torques", "joint_acc", "action_rate", "hip"]
+                           "torques", "joint_acc", "action_rate", "hip", "feet_air_time"]
     assert all(term.compute is getattr(rewards, name) and isinstance(term.scale, float) for name, term in terms.items())
+    assert cfg.feet_air_time.scale == 0.0  # not among the paper's terms: off unless asked for
+
+
+def test_feet_air_time_pays_touchdowns_after_long_enough_steps():
+    """legged_gym's bookkeeping (LocomotionEnv._feet_steps) on a scripted contact sequence: LF
+    touches, lifts for 30 policy steps (0.6 s at 50 Hz), lands; RF lifts for 10 steps (0.2 s). Each
+    touchdown reports the steps spent in the air x dt; the term pays air time - 0.5 s per
+    touchdown (+0.1 for LF, -0.3 for RF) under a moving command, nothing under a zero one."""
+    from types import SimpleNamespace
+
+    dt = 0.02
+    lf = [True] + [False] * 30 + [True] * 3
+    rf = [True] * 5 + [False] * 10 + [True] * 19
+    info = LocomotionEnv._no_steps()
+    touchdowns = []
+    for contact in zip(lf, rf, [True] * len(lf), [True] * len(lf)):
+        stub = SimpleNamespace(foot_contacts=lambda data, c=contact: jp.array(c),
+                               config=SimpleNamespace(policy_dt=dt))
+        out = LocomotionEnv._feet_steps(stub, None, info)
+        info = {k: out[k] for k in info}
+        touchdowns.append(np.asarray(out["touchdown_air_time"]))
+    touchdowns = np.array(touchdowns)
+    assert touchdowns[31, 0] == pytest.approx(30 * dt) and touchdowns[15, 1] == pytest.approx(10 * dt)
+    assert np.count_nonzero(touchdowns) == 2  # one touchdown each; a foot on the ground earns nothing
+    cfg = RewardConfig()
+    both = jp.array([0.6, 0.2, 0.0, 0.0])
+    moving = rewards.Quantities(command=jp.array([0.5, 0.0, 0.0]), touchdown_air_time=both)
+    assert float(rewards.feet_air_time(moving, cfg)) == pytest.approx((0.6 - 0.5) + (0.2 - 0.5))
+    still = moving._replace(command=jp.zeros(3))
+    assert float(rewards.feet_air_time(still, cfg)) == 0.0
 
 
 def test_ground_contacts_count_base_and_knees():

@@ -133,7 +133,8 @@ class LocomotionEnv(Env):
     def reset(self, rng: jax.Array) -> State:
         keys = reset_keys(rng)
         data = mjx.make_data(self.mjx_model)
-        info = {"episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(())} | self._first_spawn_info(keys.spawn)
+        info = {"episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(()), **self._no_steps()} | \
+            self._first_spawn_info(keys.spawn)
         data = mjx.forward(self.mjx_model, self._place(data, *self._start_state(info, keys.joints)))
         info, obs = self.policy_start(data, info, keys, data.ctrl[self._ctrl_order])
         metrics = {f"reward/{t}": jp.zeros(()) for t in (*rewards.terms(self.config.rewards), "fall")}
@@ -276,7 +277,8 @@ class LocomotionEnv(Env):
         data, _ = jax.lax.scan(physics, data, None, length=cfg.decimation)
         info, fresh = self.policy_command(info, data, keys)
 
-        terms, errors = self._reward_terms(data, info, action)
+        steps = self._feet_steps(data, info)
+        terms, errors = self._reward_terms(data, info, action, steps["touchdown_air_time"])
         weighted = {name: terms[name] * term.scale * cfg.policy_dt for name, term in rewards.terms(cfg.rewards).items()}
         reward = sum(weighted.values())
         # A robot whose simulation diverged ends its episode as a fall with zero metrics; its
@@ -308,6 +310,7 @@ class LocomotionEnv(Env):
         # no previous action, a new command. Brax's auto-reset would restore one fixed first
         # state and lose the curriculum's per-robot state.
         info.update(self._next_spawn_info(info, data, ended, keys.spawn))
+        info.update({k: jp.where(ended, v0, steps[k]) for k, v0 in self._no_steps().items()})
         data = self._place(data, *self._start_state(info, keys.joints), where=ended)
         info.update(episode_step=jp.where(ended, 0, episode_step), time_out=time_out.astype(jp.float32),
                     target=data.ctrl[self._ctrl_order])  # this step's targets, or the restart's
@@ -406,7 +409,23 @@ class LocomotionEnv(Env):
         relative = data.qpos[2] - cfg.height_offset_m - self.terrain_height(world)
         return jp.clip(relative, -cfg.height_clip_m, cfg.height_clip_m)
 
-    def _reward_terms(self, data, info, action):
+    @staticmethod
+    def _no_steps() -> dict:
+        """The feet's step state at an episode's start: in the air for no time, not touching."""
+        return {"feet_air_time_s": jp.zeros(4), "feet_last_contact": jp.zeros(4, bool)}
+
+    def _feet_steps(self, data, info) -> dict:
+        """The feet's step state after a policy step, and each foot's air time on touching down
+        (legged_gym's feet_air_time bookkeeping: a contact counts if seen this step or the last,
+        which bridges a one-step flicker of the contact)."""
+        contact = self.foot_contacts(data)
+        touching = contact | info["feet_last_contact"]
+        air = info["feet_air_time_s"] + self.config.policy_dt
+        touchdown = (info["feet_air_time_s"] > 0) & touching
+        return {"feet_air_time_s": jp.where(touching, 0.0, air), "feet_last_contact": contact,
+                "touchdown_air_time": jp.where(touchdown, air, 0.0)}
+
+    def _reward_terms(self, data, info, action, touchdown_air_time):
         """(each reward term unscaled, the tracking errors and base height as metrics)."""
         r = self.robot
         lin, ang, gravity = self.base_state(data)
@@ -414,7 +433,7 @@ class LocomotionEnv(Env):
             command=info["command"], lin_vel=lin, ang_vel=ang, gravity=gravity, base_height=self.base_height(data),
             torques=data.actuator_force[self._ctrl_order], joint_vel=data.qvel[r.actuated_dof],
             last_joint_vel=info["last_joint_vel"], action=action, last_action=info["last_action"],
-            haa_offset=data.qpos[r.actuated_qpos][r.haa] - self.default_q[r.haa])
+            haa_offset=data.qpos[r.actuated_qpos][r.haa] - self.default_q[r.haa], touchdown_air_time=touchdown_air_time)
         terms = {name: term.compute(q, self.config.rewards) for name, term in rewards.terms(self.config.rewards).items()}
         command = q.command
         errors = {"error/lin_vel_x_per_step": jp.abs(command[0] - lin[0]), "error/lin_vel_y_per_step": jp.abs(command[1] - lin[1]),

@@ -1,4 +1,4 @@
-"""The paper's ten reward terms as pure functions of what they penalise or reward.
+"""The paper's ten reward terms (and an optional gait term) as pure functions of what they penalise or reward.
 
 Each term is declared once, as a field of RewardConfig (envs.config): its function (here), unit
 and scale. The environment measures a step's Quantities once; each function returns its
@@ -38,6 +38,9 @@ class Quantities(NamedTuple):
     """The previous step's."""
     haa_offset: object = None
     """Hip abduction/adduction angles minus their defaults, rad."""
+    touchdown_air_time: object = None
+    """Per foot (LF, RF, LH, RH): how long it was in the air, s, on the step it touches down
+    again; zero on every other step."""
 
 
 def lin_vel_xy(q: Quantities, cfg: RewardConfig):
@@ -94,6 +97,17 @@ def action_rate(q: Quantities, cfg: RewardConfig):
 def hip(q: Quantities, cfg: RewardConfig):
     """sum |q_HAA - default|, rad."""
     return abs(q.haa_offset).sum()
+
+
+def feet_air_time(q: Quantities, cfg: RewardConfig):
+    """sum over the feet touching down of (air time - feet_air_time_target_s), s, while the planar
+    command is above 0.1 m/s (legged_gym's feet_air_time: steps of at least the target length
+    pay, shorter ones cost; no reward for stepping in place under a zero command)."""
+    import jax.numpy as jp
+
+    landed = q.touchdown_air_time > 0
+    moving = jp.linalg.norm(q.command[:2]) > 0.1
+    return jp.where(landed, q.touchdown_air_time - cfg.feet_air_time_target_s, 0.0).sum() * moving
 
 
 def terms(cfg: RewardConfig) -> dict:
