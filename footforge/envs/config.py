@@ -83,8 +83,8 @@ class RewardConfig:
     """sum |q_HAA - default|, rad."""
     feet_air_time: RewardTerm = RewardTerm(rewards.feet_air_time, 0.0)
     """sum over touchdowns of (air time - feet_air_time_target_s), s, under a moving command: not
-    among the paper's terms, so off (0) by default; legged_gym's is 1.0 (2.0 for ANYmal C flat),
-    Playground's Go1 0.8. It pays for steps long enough to lift every foot (a policy without it
+    among the paper's terms, so off (0) here and on the rough task; the flat task sets legged_gym's
+    1.0 (envs.FLAT_FEET_AIR_TIME; Playground's Go1 uses 0.8). It pays for steps long enough to lift every foot (a policy without it
     may walk on three legs: benchmarks/RESULTS.md, 2026-11-26, fourth session)."""
     feet_air_time_target_s: float = 0.5
     """Air time a step must last to pay, s (legged_gym's 0.5)."""
