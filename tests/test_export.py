@@ -73,8 +73,8 @@ def _metadata(path):
 
 
 CASES = {  # (task, feet, policy, privileged critic, observation size of the policy)
-    "flat_ball_B": ("flat", "ball", "B", False, 48 + 12),  # + the PD targets of velocity actions
-    "flat_aof_BH": ("flat", "aof", "BH", False, 48 + 12 + 2 * 16),
+    "flat_ball_B": ("flat", "ball", "B", False, 48),  # position actions: no PD targets observed
+    "flat_aof_BH": ("flat", "aof", "BH", False, 48 + 2 * 16),
     "rough_aff_PH_privileged": ("rough", "aff", "PH", True, 48 + 140 + 2 * 8),
 }
 

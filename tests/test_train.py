@@ -66,8 +66,10 @@ def test_configs_saved_before_terms_were_declared_once_load_unchanged():
     assert (o.height_scan.scale, o.height_scan.noise) == (old["observations"]["height_scale"],
                                                           old["observations"]["height_noise_m"])
     assert o.foot_joint_vel.noise == old["observations"]["foot_joint_vel_noise"]
+    # Terms added since (feet_air_time) load switched off, as those runs trained.
+    assert "feet_air_time" not in old["rewards"] and r.feet_air_time.scale == 0.0
     assert {name: term.scale for name, term in rewards.terms(r).items()} == {
-        name: old["rewards"][name] for name in rewards.terms(r)}
+        name: old["rewards"].get(name, 0.0) for name in rewards.terms(r)}
     assert r.fall == old["rewards"]["fall"] and r.tracking_sigma == old["rewards"]["tracking_sigma"]
 
 
@@ -85,6 +87,11 @@ def test_tiny_ppo_run_increases_the_return(built, tmp_path):
 
     from footforge.rl import train
     cfg = envs.default_config("flat", "ball", "B")
+    # The flat baseline's velocity actions and PPO's settings before 2026-11-26 (a full-size output
+    # layer, rate 3e-4 adaptive at KL 0.008 here raised to 1e-3, entropy 0.001): the untrained
+    # policy falls, which gives learning something to show in 98 k steps. Under today's position
+    # actions and small output layer the untrained robot already stands its 2 s.
+    cfg = replace(cfg, action="velocity", action_scale=13.5, observations=replace(cfg.observations, pd_targets=True))
     cfg = replace(cfg, build_dir=str(built["ball"][0]), episode_length_s=2.0,
                   commands=replace(cfg.commands, lin_vel_x_range=(0.0, 0.0), lin_vel_y_range=(0.0, 0.0),
                                    heading_range=(0.0, 0.0)),
@@ -92,7 +99,8 @@ def test_tiny_ppo_run_increases_the_return(built, tmp_path):
                   randomization=replace(cfg.randomization, friction_range=None))
     ppo = PPOConfig(num_envs=32, unroll_length=16, batch_size=32, num_minibatches=4, num_timesteps=98_304,
                     checkpoint_every_steps=32_768, num_eval_envs=32, policy_hidden_layers=(32, 32),
-                    value_hidden_layers=(32, 32), learning_rate=1e-3, seed=0)
+                    value_hidden_layers=(32, 32), learning_rate=1e-3, adaptive_kl=0.008, entropy_cost=0.001,
+                    policy_output_init_scale=1.0, seed=0)
     train.train(cfg, ppo, tmp_path / "run")
     evaluations = [line for line in map(json.loads, (tmp_path / "run" / "metrics.jsonl").read_text().splitlines())
                    if "eval/episode_reward" in line]  # the other lines: training episodes' metrics

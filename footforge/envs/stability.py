@@ -2,8 +2,9 @@
 
 CPU MuJoCo steps the MJX environment's own model (load_robot: its timestep, contact and solver
 settings) under an untrained policy's actions: each policy step a ~ N(0, 1) clipped to
-+-EnvConfig.action_clip (PPO's initial Gaussian), turned into PD targets by the flat task's
-velocity model (target += action_scale a policy_dt, within the joint ranges). A robot diverges
++-EnvConfig.action_clip (PPO's initial Gaussian), turned into PD targets by the flat baseline's
+velocity model at its 13.5 rad/s per unit (target += 13.5 a policy_dt, within the joint ranges):
+the harshest targets an untrained policy gives, whatever action model the configuration trains with. A robot diverges
 by the environment's own criterion (diverged). A proxy for MJX, which runs the same model in float32 (benchmarks/action_stability.py
 --sim mjx measures both; on AOF they agreed, benchmarks/RESULTS.md).
 """
@@ -19,6 +20,10 @@ from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 
 
+VELOCITY_ACTION_SCALE = 13.5
+"""rad/s per unit action of OmniIsaacGymEnvs' flat Anymal (the stress of divergence_times)."""
+
+
 def diverged(data: mujoco.MjData, max_speed: float) -> bool:
     """Whether a CPU MuJoCo simulation diverged, by the environment's criterion
     (EnvConfig.diverged_speed): a non-finite state or a generalised velocity past `max_speed`;
@@ -32,7 +37,7 @@ def divergence_times(config: EnvConfig, robots: int, seconds: float, seed: int =
     """Per robot, the time (s) at which its physics diverged, or None if it lasted `seconds`.
     Robots start from the build's stand keyframe at the default targets and are never reset
     (a fallen robot keeps being driven)."""
-    config = replace(config, action="velocity")
+    config = replace(config, action="velocity", action_scale=VELOCITY_ACTION_SCALE)
     robot = load_robot(config)
     model = robot.model
     rng = np.random.default_rng(seed)
