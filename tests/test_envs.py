@@ -452,7 +452,7 @@ def test_privileged_critic_observations(built):
     env = envs.make("flat", "ball", "B", build_dir=str(built["ball"][0]), privileged_critic=True,
                     pushes=replace(config.pushes, enabled=False))
     n = env.observation_size["state"][0]
-    assert n == 48 + 12 and env.observation_size["privileged_state"] == (n + 3 + 4 + 140 + 1,)  # + PD targets
+    assert n == 48 and env.observation_size["privileged_state"] == (n + 3 + 4 + 140 + 1,)
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     step = jax.jit(env.step)
     for _ in range(25):  # 0.5 s standing
