@@ -168,7 +168,7 @@ def test_feet_air_time_pays_touchdowns_after_long_enough_steps():
     touchdowns = []
     for contact in zip(lf, rf, [True] * len(lf), [True] * len(lf)):
         stub = SimpleNamespace(foot_contacts=lambda data, c=contact: jp.array(c),
-                               config=SimpleNamespace(policy_dt=dt))
+                               config=SimpleNamespace(policy_dt=dt, rewards=RewardConfig().with_scales(feet_air_time=1.0)))
         out = LocomotionEnv._feet_steps(stub, None, info)
         info = {k: out[k] for k in info}
         touchdowns.append(np.asarray(out["touchdown_air_time"]))

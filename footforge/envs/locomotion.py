@@ -417,7 +417,10 @@ class LocomotionEnv(Env):
     def _feet_steps(self, data, info) -> dict:
         """The feet's step state after a policy step, and each foot's air time on touching down
         (legged_gym's feet_air_time bookkeeping: a contact counts if seen this step or the last,
-        which bridges a one-step flicker of the contact)."""
+        which bridges a one-step flicker of the contact). Where the term is off (the rough task)
+        nothing is measured: the state stays at its start."""
+        if self.config.rewards.feet_air_time.scale == 0.0:  # decided when the step is traced
+            return {k: info[k] for k in self._no_steps()} | {"touchdown_air_time": jp.zeros(4)}
         contact = self.foot_contacts(data)
         touching = contact | info["feet_last_contact"]
         air = info["feet_air_time_s"] + self.config.policy_dt

@@ -66,7 +66,8 @@ trap 'kill $sampler ${pids[*]} 2>/dev/null' INT TERM EXIT
 for variant in "${variants[@]}"; do
     name="${feet}_${preset}_${variant//+/-}"
     echo "ablations: $name"
-    python3 "$repo/benchmarks/learning_cpu.py" --out "$work/$name" --feet "$feet" --preset "$preset" \
+    # A hard limit beside the budget: the stop acts only at an epoch's end, a hang must not outlive the call.
+    timeout "$(python3 -c "print(int($minutes * 60 + 240))")" python3 "$repo/benchmarks/learning_cpu.py" --out "$work/$name" --feet "$feet" --preset "$preset" \
         --variant "$variant" --num-envs "$num_envs" --unroll-length 24 --batch-size $((num_envs / 4)) --minibatches 4 \
         --timesteps 200000000 --eval-every 1000000 --no-evaluations --max-minutes "$minutes" \
         --build-dir "$kit/build/$feet" --no-verdict "${extra[@]}" >"$work/$name.log" 2>&1 &
