@@ -9,6 +9,7 @@ import pytest
 
 from footforge import constants as C
 from footforge.inputs.description import default_robot_description, load_description
+from footforge.mjcf.foot import collision_points
 
 ADAPTIVE = ("full", "aof", "aff")
 
@@ -147,8 +148,17 @@ def test_passive_dof_counts_and_sensors(built, variant):
             name = model.joint(j).name
             assert model.sensor(f"{name}_pos").type == mujoco.mjtSensor.mjSENS_JOINTPOS
             assert model.sensor(f"{name}_vel").type == mujoco.mjtSensor.mjSENS_JOINTVEL
-        assert model.site(f"{leg}_foot/touchdown") is not None
-    assert model.site("imu") is not None
+        # The touchdown site: under the ankle, at the depth of the foot's lowest collision point
+        # in the foot's root frame at the reference pose (qpos0).
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+        site = model.site(f"{leg}_foot/touchdown")
+        root = site.bodyid[0]
+        bodies = [model.body(b).name for b in range(model.nbody) if model.body(b).name.startswith(f"{leg}_foot/")]
+        local = (collision_points(model, data, bodies) - data.xpos[root]) @ data.xmat[root].reshape(3, 3)
+        np.testing.assert_allclose(site.pos, [0.0, 0.0, local[:, 2].min()], atol=1e-9)
+    # The IMU rides on the floating base.
+    assert model.site("imu").bodyid[0] == model.jnt_bodyid[model.joint(C.FLOATING_JOINT).id]
 
 
 def test_mjcf_on_disk_equals_model_in_memory(tmp_path):

@@ -214,5 +214,5 @@ def test_existing_default_builds_need_no_build_packages(tmp_path, monkeypatch):
     code = ("import sys; sys.modules.update(lxml=None, xacro=None, coacd=None, pinocchio=None); "
             "from footforge.cli.builds import build_defaults_if_missing; "
             "build_defaults_if_missing(['ball'], None); print('ok')")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr

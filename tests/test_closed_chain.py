@@ -8,8 +8,10 @@ import jax
 import jax.numpy as jp
 import numpy as np
 import pytest
+import mujoco
 from mujoco import mjx
 
+from footforge import constants as C
 from footforge import envs
 from footforge.rl import train
 from footforge.rl.evaluate_closed_chain import Controller, comparison_markdown, evaluate_closed_chain
@@ -58,6 +60,22 @@ def test_cpu_controller_matches_the_mjx_env(built, monkeypatch, task, policy):
                                     after.pipeline_state.actuator_force[None])
     np.testing.assert_allclose(obs[0], after.obs, atol=1e-5)
     np.testing.assert_allclose(info["command"][0], after.info["command"], atol=1e-6)
+    # Both sides call the same observation functions, so the proprioceptive block is also computed
+    # here by hand, from MuJoCo's own conventions (a free joint's linear velocity is in the world
+    # frame, its angular velocity in the body frame) and joints found by name.
+    q, v = np.asarray(after.pipeline_state.qpos), np.asarray(after.pipeline_state.qvel)
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, q[3:7])
+    rot = rot.reshape(3, 3)
+    model = env.robot.model
+    joints = [model.joint(name) for name in C.ACTUATED_JOINTS]
+    joint_q = np.array([q[j.qposadr[0]] for j in joints]) - np.array([C.DEFAULT_JOINT_ANGLES_RAD[n]
+                                                                         for n in C.ACTUATED_JOINTS])
+    joint_v = np.array([v[j.dofadr[0]] for j in joints])
+    by_hand = np.concatenate([2.0 * rot.T @ v[:3], 0.25 * v[3:6], rot.T @ [0.0, 0.0, -1.0],
+                              np.asarray(after.info["command"]) * [2.0, 2.0, 0.25], joint_q, 0.05 * joint_v,
+                              np.asarray(action)])
+    np.testing.assert_allclose(obs[0][:by_hand.size], by_hand, atol=1e-5)
     for ours, theirs in (("lin_vel_x_error", "error/lin_vel_x_per_step"), ("lin_vel_y_error", "error/lin_vel_y_per_step"),
                          ("yaw_rate_error", "error/yaw_rate_per_step"), ("base_height", "base_height_m_per_step")):
         assert row[ours][0] == pytest.approx(float(after.metrics[theirs]), abs=1e-5)

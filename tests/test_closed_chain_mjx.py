@@ -30,6 +30,7 @@ def _cpu_reference(rig_path, seconds: float) -> tuple[float, float]:
 
 
 @pytest.mark.slow  # compiling the closed chain's MJX step takes about a minute on 2 cores
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_the_closed_chain_steps_on_mjx_batched_and_stays_closed(built):
     folder = built["full"][0]
     run = subprocess.run([sys.executable, str(REPO / "benchmarks/closed_chain_mjx.py"), "--model", "rig", "--build",

@@ -18,13 +18,13 @@ import kit  # noqa: E402
 
 def test_run_sh_without_a_kit_is_a_usage_error(tmp_path):
     done = subprocess.run([str(REPO / "scripts/device/run.sh"), "--kit", str(tmp_path / "none"), "bench"],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "prepare.sh" in done.stderr
 
 
 def test_prepare_and_dryrun_refuse_extra_arguments():
     for script in ("prepare.sh", "dryrun.sh"):
-        done = subprocess.run([str(REPO / "scripts/device" / script), "a", "b"], capture_output=True, text=True)
+        done = subprocess.run([str(REPO / "scripts/device" / script), "a", "b"], capture_output=True, text=True, timeout=120)
         assert done.returncode == 2 and "usage" in done.stderr
 
 
@@ -62,6 +62,7 @@ def test_results_tarball_keeps_the_latest_checkpoint_and_unpacks(tmp_path):
 
 
 @pytest.mark.device_kit
+@pytest.mark.timeout(3600)  # installs a JAX stack from the package index: 20-25 minutes
 def test_cpu_dry_run_of_the_gpu_kit(tmp_path):
     """scripts/device/dryrun.sh: JAX 0.11.2 venv + the kit's wheels, train, resume, evaluate.
     Needs a package index and Python 3.12; 17-25 minutes on 2 busy cores (mostly installing and
@@ -81,8 +82,8 @@ def test_campaign_takes_a_spec_that_begins_with_an_option_and_refuses_an_unknown
     misspelt campaign option is still a usage error."""
     campaign = str(REPO / "scripts/device/campaign.sh")
     common = ["--kit", str(tmp_path / "none"), "--results", str(tmp_path / "out")]
-    done = subprocess.run([campaign, *common, "--resume x.tar.gz train-flat ball B"], capture_output=True, text=True)
+    done = subprocess.run([campaign, *common, "--resume x.tar.gz train-flat ball B"], capture_output=True, text=True, timeout=120)
     assert "unknown option" not in done.stderr
     assert done.returncode == 1 and "the kit did not install" in done.stderr  # it went on to the kit
-    done = subprocess.run([campaign, "--minute", "5", "train-flat ball B"], capture_output=True, text=True)
+    done = subprocess.run([campaign, "--minute", "5", "train-flat ball B"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "unknown option --minute" in done.stderr

@@ -292,6 +292,7 @@ def ten_second_stances(rollouts):
 
 
 @pytest.mark.slow  # 3 x 1000 single-robot steps
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_zero_action_robot_stands_a_whole_episode(zero_action_episodes, feet):
     """The flat task's robot, given zero actions, stays up for a full 20 s episode: no fall, no
@@ -301,6 +302,7 @@ def test_zero_action_robot_stands_a_whole_episode(zero_action_episodes, feet):
 
 
 @pytest.mark.slow  # shares the episodes above
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_the_default_environment_holds_a_robot_still(ten_second_stances, feet):
     """Issue 12's stance target in the default training environment (contact_model 'stance',
@@ -329,6 +331,7 @@ def test_the_build_contact_model_is_refused_without_a_converged_solve(built):
 
 
 @pytest.mark.slow  # two compiled environments at 16 Newton iterations: about 4 minutes on 2 cores
+@pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("feet", ["ball", "aof"])
 def test_zero_action_robot_holds_its_stance_with_the_build_contact(built, feet):
     """Issue 12's stance target in MJX with contact_model 'build' (the scene's elliptic contact,
@@ -430,6 +433,7 @@ def test_float64_physics_is_refused_without_jax_s_x64_mode(built):
 
 
 @pytest.mark.slow  # a subprocess (x64 is process-wide) compiling at 16 (AFF) or 30 (AOF) iterations: 4-6 minutes each
+@pytest.mark.timeout(1800)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("feet", ["aff", "aof"])
 def test_the_stance_contact_holds_an_adaptive_foot_robot_still_in_float64(built, feet):
     """Issue 12's stance target in the MJX training environment on the adaptive feet: the default
@@ -445,6 +449,7 @@ def test_the_stance_contact_holds_an_adaptive_foot_robot_still_in_float64(built,
 
 
 @pytest.mark.slow  # its own compiled environment: about 2 minutes on 2 cores
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_privileged_critic_observations(built):
     """EnvConfig.privileged_critic: Brax's dict observation, the policy's slice unchanged and the
     critic's extra slice physical: at rest the feet carry the robot's weight."""

@@ -249,6 +249,28 @@ def test_physical_bodies_are_sums_of_point_masses():
         np.testing.assert_allclose(j_points, j, rtol=1e-9, atol=1e-12 * np.abs(j).max())
 
 
-def test_codes_are_complete():
-    assert CODES == ("non_positive_mass", "non_finite", "not_symmetric", "not_positive_definite",
-                     "triangle_inequality", "pseudo_inertia_not_psd")
+def test_every_code_is_reachable_and_defects_come_in_the_order_of_codes():
+    """CODES lists what inertia_defects can say, in the order it says it: each code is produced by
+    a body built to break its criterion, and random bodies (physical or not) produce no other code
+    and list theirs in CODES order."""
+    asymmetric = box_inertia(1.0, 0.1, 0.2, 0.3)
+    asymmetric[0, 1] = 1e-4
+    made = {
+        "non_positive_mass": (-1.0, (0, 0, 0), box_inertia(1.0, 0.1, 0.1, 0.1)),
+        "non_finite": (1.0, (np.nan, 0, 0), box_inertia(1.0, 0.1, 0.1, 0.1)),
+        "not_symmetric": (1.0, (0, 0, 0), asymmetric),
+        "not_positive_definite": (1.0, (0, 0, 0), HATCH),
+        "triangle_inequality": (1.0, (0, 0, 0), np.diag([1.0, 1.0, 3.0])),  # 3 > 1 + 1
+        # Moments 1, 1, 3 about the COM: second moments (1 + 1 - 3) / 2 < 0 along z.
+        "pseudo_inertia_not_psd": (1.0, (0, 0, 0), np.diag([1.0, 1.0, 3.0])),
+    }
+    assert set(made) == set(CODES)
+    for code, body in made.items():
+        assert code in codes(inertia_defects(*body)), code
+    rng = np.random.default_rng(3)
+    seen = set()
+    for physical in (True, False) * 100:
+        found = codes(inertia_defects(*random_body(rng, physical=physical)[:3]))
+        assert [CODES.index(c) for c in found] == sorted(CODES.index(c) for c in found), found
+        seen.update(found)
+    assert seen <= set(CODES) and seen

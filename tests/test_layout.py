@@ -101,6 +101,6 @@ def test_the_package_exports_its_entry_points_lazily():
             "from footforge.rl.train import load_policy; "
             "assert footforge.BuildOptions is BuildOptions and footforge.make_env is make "
             "and footforge.load_policy is load_policy; print(sorted(footforge.__all__))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=120)
     assert out.returncode == 0, out.stderr
     assert "ValidateOptions" in out.stdout and "check_description" in out.stdout

@@ -56,6 +56,7 @@ def test_nothing_randomised_gives_no_function(built):
 
 
 @pytest.mark.slow  # compiles a batch of per-robot models: about 3 minutes on 2 cores
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_randomised_robots_step_with_their_own_physics(env):
     """Through Brax's wrapper each robot steps its own model: under the same PD gains a heavier
     robot sags lower (about 1.7 mm per kg at kp 80)."""

@@ -54,7 +54,8 @@ def test_render_writes_gif_and_strip_or_names_the_fix(tmp_path, backend):
     if "error" in result:  # a machine without this backend's library: the message says what to install
         assert f"MUJOCO_GL={backend}" in result["error"] and "libosmesa6" in result["error"]
         assert not list(tmp_path.iterdir())
-        return
+        pytest.skip(f"no MUJOCO_GL={backend} library on this machine (its message names the fix, checked): "
+                    f"frames not rendered")
     assert result == {"frames": 5, "offwidth": 64}  # every 2nd of 10; the caller's model unchanged
     with Image.open(tmp_path / "video.gif") as gif:
         assert (gif.n_frames, gif.size, gif.info["duration"], gif.info["loop"]) == (5, (96, 64), 100, 0)

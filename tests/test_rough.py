@@ -227,6 +227,7 @@ def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
     """Rough task, level 0 (flat platform), zero position actions in the default environment
@@ -244,6 +245,7 @@ def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
 
 
 @pytest.mark.contact_physics  # a subprocess per feet (x64 is process-wide), each compiling one rough environment: 3-6 minutes
+@pytest.mark.timeout(1800)
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_the_stance_holds_on_level_0_in_float64(built, feet):
     """Issue 12's stance target on the rough terrain's level 0 (the spawn platform), from the
@@ -261,6 +263,7 @@ def test_the_stance_holds_on_level_0_in_float64(built, feet):
 
 
 @pytest.mark.slow  # one rough environment compiled, 6 robots x 10 s: about 2 minutes
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_ball_robots_stand_on_level_0_in_float32(built):
     """The rough task's default physics (float32, contact_model 'stance') on level 0, from the
     `stand` keyframe, zero actions for 10 s: no ball robot falls on any of six tiles, and the
@@ -283,6 +286,7 @@ def test_ball_robots_stand_on_level_0_in_float32(built):
 
 
 @pytest.mark.slow  # one rough environment compiled per feet: about 1.5 minutes each
+@pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("feet", ["aff", "aof"])
 def test_the_adaptive_feet_stand_on_level_0_in_float32(built, feet):
     """Issue 12's stance target on level 0 in the rough task's default physics (float32,
@@ -326,6 +330,7 @@ def test_training_wrapper_keeps_the_state_of_ended_episodes():
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1500)  # explicit budget: several times its time on 2 quiet cores
 def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     """train_rough.py end to end with the robots split over two forced host devices (the
     multi-accelerator path), a perceptive policy on ball feet."""
@@ -337,7 +342,7 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
            "--build-root", str(built["ball"][0].parent), "--out", str(out), "--num-envs", "4", "--unroll-length", "4",
            "--batch-size", "4", "--minibatches", "1", "--eval-envs", "2", "--checkpoint-every", "16",
            "--timesteps", "32"]
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1200)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert (out / "terrain.png").stat().st_size > 10_000
     assert (out / "policy" / "footforge.json").is_file()
@@ -349,9 +354,9 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     # own is refused without --resume or --force).
     cmd[cmd.index("--out") + 1] = str(tmp_path / "other")
     bad = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--num-envs", "3", "--batch-size", "3"], env=env,
-                         capture_output=True, text=True)
+                         capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "multiple of the number of JAX devices" in bad.stderr
-    typo = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--terrain", "levels=3"], capture_output=True, text=True)
+    typo = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--terrain", "levels=3"], capture_output=True, text=True, timeout=300)
     assert typo.returncode == 2 and "FIELD one of num_levels" in typo.stderr
 
 
@@ -368,7 +373,7 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
     robots = SMALL.num_levels * SMALL.num_columns
     code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(tmp_path / "policy"),
                            "--num-envs", str(robots), "--seconds", "0.2", "--build-root",
-                           str(built["ball"][0].parent), "--out", str(report)], capture_output=True, text=True)
+                           str(built["ball"][0].parent), "--out", str(report)], capture_output=True, text=True, timeout=600)
     assert code.returncode == 0, code.stderr[-3000:]
     result = json.loads((report / "metrics.json").read_text())[0]
     assert result["task"] == "rough" and result["feet"] == "ball" and result["seconds"] == 0.2

@@ -75,6 +75,7 @@ def test_generator_reproduces_committed_files(tmp_path):
         check=True,
         capture_output=True,
         text=True,
+        timeout=300,
     )
     for name in TARGET_BOUNDS:
         committed = (MESH_DIR / f"{name}.stl").read_bytes()

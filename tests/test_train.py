@@ -129,17 +129,21 @@ def resumed(built, tmp_path_factory):
         assert proc.poll() is None, "training stopped before its second checkpoint"
         time.sleep(1)
     proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    killed_at, _ = latest_checkpoint(out)
+    proc.wait(timeout=60)
+    reached = latest_checkpoint(out)
+    assert reached is not None and reached[0] >= 64, (
+        f"no second checkpoint within 600 s (reached: {reached}): a machine too loaded for this fixture's budget")
+    killed_at, _ = reached
     assert not (out / "policy").exists()
     # Resume with the same options and a total just past the checkpoint: it must continue, not restart.
     done = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume"), env=env,
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     return out, killed_at
 
 
 @pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
+@pytest.mark.timeout(1500)  # explicit budget: several times its time on 2 quiet cores
 def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
     out, killed_at = resumed
     assert killed_at >= 64
@@ -148,11 +152,12 @@ def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
     assert (out / "tensorboard").is_dir() and len(list((out / "tensorboard").iterdir())) >= 2
     # Resuming with other options (here another seed) is refused, naming the option.
     other = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume", "--seed", "3"),
-                           capture_output=True, text=True)
+                           capture_output=True, text=True, timeout=900)
     assert other.returncode == 2 and "--seed 3 differs from the run's 0" in other.stderr
 
 
 @pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
+@pytest.mark.timeout(1500)  # explicit budget: several times its time on 2 quiet cores
 def test_saved_policy_loads_for_inference(resumed):
     out, _ = resumed
     policy, env_config, ppo = load_policy(out / "policy")
@@ -164,13 +169,14 @@ def test_saved_policy_loads_for_inference(resumed):
 
 
 @pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
+@pytest.mark.timeout(1500)  # explicit budget: several times its time on 2 quiet cores
 def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path):
     from footforge.rl.evaluate import INDICES
     out, _ = resumed
     report = tmp_path / "eval"
     code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(out / "policy"),
                            "--feet", "aff", "--num-envs", "2", "--seconds", "0.4", "--build-root",
-                           str(built["aff"][0].parent), "--out", str(report)], capture_output=True, text=True)
+                           str(built["aff"][0].parent), "--out", str(report)], capture_output=True, text=True, timeout=600)
     assert code.returncode == 0, code.stderr[-2000:]
     metrics = json.loads((report / "metrics.json").read_text())
     assert metrics[0]["feet"] == "aff" and metrics[0]["trained_on"] == "ball"  # the zero-shot case
@@ -187,6 +193,7 @@ def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 def test_privileged_critic_trains_and_its_policy_loads(built, tmp_path):
     """Brax PPO with the asymmetric critic: a tiny run, then the saved policy acts on the
     environment's dict observations and on the policy's slice alone."""
@@ -229,6 +236,7 @@ def test_initial_policy_of_a_privileged_critic_loads_and_acts(tmp_path):
 
 
 @pytest.mark.slow  # a real training stopped by its budget: about 3 minutes on 2 cores
+@pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("evaluations", [True, pytest.param(False, marks=pytest.mark.slow)])
 def test_time_budget_stops_at_a_checkpoint(built, tmp_path, evaluations):
     """--max-minutes: a run whose first epoch (compilation included) outlasts the budget stops
@@ -237,7 +245,7 @@ def test_time_budget_stops_at_a_checkpoint(built, tmp_path, evaluations):
     out = tmp_path / "run"
     done = subprocess.run(_train(out, built["ball"][0], 100_000, "--max-minutes", "0.05",
                                  *([] if evaluations else ["--no-evaluations"])),
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert "wall-time budget" in done.stdout
     assert "step 32/100,000" in done.stdout  # the plain progress line of a log (stdout is no terminal)
@@ -515,7 +523,7 @@ def test_training_errors_go_to_stderr(written_run):
     """The pipeline as a batch job runs it: the error on stderr, exit 2, nothing on stdout."""
     run, _, _ = written_run
     done = subprocess.run([sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--out", str(run)],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, timeout=900)
     assert done.returncode == 2 and done.stdout == ""
     assert "train_flat: error:" in done.stderr and "holds a training run" in done.stderr
 
@@ -584,6 +592,7 @@ def test_contact_model_flag_sets_the_model_s_physics_and_resume_keeps_it(written
 
 
 @pytest.mark.slow  # a subprocess (x64 is process-wide): a tiny ball run, about 2 minutes
+@pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 def test_training_with_float64_physics_keeps_the_networks_float32(built, tmp_path):
     """--float64-physics --contact-model stance: MJX steps in float64 (EnvConfig.float64_physics)
     while PPO's side stays float32 (the environment's policy_side, Brax's bookkeeping through

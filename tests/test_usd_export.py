@@ -140,7 +140,9 @@ def test_arch_spring_drives_give_the_tendon_torque_along_the_tendon(built):
         for i, drive in enumerate(drives):
             k = units.gain_per_rad(drive.GetStiffnessAttr().Get())
             target = units.deg_to_rad(drive.GetTargetPositionAttr().Get())
-            usd_torque = -k * (data.qpos[adr[i]] - target)
+            # A USD joint's angle is zero at qpos0 (the joint's `ref`: the closed chain is authored
+            # at its reference pose).
+            usd_torque = -k * (data.qpos[adr[i]] - model.qpos0[adr[i]] - target)
             assert usd_torque == pytest.approx(data.qfrc_spring[dof[i]], abs=1e-6)
 
 

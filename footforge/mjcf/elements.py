@@ -155,23 +155,39 @@ def add_geoms(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, assets: Mes
 
 
 def add_body_tree(parsed: ParsedURDF, root_body: mjcf.Element, assets: MeshAssets, *,
-                  joint_class, collision_geoms: Mapping[str, list[dict]] | None = None) -> dict[int, mjcf.Element]:
+                  joint_class, collision_geoms: Mapping[str, list[dict]] | None = None,
+                  reference: Mapping[str, float] | None = None) -> dict[int, mjcf.Element]:
     """Adds one MJCF body per Pinocchio joint below the root joint (id 1) under `root_body`, in
     URDF order: frame, inertial, joint (class `joint_class(joint_id)`), geoms.
+
+    `reference` (joint name -> angle in rad, or offset in m) is the pose the model is authored in:
+    each named hinge or slide gets MuJoCo's `ref` and its body is placed as at that value, so
+    qpos0 is that pose while a joint's qpos keeps the description's meaning (at qpos q the body
+    sits where the description puts it at q).
 
     Returns:
       Pinocchio joint id -> its MJCF body (the root joint maps to `root_body`).
     """
     model = parsed.model
     bodies = {1: root_body}
+    reference = reference or {}
 
     def add_subtree(joint_id: int) -> None:
         for child in children_in_urdf_order(parsed, joint_id):
             placement = model.jointPlacements[child]
+            name, kind = model.names[child], joint_kind(model.joints[child])
+            ref = reference.get(name, 0.0) if kind in ("hinge", "slide") else 0.0
+            if ref:
+                axis = joint_axis(model.joints[child])
+                motion = (pin.SE3(pin.exp3(axis * ref), np.zeros(3)) if kind == "hinge"
+                          else pin.SE3(np.eye(3), axis * ref))
+                placement = placement * motion
             body = bodies[joint_id].add("body", name=parsed.link_of(child), pos=np.array(placement.translation),
                                         quat=quat_wxyz(placement.rotation))
             body.add("inertial", **inertial_attributes(model.inertias[child]))
-            add_joint(body, parsed, child, dclass=joint_class(child))
+            joint = add_joint(body, parsed, child, dclass=joint_class(child))
+            if ref:
+                joint.ref = ref
             add_geoms(body, parsed, child, assets, collision_geoms=collision_geoms)
             bodies[child] = body
             add_subtree(child)

@@ -92,9 +92,13 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     assets = MeshAssets(root)
     hull_geoms = _hull_geoms(source, assets)
     families = source.families
+    q = source.reference.q
+    reference = {parsed.model.names[j]: float(q[parsed.model.joints[j].idx_q]) for j in families}
+    # Authored at the slack reference pose (joint `ref`): qpos0 satisfies the loop closures, so a
+    # model opened in a viewer starts consistent rather than snapping its chains shut.
     bodies = add_body_tree(parsed, _root_body(source, root, assets, hull_geoms), assets,
                            joint_class=lambda j: families[j] if families[j] in FAMILIES else None,
-                           collision_geoms=hull_geoms)
+                           collision_geoms=hull_geoms, reference=reference)
     full = source.params.full
     for c in sidecar.closures:
         sites = []
@@ -109,8 +113,12 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
         rc = sidecar.roll_coupling
         couplings.append((rc.joint, rc.follows, rc.multiplier, 0.0))
     for joint, follows, mult, offset in couplings:
+        # MuJoCo's joint equality couples offsets from qpos0: y - y0 = a0 + a1 (x - x0). With the
+        # bodies authored at the reference pose (y0, x0 its angles), joint = offset + mult * follows
+        # needs a0 = offset + mult * x0 - y0.
+        a0 = offset + mult * reference.get(follows, 0.0) - reference.get(joint, 0.0)
         root.equality.add("joint", name=f"couple_{joint}", joint1=joint, joint2=follows,
-                          polycoef=[offset, mult, 0, 0, 0], solref=list(full.closure_solref),
+                          polycoef=[a0, mult, 0, 0, 0], solref=list(full.closure_solref),
                           solimp=list(full.closure_solimp))
     if sidecar.arch_spring:
         s = sidecar.arch_spring
@@ -119,8 +127,6 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
             parsed.joint_id(joint)  # names an unknown joint clearly
             tendon.add("joint", joint=joint, coef=coef)
 
-    q = source.reference.q
-    reference = {parsed.model.names[j]: float(q[parsed.model.joints[j].idx_q]) for j in families}
     info = {"closure_error_at_reference_m": source.reference.closure_error_m,
             "chain_sag_at_reference_m": source.reference.chain_sag_m,
             "closures": len(sidecar.closures), "couplings": len(couplings)}

@@ -16,8 +16,9 @@ def build_rig(foot: FootModel | None, ball_radius: float | None, *, variant: str
               friction: float, mount_quat=None) -> BuiltModel:
     """One foot under a vertical slider carrying the payload, over a floor (the drop-test rig).
 
-    The slider's zero puts the foot mount at z = 0; keyframe 'reference' rests the foot's lowest
-    point on the floor with the foot at its reference pose. `mount_quat` (wxyz) tilts the foot
+    The slider's value is the foot mount's height (its zero puts the mount at z = 0); keyframe
+    'reference' rests the foot's lowest point on the floor with the foot at its reference pose,
+    and so does qpos0 (the carriage is authored there, the slider's `ref` keeps its meaning). `mount_quat` (wxyz) tilts the foot
     mount relative to the carriage: a leg meeting the ground at an angle.
     """
     root = mjcf.RootElement(model=f"foot_rig_{variant}")
@@ -25,7 +26,7 @@ def build_rig(foot: FootModel | None, ball_radius: float | None, *, variant: str
     add_default_classes(root, friction=friction, contact_solref=params.contact_solref_for(variant))
     add_floor(root)
     carriage = root.worldbody.add("body", name="carriage")
-    carriage.add("joint", name="slider", type="slide", axis=[0, 0, 1], damping=params.rig_slider_damping)
+    slider = carriage.add("joint", name="slider", type="slide", axis=[0, 0, 1], damping=params.rig_slider_damping)
     carriage.add("inertial", pos=[0, 0, 0.1], mass=params.rig_payload_mass, diaginertia=[0.05, 0.05, 0.05])
     carriage.add("geom", name="payload_visual", dclass="visual", type="box", size=[0.04, 0.04, 0.04],
                  pos=[0, 0, 0.1], rgba=[0.3, 0.3, 0.35, 1])
@@ -42,6 +43,8 @@ def build_rig(foot: FootModel | None, ball_radius: float | None, *, variant: str
         add_passive_sensors(rig_foot.mjcf, rig_foot.passive_joints)
         mount.attach(rig_foot.mjcf)
         lowest = foot.touchdown[2]
+    carriage.pos = [0.0, 0.0, -lowest]
+    slider.ref = -lowest
     mj = compile_model(root)
     qpos = mj.qpos0.copy()
     qpos[mj.jnt_qposadr[mj.joint("slider").id]] = -lowest

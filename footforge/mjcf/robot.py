@@ -100,6 +100,7 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
         j = root.find("joint", joint)
         root.actuator.add("position", name=joint, joint=j, dclass="leg_actuator", ctrlrange=j.range)
     _add_home_keyframe(root, foot)
+    _rest_qpos0_on_floor(root, base)
     if stand_keyframe:
         _add_stand_keyframe(root)
     return BuiltModel(root, "home")
@@ -132,6 +133,18 @@ def _add_home_keyframe(root: mjcf.RootElement, foot: FootModel | None) -> None:
     qpos[2] = -lowest
     ctrl = [C.DEFAULT_JOINT_ANGLES_RAD[mj.actuator(a).name] for a in range(mj.nu)]
     root.keyframe.add("key", name="home", qpos=qpos, ctrl=ctrl)
+
+
+def _rest_qpos0_on_floor(root: mjcf.RootElement, base: mjcf.Element) -> None:
+    """Authors the base where qpos0 (legs straight, the description's zero angles; feet at their
+    reference pose) rests the lowest collision point on z = 0: a model opened without a keyframe
+    (`python -m mujoco.viewer --mjcf scene.xml`) stands on its straight legs under zero PD targets
+    instead of starting with its legs through the floor."""
+    mj = compile_model(root)
+    data = mujoco.MjData(mj)
+    mujoco.mj_kinematics(mj, data)
+    lowest = collision_points(mj, data, [mj.body(b).name for b in range(1, mj.nbody)])[:, 2].min()
+    base.pos = [0.0, 0.0, -lowest]
 
 
 STAND_SETTLE_MAX_S = 5.0
