@@ -386,6 +386,22 @@ def test_an_existing_run_is_refused_without_resume_or_force(written_run, capsys)
     assert "exclude each other" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("task", ["flat", "rough"])
+def test_several_processes_are_refused_before_any_work(task, tmp_path, capsys):
+    """--coordinator: Brax 0.14.2's PPO does not train over several JAX processes on JAX 0.9
+    (footforge.cli.train.MULTI_PROCESS_UNSUPPORTED says how it fails); the command says so at once,
+    exit 2, and writes nothing (JAX's distributed service is never started)."""
+    import jax
+    from footforge.cli.train import main
+
+    out = tmp_path / "run"
+    assert main(task, "", ["--feet", "ball", "--out", str(out), "--coordinator", "127.0.0.1:1", "--num-processes", "2",
+                           "--process-id", "0", *TINY]) == 2
+    err = capsys.readouterr().err
+    assert "--coordinator" in err and "Brax 0.14.2" in err and "one machine" in err
+    assert not out.exists() and jax.process_count() == 1
+
+
 def test_force_removes_only_what_footforge_wrote(written_run):
     from footforge.rl import train
     from footforge.outputs import MARKER

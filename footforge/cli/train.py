@@ -60,8 +60,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                         "the evaluation pipelines")
     p.add_argument("--build-dir", type=Path, help=argparse.SUPPRESS)  # deprecated: the feet's build itself
     p.add_argument("--coordinator", metavar="HOST:PORT",
-                   help="several machines: the address of process 0 (with --num-processes and --process-id; "
-                        "under SLURM or Open MPI jax finds all three itself, pass --coordinator auto)")
+                   help="several machines (with --num-processes and --process-id): refused for now, exit 2: "
+                        "Brax 0.14.2's PPO does not train over several JAX processes on JAX 0.9 (see README); "
+                        "one machine's GPUs are all used without it")
     p.add_argument("--num-processes", type=int)
     p.add_argument("--process-id", type=int)
     if task == "rough":
@@ -90,16 +91,12 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
             if args.resume and args.force:
                 raise InputError("--resume and --force exclude each other: --resume continues the run in --out, "
                                  "--force starts it over", fix="pass one of them")
+            if args.coordinator:
+                raise InputError(MULTI_PROCESS_UNSUPPORTED, fix="train on one machine (Brax splits --num-envs over "
+                                                                "all its GPUs), or leave out --coordinator")
             env_config, ppo = _resumed_configs(task, args) if args.resume else _new_configs(task, args)
-            if not args.coordinator:  # the run folder now, before JAX compiles (train() checks again, and writes);
-                # on several machines only process 0 checks it, in train(), as the others start before or after it
-                train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
-            if args.coordinator:  # before any other use of jax: Brax's PPO then trains over every device of every process
-                import jax
-
-                jax.distributed.initialize(**({} if args.coordinator == "auto" else {
-                    "coordinator_address": args.coordinator, "num_processes": args.num_processes,
-                    "process_id": args.process_id}))
+            # The run folder now, before JAX compiles (train() checks again, and writes).
+            train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
             from footforge.cli.builds import build_defaults_if_missing
 
             build_defaults_if_missing([env_config.feet], Path(env_config.build_dir).parent if env_config.build_dir else None,
@@ -166,6 +163,15 @@ def _new_configs(task: str, args):
     if args.timesteps is not None:
         overrides["num_timesteps"] = args.timesteps
     return env_config, train.default_ppo(task, **overrides)
+
+
+MULTI_PROCESS_UNSUPPORTED = (
+    "--coordinator: training over several JAX processes does not work with the pinned Brax 0.14.2 and JAX "
+    "0.9.2 (measured with two processes on one machine, 2026-11-26): Brax's PPO averages its metrics "
+    "outside the compiled step on arrays that span every process's devices, which JAX 0.9's merged pmap "
+    "refuses ('CopyArrays only supports destination device list of the same size'); with the legacy pmap "
+    "(JAX_PMAP_SHMAP_MERGE=false, gone in JAX 0.10) both processes hang after the first checkpoint")
+"""Why `--coordinator` is refused (train_flat.py / train_rough.py exit 2 before any work)."""
 
 
 def _resumed_configs(task: str, args):

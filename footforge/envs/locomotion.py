@@ -84,7 +84,10 @@ class LocomotionEnv(Env):
         self.config = config
         self.robot = robot or load_robot(config)
         r = self.robot
-        self.sys = mjx.put_model(r.model, impl=config.mjx_impl)
+        # On this process's first device: MJX's default is jax.devices()[0], which on every process
+        # but the first of a multi-process run (--coordinator) is another machine's device, and
+        # JAX refuses to close a computation over such arrays.
+        self.sys = mjx.put_model(r.model, device=jax.local_devices()[0], impl=config.mjx_impl)
         if config.mjx_impl == "jax":  # MJX Warp collides heightfields its own way
             self.sys = fit_heightfield_subgrids(self.sys, r.model)
         self._n_passive = len(r.passive_qpos)
