@@ -415,9 +415,12 @@ def test_the_adaptive_feet_s_stance_diverges_under_actions_with_fewer_iterations
     minimum = anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64
     try:  # the refusal lifted, to show what it prevents
         anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = minimum | {"aff": (8, 16)}
-        fewer = divergence_times(replace(stance, solver_iterations=8), robots=8, seconds=8.0, seed=0)
+        fewer = divergence_times(replace(stance, solver_iterations=8), robots=16, seconds=8.0, seed=0)
     finally:
         anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = minimum
+    # Chaotic: which robots diverge changes with the last bit of the arithmetic (another CPU, another
+    # library build), so the test asks for 2 of 16 robots: at the lowest rate seen, 3 in 8, fewer
+    # than 2 of 16 has a binomial probability of 0.6 % (2 of 8: 6 %).
     assert sum(t is not None for t in fewer) >= 2, fewer
 
 
