@@ -26,7 +26,9 @@ ablations of 2026-11-26 ran before the defaults changed: their `position+fast` i
 - noclip:   the summed reward not clipped at zero;
 - airtime:  legged_gym's feet-air-time term at its scale 1.0 (RewardConfig.feet_air_time; not among
             the paper's terms, off by default);
-- stance / fast: the contact model (EnvConfig.contact_model) with its own physics step.
+- stance / fast: the contact model (EnvConfig.contact_model) with its own physics step;
+- airtime=X: the feet-air-time scale X (airtime=0: off, as runs from before the term trained);
+- entropy=X: PPO's entropy cost alone (e.g. entropy=0.001).
 
 Prints one line per training-episode log (steps, wall s, episode length, forward error, base height),
 then one JSON line: steps, wall_s, and the final policy's walking verdict (deterministic, 32 robots x
@@ -35,6 +37,7 @@ base_height_m, stance_fraction per foot, gait, clipped_fraction), then the curve
 
     python benchmarks/learning_cpu.py --out /tmp/l --preset forward --variant position --timesteps 3000000
     python benchmarks/learning_cpu.py --out /tmp/l --timesteps 5000000 --resume   # goes on
+    python benchmarks/learning_cpu.py --out /tmp/m --variant today+entropy=0.001 --init-from /tmp/l  # fine-tunes
 """
 
 from __future__ import annotations
@@ -50,7 +53,7 @@ from pathlib import Path
 
 PRESETS = ("forward", "full")
 TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards", "paper_rewards", "noclip",
-          "airtime", "stance", "fast")
+          "airtime", "airtime=X", "stance", "fast", "entropy=X")
 
 
 def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
@@ -87,6 +90,10 @@ def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
             cfg = replace(cfg, rewards=cfg.rewards.with_scales(feet_air_time=1.0))
         elif token == "noclip":
             cfg = replace(cfg, rewards=replace(cfg.rewards, clip_total_at_zero=False))
+        elif token.startswith("airtime="):  # the feet-air-time scale, e.g. airtime=0 (off)
+            cfg = replace(cfg, rewards=cfg.rewards.with_scales(feet_air_time=float(token.split("=", 1)[1])))
+        elif token.startswith("entropy="):  # PPO's entropy cost alone, e.g. entropy=0.001
+            ppo = replace(ppo, entropy_cost=float(token.split("=", 1)[1]))
         elif token in ("stance", "fast"):
             cfg = envs.with_contact_model(replace(cfg, **envs.physics(feet, token)), token)
         elif token != "today":
@@ -115,6 +122,9 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-minutes", type=float,
                    help="stop at the checkpoint before this wall time (train's max_wall_s)")
+    p.add_argument("--init-from", type=Path, metavar="RUN",
+                   help="a new run starting from RUN's newest checkpoint (train's init_from), with this "
+                        "command's --variant settings: fine-tuning")
     p.add_argument("--build-dir", type=Path, help="footforge build of the feet (default build/<feet>)")
     p.add_argument("--no-verdict", action="store_true",
                    help="skip the final policy's walking verdict (pipelines/evaluate.py measures it later)")
@@ -161,7 +171,7 @@ def main(argv=None) -> int:
         print(f"{step:>9,} | {time.time() - t0:6.0f} | {length:6.1f} | {err:.3f} | {height:.3f} | {src}", flush=True)
 
     train.train(cfg, ppo, args.out, progress=progress, resume=args.resume, evaluate=not args.no_evaluations,
-                max_wall_s=args.max_minutes * 60 if args.max_minutes else None)
+                max_wall_s=args.max_minutes * 60 if args.max_minutes else None, init_from=args.init_from)
     curve = []
     for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines()):
         key = "eval/" if "eval/episode_reward" in e else "episode/" if "episode/length" in e else None

@@ -8,11 +8,18 @@ import pytest
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 # The suite's compiled programs go to a compilation cache of its own (footforge/rl/compile_cache.py),
-# shared by its processes (the command-line tests compile the same tiny trainings several times)
-# and removed afterwards: a user's cache is neither read nor filled.
-_COMPILE_CACHE = tempfile.mkdtemp(prefix="footforge-test-jax-cache-")
+# used by this process and its subprocesses alike (the command-line tests compile the same tiny
+# trainings several times) and removed afterwards: a user's cache is neither read nor filled.
+# FOOTFORGE_TEST_COMPILE_CACHE names a folder to share between pytest sessions instead (CI's
+# default and slow runs; .ci/run makes it and removes it).
+_SHARED_CACHE = os.environ.get("FOOTFORGE_TEST_COMPILE_CACHE")
+_COMPILE_CACHE = _SHARED_CACHE or tempfile.mkdtemp(prefix="footforge-test-jax-cache-")
 os.environ["FOOTFORGE_COMPILE_CACHE"] = _COMPILE_CACHE
-atexit.register(shutil.rmtree, _COMPILE_CACHE, ignore_errors=True)
+if not _SHARED_CACHE:
+    atexit.register(shutil.rmtree, _COMPILE_CACHE, ignore_errors=True)
+from footforge.rl import compile_cache  # noqa: E402  (after FOOTFORGE_COMPILE_CACHE is set)
+
+compile_cache.enable()
 
 REPO = Path(__file__).resolve().parents[1]
 FOOT_XACRO = REPO / "descriptions/softfoot_q/urdf/softfoot_q.urdf.xacro"

@@ -211,3 +211,27 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, capsys, monk
     assert not [p for p in policy_dir.iterdir() if ".tmp" in p.name]
     assert main(["export", str(policy_dir), "--out", str(tmp_path / "new.onnx")]) == 2
     assert not (tmp_path / "new.onnx").exists() and not list(tmp_path.glob(".new*"))
+
+
+def test_a_file_footforge_did_not_write_is_never_replaced(tmp_path, capsys):
+    """--out naming a user's file (notes, or an ONNX model from elsewhere) is refused, exit 2, the
+    file untouched; footforge's own export is replaced; --force replaces anything."""
+    env_config = envs.default_config("flat", "ball", "B")
+    policy_dir = train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
+                                      tmp_path / "policy", observations.size(env_config, 0))
+    notes = tmp_path / "todo.txt"
+    notes.write_text("my notes")
+    foreign = tmp_path / "theirs.onnx"
+    onnx.save_model(onnx.helper.make_model(onnx.helper.make_graph([], "g", [], []), producer_name="someone"),
+                    str(foreign))
+    foreign_bytes = foreign.read_bytes()
+    for path in (notes, foreign):
+        assert main(["export", str(policy_dir), "--out", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert "not an ONNX policy footforge wrote" in err and "--force" in err and "Traceback" not in err
+    assert notes.read_text() == "my notes" and foreign.read_bytes() == foreign_bytes
+    ours = tmp_path / "ours.onnx"
+    assert main(["export", str(policy_dir), "--out", str(ours)]) == 0
+    assert main(["export", str(policy_dir), "--out", str(ours)]) == 0  # footforge's own: replaced
+    assert main(["export", str(policy_dir), "--out", str(notes), "--force"]) == 0
+    assert onnx.load(str(notes)).producer_name == "footforge"

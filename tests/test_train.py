@@ -402,6 +402,40 @@ def test_several_processes_are_refused_before_any_work(task, tmp_path, capsys):
     assert not out.exists() and jax.process_count() == 1
 
 
+def test_init_from_hands_the_source_s_newest_parameters_to_brax(written_run, tmp_path, monkeypatch):
+    """A new run initialised from another: Brax's PPO receives the source's newest checkpoint (step
+    64, parameters of seed 64) as restore_params, under the new run's own settings; the run records
+    its source. Networks that do not fit, or --resume beside it, are refused before any folder is
+    written. (Brax's restoring itself is what --resume's tests train through.)"""
+    from dataclasses import replace
+
+    from brax.training.agents.ppo import train as ppo_train
+
+    from footforge.rl import train
+
+    run, cfg, ppo = written_run
+    seen = {}
+    monkeypatch.setattr(ppo_train, "train", lambda **kwargs: seen.update(kwargs))
+    tuned = replace(ppo, entropy_cost=0.001, learning_rate=1e-4)
+    train.train(cfg, tuned, tmp_path / "tuned", init_from=run, notice=lambda text: None)
+    restored, expected = jax.tree_util.tree_leaves(seen["restore_params"]), jax.tree_util.tree_leaves(_params(64, ppo))
+    assert len(restored) == len(expected) > 0
+    for a, b in zip(restored, expected):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert seen["entropy_cost"] == 0.001 and seen["learning_rate"] == 1e-4
+    config = json.loads((tmp_path / "tuned" / "config.json").read_text())
+    assert config["initialised_from"] == {"run": str(run), "step": 64}
+    assert config["ppo"]["entropy_cost"] == 0.001
+    with pytest.raises(InputError, match=r"policy_hidden_layers \(8,\) there, \(16,\) here"):
+        train.train(cfg, replace(ppo, policy_hidden_layers=(16,)), tmp_path / "other", init_from=run)
+    with pytest.raises(InputError, match="observation width 48 there, 60 here"):
+        train.train(replace(cfg, observations=replace(cfg.observations, pd_targets=True)), ppo, tmp_path / "other",
+                    init_from=run)
+    with pytest.raises(InputError, match="--resume continues"):
+        train.train(cfg, ppo, tmp_path / "other", init_from=run, resume=True)
+    assert not (tmp_path / "other").exists()
+
+
 def test_force_removes_only_what_footforge_wrote(written_run):
     from footforge.rl import train
     from footforge.outputs import MARKER

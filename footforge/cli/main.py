@@ -135,7 +135,9 @@ def _parser() -> argparse.ArgumentParser:
 
     e = sub.add_parser("export", help="write a trained policy as ONNX (normaliser inside, metadata for deployment)")
     e.add_argument("policy_dir", type=Path, metavar="POLICY_DIR", help="the policy/ folder of a training run")
-    e.add_argument("--out", type=Path, metavar="FILE.onnx", help="output file (default POLICY_DIR/policy.onnx)")
+    e.add_argument("--out", type=Path, metavar="FILE.onnx", help="output file (default POLICY_DIR/policy.onnx); an "
+                   "existing file is replaced only where footforge exported it")
+    e.add_argument("--force", action="store_true", help="replace --out even if footforge did not write it")
     return p
 
 
@@ -277,7 +279,7 @@ def _run_check(args, console) -> int:
 def _run_export(args, console) -> int:
     from footforge.rl.export_onnx import export
 
-    out = export(args.policy_dir, args.out)
+    out = export(args.policy_dir, args.out, force=args.force)
     console.print(f"policy written to {out}", markup=False, highlight=False, soft_wrap=True)
     return EXIT_OK
 

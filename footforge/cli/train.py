@@ -59,6 +59,10 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/), as in "
                         "the evaluation pipelines")
     p.add_argument("--build-dir", type=Path, help=argparse.SUPPRESS)  # deprecated: the feet's build itself
+    p.add_argument("--init-from", type=Path, metavar="RUN",
+                   help="start this new run from the newest intact checkpoint of an earlier run (its policy, "
+                        "value and normaliser) with this run's own settings: fine-tuning with other PPO settings, "
+                        "rewards or feet; the networks must match")
     p.add_argument("--coordinator", metavar="HOST:PORT",
                    help="several machines (with --num-processes and --process-id): refused for now, exit 2: "
                         "Brax 0.14.2's PPO does not train over several JAX processes on JAX 0.9 (see README); "
@@ -94,6 +98,9 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
             if args.coordinator:
                 raise InputError(MULTI_PROCESS_UNSUPPORTED, fix="train on one machine (Brax splits --num-envs over "
                                                                 "all its GPUs), or leave out --coordinator")
+            if args.resume and args.init_from:
+                raise InputError("--init-from starts a new run from another run's parameters; --resume continues "
+                                 "the run in --out", fix="pass one of them")
             env_config, ppo = _resumed_configs(task, args) if args.resume else _new_configs(task, args)
             # The run folder now, before JAX compiles (train() checks again, and writes).
             train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
@@ -112,7 +119,7 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
             with _Reporter(console, task, ppo.num_timesteps) as report:
                 metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
                                       max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None,
-                                      evaluate=not args.no_evaluations)
+                                      evaluate=not args.no_evaluations, init_from=args.init_from)
     except FootforgeError as e:
         print(f"{name}: error: {e}", file=sys.stderr)
         return e.exit_code

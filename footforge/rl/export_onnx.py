@@ -47,14 +47,15 @@ METADATA_KEYS = ("footforge_version", "task", "feet", "policy_type", "global_ste
                  "decimation", "observation", "network")
 
 
-def export(policy_dir: Path, out: Path | None = None) -> Path:
+def export(policy_dir: Path, out: Path | None = None, *, force: bool = False) -> Path:
     """Writes `policy_dir`'s policy as ONNX to `out` (default POLICY_DIR/policy.onnx), whole or
-    not at all. Returns the path written.
+    not at all. Returns the path written. An existing `out` is replaced only where footforge wrote
+    it (an ONNX model whose producer is footforge) or with `force`.
 
     Raises:
       InputError: the folder is missing or holds no footforge policy, its checkpoint cannot be
         read or its network is of a kind this exporter does not translate, or `out` cannot be
-        written.
+        written, or is a file footforge did not write (without `force`).
     """
     import onnx
 
@@ -67,6 +68,9 @@ def export(policy_dir: Path, out: Path | None = None) -> Path:
                          fix="pass the policy/ folder of a train_flat.py or train_rough.py run")
     out = Path(out) if out is not None else policy_dir / DEFAULT_FILE
     check_output_file(out)
+    if out.exists() and not force and not _written_by_footforge(out):
+        raise InputError("exists and is not an ONNX policy footforge wrote; footforge does not replace it",
+                         file=str(out), fix="give another --out, or pass --force to replace it")
     model = build_model(policy_dir)
     try:
         with atomic_file(out) as tmp:
@@ -75,6 +79,16 @@ def export(policy_dir: Path, out: Path | None = None) -> Path:
         raise InputError(f"cannot be written: {e.strerror or e}", file=str(out),
                          fix="choose a writable --out path") from None
     return out
+
+
+def _written_by_footforge(path: Path) -> bool:
+    """Whether `path` is an ONNX model footforge exported (its producer_name)."""
+    import onnx
+
+    try:
+        return onnx.load(str(path), load_external_data=False).producer_name == "footforge"
+    except Exception:  # not ONNX at all (a text file, an image): not ours
+        return False
 
 
 def build_model(policy_dir: Path):

@@ -465,6 +465,35 @@ def _check_run_settings(ppo: PPOConfig, max_wall_s: float | None) -> None:
                          fix=f"e.g. --num-envs {ppo.num_envs - ppo.num_envs % jax.device_count() or jax.device_count()}")
 
 
+def _initialisation(source: Path, env_config: EnvConfig, ppo: PPOConfig, notice):
+    """(step, parameters) of the newest intact checkpoint of run `source`, refused where its
+    networks cannot be this run's: other observations (policy type, PD targets, height scan, a
+    haptic policy on other feet), another critic, other hidden layers or observation normalising."""
+    from footforge.envs import observations
+
+    source_env, source_ppo = load_run_config(source)
+    problems = []
+    if (source_env.haptic or env_config.haptic) and source_env.feet != env_config.feet:
+        problems.append(f"a haptic policy reads its feet's joints: feet {source_env.feet} there, {env_config.feet} here")
+    else:
+        widths = observations.size(source_env, 16), observations.size(env_config, 16)
+        if widths[0] != widths[1]:
+            problems.append(f"observation width {widths[0]} there, {widths[1]} here (policy {source_env.policy} / "
+                            f"{env_config.policy})")
+    for name in ("policy_hidden_layers", "value_hidden_layers", "normalize_observations"):
+        if getattr(source_ppo, name) != getattr(ppo, name):
+            problems.append(f"{name} {getattr(source_ppo, name)} there, {getattr(ppo, name)} here")
+    if source_env.privileged_critic != env_config.privileged_critic:
+        problems.append(f"privileged_critic {source_env.privileged_critic} there, {env_config.privileged_critic} here")
+    if problems:
+        raise InputError(f"--init-from {source}: its networks do not fit this run: {'; '.join(problems)}",
+                         file=str(source / "config.json"), fix="start from a run with the same networks, or without "
+                                                                "--init-from")
+    step, params = _resume_point(source, notice, set_aside=False)
+    notice(f"starting from the parameters of {source} at step {step:,}")
+    return step, params
+
+
 def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, primary: bool):
     """(steps done, the checkpoint to restore, the number of this resume, training seconds so far)
     of the run in run_dir, refused where it was started with other settings."""
@@ -501,7 +530,7 @@ def _write_policy(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, this_mac
 
 def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False, force: bool = False,
           progress: Callable[[int, int, dict, bool], None] | None = None, max_wall_s: float | None = None,
-          notice: Callable[[str], None] | None = None, evaluate: bool = True) -> dict:
+          notice: Callable[[str], None] | None = None, evaluate: bool = True, init_from: Path | None = None) -> dict:
     """Trains a policy; writes checkpoints, TensorBoard logs and the final policy into run_dir.
 
     Returns the final metrics. `progress(global_step, total_steps, metrics, evaluation)` is called
@@ -518,10 +547,15 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     from the training episodes (episode/...: the stochastic policy), and pipelines/evaluate.py
     evaluates the policy afterwards. A run-time choice, not a setting of the run: it changes
     nothing that is learned, and a resumed run may choose again.
+    `init_from`: a new run starts from the newest intact checkpoint of that earlier run (its
+    normaliser, policy and value parameters, the policy's exploration deviation included), with
+    settings of its own: fine-tuning with other PPO settings, rewards or feet. Its step count
+    starts at 0; config.json records the source as "initialised_from". Brax starts Adam afresh.
 
     Raises:
       InputError: bad hyperparameters; a run folder that needs --resume or --force; --resume
-        without an intact checkpoint or with other configs.
+        without an intact checkpoint or with other configs; `init_from` with `resume`, or a source
+        whose networks do not fit this run.
     """
     from brax.training.agents.ppo import train as ppo_train
     from tensorboardX import SummaryWriter
@@ -543,14 +577,23 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     # On several machines only process 0 writes (Brax saves and evaluates there alone).
     primary = jax.process_index() == 0
     # Only process 0 checks the folder: the others may look before or after it wrote its marker.
+    offset, restore, resumes, wall_s_before = 0, None, 0, 0.0
+    origin = {}
+    if init_from is not None:  # before the run folder is touched
+        if resume:
+            raise InputError("--init-from starts a new run from another run's parameters; --resume continues "
+                             "this one", fix="give one of them")
+        step, restore = _initialisation(Path(init_from), env_config, ppo, notice)
+        origin = {"initialised_from": {"run": os.path.abspath(init_from), "step": step}}
     run_dir = prepare_run_dir(run_dir, resume=resume, force=force, notice=notice) if primary else \
         Path(os.path.abspath(run_dir))
     state_file = run_dir / "progress.json"
-    offset, restore, resumes, wall_s_before = 0, None, 0, 0.0
     if resume:
         offset, restore, resumes, wall_s_before = _resume_state(run_dir, env_config, ppo, notice, primary)
+        origin = {k: v for k, v in json.loads((run_dir / "config.json").read_text()).items()
+                  if k == "initialised_from"}
     if primary:
-        _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)})
+        _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)} | origin)
     remaining = ppo.num_timesteps - offset
     if remaining <= 0:
         return json.loads(state_file.read_text()).get("metrics", {}) if state_file.exists() else {}
