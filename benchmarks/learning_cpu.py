@@ -56,6 +56,15 @@ TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards
           "airtime", "airtime=X", "stance", "fast", "entropy=X")
 
 
+def _valued_token(token: str) -> bool:
+    """A NAME=X token (airtime=X, entropy=X) with a number for X."""
+    name, _, value = token.partition("=")
+    try:
+        return f"{name}=X" in TOKENS and float(value) >= 0
+    except ValueError:
+        return False
+
+
 def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
     """(EnvConfig, PPOConfig) of a preset and a '+'-joined variant (see the module's docstring)."""
     from footforge import envs
@@ -135,7 +144,7 @@ def main(argv=None) -> int:
         p.error(f"--resume: --out {args.out} holds no run to continue")
     if args.max_minutes is not None and args.max_minutes <= 0:
         p.error(f"--max-minutes must be positive, got {args.max_minutes:g}")
-    bad = [t for t in args.variant.split("+") if t not in TOKENS]
+    bad = [t for t in args.variant.split("+") if t not in TOKENS and not _valued_token(t)]
     if bad:
         p.error(f"--variant: unknown token(s) {', '.join(bad)} (known: {', '.join(TOKENS)})")
 

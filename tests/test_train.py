@@ -417,7 +417,8 @@ def test_init_from_hands_the_source_s_newest_parameters_to_brax(written_run, tmp
     seen = {}
     monkeypatch.setattr(ppo_train, "train", lambda **kwargs: seen.update(kwargs))
     tuned = replace(ppo, entropy_cost=0.001, learning_rate=1e-4)
-    train.train(cfg, tuned, tmp_path / "tuned", init_from=run, notice=lambda text: None)
+    monkeypatch.chdir(run.parent)  # a relative source, as a user types it (orbax wants absolute paths)
+    train.train(cfg, tuned, tmp_path / "tuned", init_from=Path(run.name), notice=lambda text: None)
     restored, expected = jax.tree_util.tree_leaves(seen["restore_params"]), jax.tree_util.tree_leaves(_params(64, ppo))
     assert len(restored) == len(expected) > 0
     for a, b in zip(restored, expected):

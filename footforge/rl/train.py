@@ -288,7 +288,7 @@ def checkpoint_problem(folder: Path, *, read: bool = True) -> str | None:
 def _load_params(folder: Path):
     from brax.training.agents.ppo import checkpoint as brax_checkpoint
 
-    return brax_checkpoint.load(str(folder))
+    return brax_checkpoint.load(os.path.abspath(folder))  # orbax refuses a relative path
 
 
 def latest_intact_checkpoint(run_dir: Path, *, read: bool = False) -> tuple[int, Path] | None:
