@@ -128,9 +128,7 @@ def _add_home_keyframe(root: mjcf.RootElement, foot: FootModel | None) -> None:
     for adr, value in foot_reference_qpos(mj, foot, C.FOOT_MODEL_NAME + "/").items():
         qpos[adr] = value
     data.qpos[:] = qpos
-    mujoco.mj_kinematics(mj, data)
-    lowest = collision_points(mj, data, [mj.body(b).name for b in range(1, mj.nbody)])[:, 2].min()
-    qpos[2] = -lowest
+    qpos[2] = -_lowest_collision_z(mj, data)
     ctrl = [C.DEFAULT_JOINT_ANGLES_RAD[mj.actuator(a).name] for a in range(mj.nu)]
     root.keyframe.add("key", name="home", qpos=qpos, ctrl=ctrl)
 
@@ -141,10 +139,13 @@ def _rest_qpos0_on_floor(root: mjcf.RootElement, base: mjcf.Element) -> None:
     (`python -m mujoco.viewer --mjcf scene.xml`) stands on its straight legs under zero PD targets
     instead of starting with its legs through the floor."""
     mj = compile_model(root)
-    data = mujoco.MjData(mj)
+    base.pos = [0.0, 0.0, -_lowest_collision_z(mj, mujoco.MjData(mj))]
+
+
+def _lowest_collision_z(mj: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Height of the robot's lowest collision point at data.qpos, m."""
     mujoco.mj_kinematics(mj, data)
-    lowest = collision_points(mj, data, [mj.body(b).name for b in range(1, mj.nbody)])[:, 2].min()
-    base.pos = [0.0, 0.0, -lowest]
+    return float(collision_points(mj, data, [mj.body(b).name for b in range(1, mj.nbody)])[:, 2].min())
 
 
 STAND_SETTLE_MAX_S = 5.0
