@@ -216,3 +216,82 @@ def test_existing_default_builds_need_no_build_packages(tmp_path, monkeypatch):
             "build_defaults_if_missing(['ball'], None); print('ok')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
+
+
+# --- one command for every job: footforge <job>, and pipelines/*.py as its shims ---
+
+JOBS = ("build", "validate", "check", "train", "evaluate", "evaluate-closed-chain", "play", "export")
+
+
+def test_help_lists_every_job_in_one_line_each(capsys):
+    code, text = run(capsys, "--help")
+    assert code == 0
+    listed = [line.split()[0] for line in text.splitlines() if line.startswith("    ") and line.split()]
+    assert [job for job in listed if job in JOBS] == list(JOBS)
+
+
+@pytest.mark.parametrize("job, first_option", [("evaluate", "--policy"), ("evaluate-closed-chain", "--robots"),
+                                               ("play", "--headless"), ("train flat", "--feet"),
+                                               ("train rough", "--terrain")])
+def test_each_job_has_its_own_help(capsys, job, first_option):
+    code, text = run(capsys, *job.split(), "--help")
+    assert code == 0 and f"usage: footforge {job} " in text and first_option in text
+
+
+def test_train_without_a_task_is_a_usage_error(capsys):
+    code, text = run(capsys, "train", "--feet", "ball", "--out", "runs/x")
+    assert code == 2 and "one of flat, rough" in text and "(got '--feet')" in text
+    code, text = run(capsys, "train", "--help")
+    assert code == 0 and "footforge train {flat,rough}" in text
+
+
+def test_a_job_reports_bad_input_with_its_exit_code(capsys, tmp_path):
+    """The delegated jobs keep their own checks: a policy folder that does not exist is exit 2."""
+    code, text = run(capsys, "evaluate", "--policy", tmp_path / "none", "--out", tmp_path / "eval")
+    assert code == 2 and f"{tmp_path / 'none'}" in text and not (tmp_path / "eval").exists()
+
+
+@pytest.mark.parametrize("script, job", [("evaluate", "evaluate"), ("evaluate_closed_chain", "evaluate-closed-chain"),
+                                         ("play", "play"), ("train_flat", "train flat"), ("train_rough", "train rough")])
+def test_pipeline_scripts_run_the_same_jobs(script, job):
+    """pipelines/<script>.py, run by path as people do, is footforge <job>: the same options."""
+    import subprocess
+    import sys
+
+    def options(cmd):
+        out = subprocess.run(cmd + ["--help"], capture_output=True, text=True, cwd=REPO, timeout=120)
+        assert out.returncode == 0, out.stderr
+        return sorted({word.strip("[],") for word in out.stdout.split() if word.startswith(("--", "[--"))})
+
+    assert options([sys.executable, str(REPO / "pipelines" / f"{script}.py")]) == \
+        options([sys.executable, "-m", "footforge.cli", *job.split()])
+
+
+def test_every_option_of_every_job_says_what_it_does_and_its_default():
+    """Each option has help; an option with a default value (not a flag, not None for "not given")
+    shows that value in its help."""
+    import argparse
+
+    from footforge.cli.main import parsers
+
+    jobs = parsers()
+    assert set(jobs) == {"build", "validate", "check", "export", "evaluate", "evaluate-closed-chain", "play",
+                         "train flat", "train rough"}
+    missing = []
+    for job, parser in jobs.items():
+        assert parser.description, job
+        text = parser.format_help()
+        for action in parser._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            name = "/".join(action.option_strings) or action.dest
+            if not action.help:
+                missing.append(f"{job} {name}: no help")
+            elif (action.option_strings and action.default not in (None, [], argparse.SUPPRESS)
+                  and not isinstance(action.default, bool)):
+                values = action.default if isinstance(action.default, list) else [action.default]
+                flat = " ".join(text.split())
+                for value in map(str, values):  # 10.0 may be written 10
+                    if value not in flat and (value.rstrip("0").rstrip(".") if "." in value else value) not in flat:
+                        missing.append(f"{job} {name}: default {value} not shown")
+    assert not missing, "\n".join(missing)

@@ -1,4 +1,7 @@
-"""The `footforge` command line: a thin layer over footforge.build, footforge.build.check and footforge.rl.export_onnx.
+"""The `footforge` command line: one command for every job, a thin layer over the library.
+
+build, validate, check and export are parsed here; train, evaluate, evaluate-closed-chain and play
+have their own modules beside this one (footforge/cli/), which pipelines/*.py also run.
 
 Exit codes: 0 success, 1 check failures, 2 usage or input errors. Errors print as messages
 that name the file, the element and the fix; `--verbose` adds the traceback.
@@ -21,6 +24,12 @@ from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET
 
 
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        from footforge.cli.help import DefaultsHelpFormatter
+
+        kwargs.setdefault("formatter_class", DefaultsHelpFormatter)
+        super().__init__(*args, **kwargs)
+
     def error(self, message):  # argparse's usage errors exit 2, as ours do
         self.print_usage(sys.stderr)
         self.exit(EXIT_INPUT_ERROR, f"footforge: error: {message}\n")
@@ -86,15 +95,78 @@ def _description_options(args) -> dict:
                                                   timeout_s=args.coacd_timeout, face_budget=args.face_budget))
 
 
+def _train(argv: list[str]) -> int:
+    from footforge.cli.train import DESCRIPTIONS, main
+    from footforge.envs import TASKS
+
+    if not argv or argv[0] not in TASKS:
+        usage = f"usage: footforge train {{{','.join(TASKS)}}} [options]   (footforge train flat --help lists them)"
+        if argv and argv[0] in ("-h", "--help"):
+            print(usage + "\n\nTrain a policy with Brax PPO on MuJoCo MJX: flat is the paper's flat-ground task, "
+                  "rough its terrain curriculum.")
+            return EXIT_OK
+        print(usage, file=sys.stderr)
+        print(f"footforge train: error: the first argument is the task, one of {', '.join(TASKS)}"
+              + (f" (got '{argv[0]}')" if argv else ""), file=sys.stderr)
+        return EXIT_INPUT_ERROR
+    task = argv[0]
+    return main(task, DESCRIPTIONS[task], argv[1:], prog=f"footforge train {task}")
+
+
+def _delegate(module: str):
+    def run(argv: list[str]) -> int:
+        import importlib
+
+        return importlib.import_module(f"footforge.cli.{module}").main(argv)
+    return run
+
+
+DELEGATED = {
+    "train": (_train, "train a policy: footforge train flat|rough [options] (Brax PPO on MJX)"),
+    "evaluate": (_delegate("evaluate"), "the paper's indices and the walking verdict of trained policies, "
+                                        "on any feet; policy card, plots, GIF"),
+    "evaluate-closed-chain": (_delegate("evaluate_closed_chain"),
+                              "run trained policies on the 34-joint closed-chain feet (CPU MuJoCo)"),
+    "play": (_delegate("play"), "watch a trained policy walk: MuJoCo's viewer with keyboard commands, or headless "
+                                "with a GIF"),
+}
+"""Subcommands with their own argument parsers: footforge <name> ARGS runs run(ARGS)."""
+
+
+def parsers() -> dict[str, argparse.ArgumentParser]:
+    """Every job's argument parser by its command words ("build", ..., "train flat", "train rough"):
+    what the help of each shows."""
+    import importlib
+
+    from footforge.cli import train
+    from footforge.envs import TASKS
+
+    top = _parser()
+    jobs = next(a for a in top._actions if isinstance(a, argparse._SubParsersAction)).choices
+    found = {name: p for name, p in jobs.items() if name not in DELEGATED}
+    for name in DELEGATED:
+        if name == "train":
+            found |= {f"train {task}": train.parser(task, train.DESCRIPTIONS[task], f"footforge train {task}")
+                      for task in TASKS}
+        else:
+            found[name] = importlib.import_module(f"footforge.cli.{name.replace('-', '_')}").parser()
+    return found
+
+
 def _parser() -> argparse.ArgumentParser:
     from footforge.build import VARIANTS
+    from footforge.validate.scenarios import QUICK, SCENARIOS
 
     p = _Parser(prog="footforge", description=__doc__.splitlines()[0])
     p.add_argument("--verbose", action="store_true", help="print tracebacks on errors")
     p.add_argument("--version", action="version", version=f"footforge {_versions()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    b = sub.add_parser("build", help="build MJCF models of ANYmal C with a foot variant")
+    b = sub.add_parser("build", help="build MJCF models of ANYmal C with a foot variant",
+                       description="Build ANYmal C with a foot variant: MuJoCo MJCF (robot.xml, scene.xml with "
+                                   "keyframes home and stand, foot_rig.xml) and USD for Isaac Sim, from the "
+                                   "SoftFoot-Q description or yours; mass properties checked against the closed "
+                                   "chain with Pinocchio; collision hulls by CoACD (cached). About a minute on 2 cores.")
     b.add_argument("--variant", required=True, choices=VARIANTS,
                    help="full: 34-joint closed chain; aof: split sole, 4 passive DOF; aff: flat sole, "
                         "2 passive DOF; ball: ANYmal C's standard foot")
@@ -108,10 +180,15 @@ def _parser() -> argparse.ArgumentParser:
                                             "wrote it (or it is empty), see --force")
     b.add_argument("--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)")
 
-    v = sub.add_parser("validate", help="drop tests of AFF/AOF/ball against the closed chain; fidelity report")
+    v = sub.add_parser("validate", help="drop tests of AFF/AOF/ball against the closed chain; fidelity report",
+                       description="Drop each variant's foot on its test rig onto the scenarios' grounds beside "
+                                   "the 34-joint closed chain, and compare contact force, peak, final height, "
+                                   "orientation, centre of pressure and slip against thresholds. Exit 1 when a "
+                                   "variant fails a threshold.")
     v.add_argument("--variant", default="all", help="aof, aff, ball, a comma-separated list, or all (default)")
     v.add_argument("--scenarios", nargs="+", default=["quick"], metavar="NAME",
-                   help="quick (6, default), all (26), or scenario names")
+                   help=f"quick (default: {', '.join(QUICK)}), all ({len(SCENARIOS)}: {', '.join(s.name for s in SCENARIOS)}),"
+                        " or scenario names")
     v.add_argument("--calibrate", action="store_true",
                    help="fit the AFF/AOF springs, dampers and sole lift on a training subset and write them "
                         "to the parameter file")
@@ -127,13 +204,21 @@ def _parser() -> argparse.ArgumentParser:
                    help="report folder (default validation/); replaced only if footforge wrote it, see --force")
     v.add_argument("--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)")
 
-    c = sub.add_parser("check", help="report physical and structural defects of a URDF or xacro")
-    c.add_argument("path", type=Path)
-    c.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR")
-    c.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE")
+    c = sub.add_parser("check", help="report physical and structural defects of a URDF or xacro",
+                       description="Lint a URDF or xacro (inertias, masses, joints, meshes, and with --sidecar "
+                                   "the closed chain's closures). Exit 1 when it finds an error.")
+    c.add_argument("path", type=Path, help="the URDF or xacro file")
+    c.add_argument("--package-path", type=Path, action="append", default=[], metavar="DIR",
+                   help="folder searched for ROS packages ($(find pkg), package://); repeatable")
+    c.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE", help="xacro argument; repeatable")
     c.add_argument("--sidecar", type=Path, help="also check that the sidecar's closures close")
 
-    e = sub.add_parser("export", help="write a trained policy as ONNX (normaliser inside, metadata for deployment)")
+    for name, (_, help_text) in DELEGATED.items():  # listed here, parsed by their own modules
+        sub.add_parser(name, help=help_text, add_help=False)
+
+    e = sub.add_parser("export", help="write a trained policy as ONNX (normaliser inside, metadata for deployment)",
+                       description="Write a trained policy as one ONNX file: observation normaliser and network "
+                                   "inside, the observation layout, action scale and joint order as metadata.")
     e.add_argument("policy_dir", type=Path, metavar="POLICY_DIR", help="the policy/ folder of a training run")
     e.add_argument("--out", type=Path, metavar="FILE.onnx", help="output file (default POLICY_DIR/policy.onnx); an "
                    "existing file is replaced only where footforge exported it")
@@ -294,6 +379,13 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     from rich.console import Console
 
+    argv = sys.argv[1:] if argv is None else list(argv)
+    first = next((i for i, a in enumerate(argv) if not a.startswith("-")), None)
+    if first is not None and argv[first] in DELEGATED and all(a == "--verbose" for a in argv[:first]):
+        try:
+            return DELEGATED[argv[first]][0](argv[first + 1:])
+        except SystemExit as e:  # their argparse's --help (0) and usage errors (2), as exit codes
+            return int(e.code or 0)
     try:
         args = _parser().parse_args(argv)
     except SystemExit as e:  # usage errors (2) and --help (0), as exit codes

@@ -1,4 +1,4 @@
-"""The command line of the training pipelines (pipelines/train_flat.py, pipelines/train_rough.py)."""
+"""`footforge train flat|rough`, also run as pipelines/train_flat.py and pipelines/train_rough.py."""
 
 from __future__ import annotations
 
@@ -15,10 +15,21 @@ footforge.headless_by_default()  # before any import of MuJoCo
 from footforge.errors import EXIT_INPUT_ERROR, InputError
 
 
-def main(task: str, description: str, argv: list[str] | None = None) -> int:
+DESCRIPTIONS = {
+    "flat": "Train an ANYmal C flat-ground policy with Brax PPO on MuJoCo MJX (the paper's flat task).",
+    "rough": "Train an ANYmal C rough-terrain policy with Brax PPO on MuJoCo MJX, up a terrain curriculum "
+             "(the paper's rough task).",
+}
+"""Each task's one-line description, the help's first line."""
+
+
+def parser(task: str, description: str, prog: str | None = None) -> argparse.ArgumentParser:
+    """The options of `footforge train TASK`."""
     from footforge.envs import FEET, TASKS
 
-    p = argparse.ArgumentParser(description=description)
+    from footforge.cli.help import DefaultsHelpFormatter
+
+    p = argparse.ArgumentParser(prog=prog, description=description, formatter_class=DefaultsHelpFormatter)
     p.add_argument("--feet", choices=FEET, help="foot variant (default aof)")
     p.add_argument("--policy", choices=TASKS[task], help="policy type (default B)")
     p.add_argument("--num-envs", type=int, help="parallel robots (default 2048)")
@@ -45,7 +56,7 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
     p.add_argument("--no-evaluations", action="store_true",
                    help="skip the deterministic evaluation at the start and at each checkpoint (on a GPU one "
                         "costs as much time as about 20 PPO iterations); the curve then comes from the training "
-                        "episodes, and pipelines/evaluate.py evaluates the policy afterwards")
+                        "episodes, and footforge evaluate evaluates the policy afterwards")
     p.add_argument("--contact-model", choices=["stance", "fast"],
                    help="the MJX contact model (EnvConfig.contact_model) with the step and solver iterations it "
                         "needs: stance (default) holds a standing robot (2.5 ms step); fast is 2-3x cheaper on the "
@@ -67,13 +78,18 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
                    help="several machines (with --num-processes and --process-id): refused for now, exit 2: "
                         "Brax 0.14.2's PPO does not train over several JAX processes on JAX 0.9 (see README); "
                         "one machine's GPUs are all used without it")
-    p.add_argument("--num-processes", type=int)
-    p.add_argument("--process-id", type=int)
+    p.add_argument("--num-processes", type=int, help="with --coordinator: refused for now")
+    p.add_argument("--process-id", type=int, help="with --coordinator: refused for now")
     if task == "rough":
         p.add_argument("--terrain", action="append", default=[], metavar="FIELD=VALUE",
                        help="override a TerrainConfig field, e.g. --terrain seed=3 --terrain num_levels=5 "
                             "(repeatable; footforge/envs/terrain.py lists the fields)")
-    args = p.parse_args(argv)
+    return p
+
+
+def main(task: str, description: str, argv: list[str] | None = None, prog: str | None = None) -> int:
+    """`footforge train TASK` (and pipelines/train_TASK.py): one training run of `task`, flat or rough."""
+    args = parser(task, description, prog).parse_args(argv)
 
     from rich.console import Console
 
@@ -135,7 +151,8 @@ def main(task: str, description: str, argv: list[str] | None = None) -> int:
         console.print(f"policy written to {args.out / 'policy'}; final evaluation return "
                       f"{metrics['eval/episode_reward']:.2f}")
     else:
-        console.print(f"policy written to {args.out / 'policy'} (not evaluated: pipelines/evaluate.py does)")
+        console.print(f"policy written to {args.out / 'policy'} (not evaluated: footforge evaluate --policy "
+                      f"{args.out / 'policy'} does)")
     return 0
 
 
@@ -190,7 +207,7 @@ def _resumed_configs(task: str, args):
     env_config, ppo = train.load_run_config(args.out)
     if env_config.task != task:
         raise InputError(f"--out {args.out}: is a {env_config.task}-terrain run",
-                         fix=f"resume it with pipelines/train_{env_config.task}.py")
+                         fix=f"resume it with footforge train {env_config.task}")
     saved = {"env": env_config, "ppo": ppo}
     for flag, attr, (section, field) in _SETTINGS:
         given, value = getattr(args, attr), getattr(saved[section], field)

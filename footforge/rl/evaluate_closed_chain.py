@@ -65,7 +65,7 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
     """Runs `policy_dir`'s policy on the feet it was trained on and on the closed chain.
 
     build_root: folder with one build per feet, <root>/<feet>/ (default build/<feet>, which
-    pipelines/evaluate_closed_chain.py builds first where missing; a missing build is an input
+    footforge evaluate-closed-chain builds first where missing; a missing build is an input
     error here).
     terrain_tiles: a terrain (e.g. TERRAIN_TILES) instead of flat ground.
     progress(feet, policy steps done, total) is called after every policy step.

@@ -1,4 +1,4 @@
-"""A trained policy walking in CPU MuJoCo, run through its ONNX file: pipelines/play.py.
+"""A trained policy walking in CPU MuJoCo, run through its ONNX file: footforge play.
 
 What is exported is what is seen: the policy acts through onnxruntime on the graph that
 `footforge export` writes (footforge.rl.export_onnx.build_model: for a policy folder the graph is
@@ -51,7 +51,7 @@ class PlayConfig:
     slope, rough slope, stairs down, obstacles, generated as the rough task's terrain) instead of
     flat ground; the robot starts on the first tile (the smooth slope at difficulty 0.5)."""
     build_root: Path | None = None
-    """Folder with one build per feet, <root>/<feet>/; None: build/<feet> (pipelines/play.py builds
+    """Folder with one build per feet, <root>/<feet>/; None: build/<feet> (footforge play builds
     a missing one first; here a missing build is an input error)."""
     seed: int = 0
     """Seeds the observation noise (each restart after a fall takes the next seed)."""

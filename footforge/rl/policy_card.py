@@ -1,6 +1,6 @@
 """A one-page summary of a trained policy and its evaluation: policy_card.md.
 
-pipelines/evaluate.py writes one per policy next to its metrics and plots. Read from the policy
+footforge evaluate writes one per policy next to its metrics and plots. Read from the policy
 folder: footforge.json (the environment and PPO configurations, the global step, and from
 training the wall time and machine) and, where the policy folder sits in its run folder,
 ../progress.json (resumes, the last evaluation's return, a wall-time stop). Runs trained before

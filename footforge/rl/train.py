@@ -544,7 +544,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     start and at each checkpoint. Its policy steps run one after another, so on a GPU one
     evaluation takes as long as about 20 PPO iterations of the paper's settings (measured on an
     H100, benchmarks/RESULTS.md); time-limited jobs may turn it off. The learning curve then comes
-    from the training episodes (episode/...: the stochastic policy), and pipelines/evaluate.py
+    from the training episodes (episode/...: the stochastic policy), and footforge evaluate
     evaluates the policy afterwards. A run-time choice, not a setting of the run: it changes
     nothing that is learned, and a resumed run may choose again.
     `init_from`: a new run starts from the newest intact checkpoint of that earlier run (its
