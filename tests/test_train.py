@@ -119,7 +119,8 @@ def _train(out, build_dir, timesteps, *extra):
 
 @pytest.fixture(scope="module")
 def resumed(built, tmp_path_factory):
-    """A tiny run killed with SIGKILL after its second checkpoint, then resumed: (run dir, step at the kill)."""
+    """A tiny run killed with SIGKILL after its second checkpoint, then resumed: (run dir, step at the
+    kill, the resumed run's stdout)."""
     out = tmp_path_factory.mktemp("train") / "run"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(_train(out, built["ball"][0], 100_000), env=env,
@@ -135,20 +136,26 @@ def resumed(built, tmp_path_factory):
         f"no second checkpoint within 600 s (reached: {reached}): a machine too loaded for this fixture's budget")
     killed_at, _ = reached
     assert not (out / "policy").exists()
-    # Resume with the same options and a total just past the checkpoint: it must continue, not restart.
-    done = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume"), env=env,
+    # Resume with the same options and a total just past the checkpoint: it must continue, not
+    # restart. 50 more steps are not whole iterations of 32: Brax runs 64, as the run announces.
+    done = subprocess.run(_train(out, built["ball"][0], killed_at + 50, "--resume"), env=env,
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-    return out, killed_at
+    return out, killed_at, done.stdout
 
 
 @pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
 @pytest.mark.timeout(1500)  # explicit budget: several times its time on 2 quiet cores
 def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
-    out, killed_at = resumed
+    from footforge.rl import train
+
+    out, killed_at, stdout = resumed
     assert killed_at >= 64
     progress = json.loads((out / "progress.json").read_text())
-    assert progress["resumes"] == 1 and killed_at < progress["global_step"] < 2 * (killed_at + 64)
+    _, ppo = train.load_run_config(out)
+    assert ppo.num_timesteps == killed_at + 50
+    assert progress["resumes"] == 1 and progress["global_step"] == train.planned_steps(ppo, killed_at) == killed_at + 64
+    assert f"steps {killed_at:,} -> {killed_at + 64:,} (--timesteps {killed_at + 50:,} rounded up" in stdout
     assert (out / "tensorboard").is_dir() and len(list((out / "tensorboard").iterdir())) >= 2
     # Resuming with other options (here another seed) is refused, naming the option.
     other = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume", "--seed", "3"),
@@ -159,7 +166,7 @@ def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
 @pytest.mark.slow  # the resumed run (a real CLI training, killed and resumed): about 8 minutes on 2 cores
 @pytest.mark.timeout(1500)  # explicit budget: several times its time on 2 quiet cores
 def test_saved_policy_loads_for_inference(resumed):
-    out, _ = resumed
+    out, _, _ = resumed
     policy, env_config, ppo = load_policy(out / "policy")
     assert env_config.feet == "ball" and env_config.policy == "B" and ppo.num_envs == 8
     action, _ = policy(jp.zeros(observations.size(env_config, 0)), jax.random.PRNGKey(0))
@@ -172,7 +179,7 @@ def test_saved_policy_loads_for_inference(resumed):
 @pytest.mark.timeout(1500)  # explicit budget: several times its time on 2 quiet cores
 def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path):
     from footforge.rl.evaluate import INDICES
-    out, _ = resumed
+    out, _, _ = resumed
     report = tmp_path / "eval"
     code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(out / "policy"),
                            "--feet", "aff", "--num-envs", "2", "--seconds", "0.4", "--build-root",
@@ -503,7 +510,7 @@ def test_resume_reads_the_run_s_settings_and_names_a_differing_flag(written_run,
     assert main("flat", "", ["--out", str(run), "--resume", "--build-root", str(run)]) == 2
     assert "--build-root" in capsys.readouterr().err
     assert main("rough", "", ["--out", str(run), "--resume"]) == 2
-    assert "train_flat.py" in capsys.readouterr().err
+    assert "footforge train flat" in capsys.readouterr().err
 
 
 def replace_ppo(ppo, **changes):
@@ -678,3 +685,123 @@ def test_training_with_float64_physics_keeps_the_networks_float32(built, tmp_pat
         capture_output=True, text=True, timeout=1500)
     assert run.returncode == 0, run.stderr[-3000:]
     assert "PARAMS ['float32']" in run.stdout and "ACTION (12,) True" in run.stdout
+
+
+# --- what training says before it compiles (issue: "training says what it does") ---
+
+def test_planned_steps_round_up_to_whole_iterations_in_every_epoch():
+    """Brax runs the same whole number of iterations in each epoch: 1,000 steps of 32-step
+    iterations with checkpoints every 32 steps are 32 epochs of one iteration (1,024); with one
+    epoch of 98,304-step iterations, one iteration."""
+    from footforge.rl import train
+
+    tiny = PPOConfig(**(SMALL_PPO | {"num_timesteps": 1000}))
+    assert train.steps_per_iteration(tiny) == 32 and train.planned_steps(tiny) == 1024
+    assert train.planned_steps(PPOConfig(num_timesteps=1000, num_envs=2048, batch_size=512, num_minibatches=4,
+                                         unroll_length=48)) == 98_304
+    assert train.planned_steps(replace_ppo(tiny, num_timesteps=96)) == 96  # whole already: unchanged
+    assert train.planned_steps(replace_ppo(tiny, num_timesteps=96), done=64) == 96
+    assert train.planned_steps(replace_ppo(tiny, num_timesteps=96), done=96) == 96  # nothing left
+
+
+def test_a_new_run_announces_device_steps_and_rounding_before_compiling(built, tmp_path, monkeypatch, capsys):
+    from footforge.cli.train import main
+
+    seen = _capture_train(monkeypatch)
+    assert main("flat", "", ["--feet", "ball", "--build-root", str(built["ball"][0].parent), "--out",
+                             str(tmp_path / "run"), *TINY, "--timesteps", "1000"], prog="footforge train flat") == 0
+    out = capsys.readouterr().out
+    assert "footforge train flat: ball feet, policy B, 8 robots on cpu (1 x cpu); steps 0 -> 1,024 (--timesteps " \
+           "1,000 rounded up to whole PPO iterations of 32 steps" in out
+    assert "warning" not in out and seen["ppo"].num_timesteps == 1000
+    assert main("flat", "", ["--feet", "ball", "--build-root", str(built["ball"][0].parent), "--out",
+                             str(tmp_path / "big"), "--num-envs", "1024", "--batch-size", "256"]) == 0
+    out = capsys.readouterr().out
+    assert "warning: 1,024 robots on a CPU: one iteration of 49,152 steps takes about" in out
+    assert "--num-envs 128 --unroll-length 24" in out
+
+
+def test_evaluation_robots_default_to_no_more_than_the_training_robots(built, tmp_path, monkeypatch):
+    from footforge.cli.train import main
+
+    seen = _capture_train(monkeypatch)
+    root = ["--feet", "ball", "--build-root", str(built["ball"][0].parent)]
+    assert main("flat", "", [*root, "--out", str(tmp_path / "a"), "--num-envs", "16", "--batch-size", "8"]) == 0
+    assert seen["ppo"].num_eval_envs == 16
+    assert main("flat", "", [*root, "--out", str(tmp_path / "b")]) == 0
+    assert seen["ppo"].num_eval_envs == 128
+    assert main("flat", "", [*root, "--out", str(tmp_path / "c"), "--num-envs", "16", "--batch-size", "8",
+                             "--eval-envs", "32"]) == 0
+    assert seen["ppo"].num_eval_envs == 32
+
+
+def test_resuming_a_complete_run_says_so_and_trains_nothing(written_run, monkeypatch, capsys):
+    from footforge.cli.train import main
+
+    run, _, _ = written_run  # checkpoints at 32 and 64
+    seen = _capture_train(monkeypatch)
+    assert main("flat", "", ["--out", str(run), "--resume", "--timesteps", "64"]) == 0
+    out = capsys.readouterr().out
+    assert "already complete at step 64 (of 64); pass --timesteps with a larger total to extend it" in out
+    assert not seen
+
+
+def test_resume_keeps_a_run_s_no_evaluations(written_run, monkeypatch, capsys):
+    from footforge.cli.train import main
+
+    run, _, _ = written_run
+    config = json.loads((run / "config.json").read_text())
+    (run / "config.json").write_text(json.dumps(config | {"evaluations": False}))
+    seen = _capture_train(monkeypatch)
+    assert main("flat", "", ["--out", str(run), "--resume"]) == 0
+    assert seen["kwargs"]["evaluate"] is False
+    assert "started with --no-evaluations and continues without them" in capsys.readouterr().err
+    assert main("flat", "", ["--out", str(run), "--resume", "--evaluations"]) == 0
+    assert seen["kwargs"]["evaluate"] is True
+    (run / "config.json").write_text(json.dumps(config))  # runs from before the key: evaluated
+    assert main("flat", "", ["--out", str(run), "--resume"]) == 0
+    assert seen["kwargs"]["evaluate"] is True
+
+
+def test_train_records_whether_it_evaluates(written_run, tmp_path, monkeypatch):
+    from brax.training.agents.ppo import train as ppo_train
+
+    from footforge.rl import train
+
+    _, cfg, ppo = written_run
+    monkeypatch.setattr(ppo_train, "train", lambda **kwargs: None)
+    train.train(cfg, ppo, tmp_path / "quiet", evaluate=False, notice=lambda text: None)
+    assert json.loads((tmp_path / "quiet" / "config.json").read_text())["evaluations"] is False
+
+
+def test_progress_before_any_episode_ends_shows_no_nan():
+    import io
+
+    from rich.console import Console
+
+    from footforge.cli.train import _Reporter
+
+    log = io.StringIO()
+    with _Reporter(Console(file=log), "rough", 1000) as report:
+        report(32, 1000, {"episode/length": float("nan")}, True)
+        report(64, 1000, {"episode/length": 250.0, "episode/error/lin_vel_x_per_step": 0.5}, True)
+    lines = log.getvalue().splitlines()
+    assert "nan" not in log.getvalue()
+    assert "training: no episode has ended yet" in lines[1]
+    assert "training episodes: length   250  vx error 0.500 m/s" in lines[2] and "terrain level" not in lines[2]
+
+
+def test_a_run_stopped_before_its_first_checkpoint_starts_again_with_the_same_command(written_run, tmp_path):
+    """Interrupted while compiling: the folder holds a run with no checkpoint. Running the same
+    command starts it again (nothing to continue); --resume still says there is nothing to resume."""
+    import shutil
+
+    from footforge.rl import train
+
+    run, _, _ = written_run
+    shutil.rmtree(run / "checkpoints")
+    (run / "notes.txt").write_text("mine")
+    messages = []
+    train.prepare_run_dir(run, notice=messages.append)
+    assert "reached no checkpoint, so it starts again" in messages[0]
+    assert not (run / "config.json").exists() and (run / "notes.txt").read_text() == "mine"

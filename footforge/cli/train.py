@@ -49,14 +49,17 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     p.add_argument("--batch-size", type=int, help="trajectories per minibatch (default 512)")
     p.add_argument("--minibatches", type=int, help="minibatches per iteration (default 4)")
     p.add_argument("--checkpoint-every", type=int, help="environment steps between checkpoints (default 5e6)")
-    p.add_argument("--eval-envs", type=int, help="robots per evaluation (default 128)")
+    p.add_argument("--eval-envs", type=int, help="robots per evaluation (default 128, or --num-envs if fewer)")
     p.add_argument("--no-compile-cache", action="store_true",
                    help="compile without JAX's persistent cache (footforge/rl/compile_cache.py: on by default, in "
                         "~/.cache/footforge/jax or $FOOTFORGE_COMPILE_CACHE)")
     p.add_argument("--no-evaluations", action="store_true",
                    help="skip the deterministic evaluation at the start and at each checkpoint (on a GPU one "
                         "costs as much time as about 20 PPO iterations); the curve then comes from the training "
-                        "episodes, and footforge evaluate evaluates the policy afterwards")
+                        "episodes, and footforge evaluate evaluates the policy afterwards; a --resume keeps the "
+                        "run's choice")
+    p.add_argument("--evaluations", action="store_true",
+                   help="with --resume of a run started with --no-evaluations: evaluate again from now on")
     p.add_argument("--contact-model", choices=["stance", "fast"],
                    help="the MJX contact model (EnvConfig.contact_model) with the step and solver iterations it "
                         "needs: stance (default) holds a standing robot (2.5 ms step); fast is 2-3x cheaper on the "
@@ -98,7 +101,7 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
     from footforge.processes import sigterm_as_interrupt
 
     console = Console()
-    name = f"train_{task}"
+    name = prog or f"train_{task}"
 
     try:
         with sigterm_as_interrupt():  # a terminated run (a batch scheduler's kill) ends as an interrupted one
@@ -132,17 +135,30 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
 
             check_mjx_impl(env_config)  # before the run folder is written and JAX compiles
             compile_cache.enable(not args.no_compile_cache)
-            with _Reporter(console, task, ppo.num_timesteps) as report:
+            done = 0
+            if args.resume:
+                kept = train.latest_intact_checkpoint(args.out)
+                done = kept[0] if kept else 0
+                if done >= ppo.num_timesteps:
+                    console.print(f"{args.out}: already complete at step {done:,} (of {ppo.num_timesteps:,}); pass "
+                                  f"--timesteps with a larger total to extend it", markup=False, highlight=False,
+                                  soft_wrap=True)
+                    return 0
+            evaluate = _evaluations(args, name)
+            total = train.planned_steps(ppo, done)
+            _announce(console, name, env_config, ppo, done, total)
+            with _Reporter(console, task, total) as report:
                 metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
                                       max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None,
-                                      evaluate=not args.no_evaluations, init_from=args.init_from)
+                                      evaluate=evaluate, init_from=args.init_from)
     except FootforgeError as e:
         print(f"{name}: error: {e}", file=sys.stderr)
         return e.exit_code
     except KeyboardInterrupt:
         kept = train.latest_intact_checkpoint(args.out) if args.out.is_dir() else None
         print(f"{name}: interrupted; " + (f"{args.out} keeps its checkpoints up to step {kept[0]:,}: continue "
-                                          f"with --resume" if kept else "no checkpoint was written"), file=sys.stderr)
+                                          f"with --resume" if kept else "no checkpoint was written: the same "
+                                          "command starts the run again"), file=sys.stderr)
         return EXIT_INPUT_ERROR
     if metrics.get("stopped_for_time"):
         console.print(f"stopped at the wall-time budget ({args.max_minutes:g} min) after a checkpoint; "
@@ -154,6 +170,56 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
         console.print(f"policy written to {args.out / 'policy'} (not evaluated: footforge evaluate --policy "
                       f"{args.out / 'policy'} does)")
     return 0
+
+
+CPU_STEPS_PER_S = 3000
+"""About what a 2-core CPU trains (flat task, 128 robots: 2.0-3.6 k steps/s, benchmarks/RESULTS.md)."""
+CPU_ROBOTS = 512
+"""Above this many robots on a CPU, training says how long an iteration will take."""
+
+
+def _evaluations(args, name: str) -> bool:
+    """Whether this run evaluates: --no-evaluations, or on --resume the run's own choice (its
+    config.json "evaluations") unless --evaluations asks again."""
+    import json
+
+    if args.evaluations and args.no_evaluations:
+        raise InputError("--evaluations and --no-evaluations exclude each other", fix="pass one of them")
+    if args.no_evaluations:
+        return False
+    if args.resume and not args.evaluations:
+        try:
+            saved = json.loads((args.out / "config.json").read_text()).get("evaluations", True)
+        except (OSError, ValueError, AttributeError):
+            saved = True
+        if saved is False:
+            print(f"{name}: the run was started with --no-evaluations and continues without them "
+                  f"(--evaluations turns them on)", file=sys.stderr)
+            return False
+    return True
+
+
+def _announce(console, name: str, env_config, ppo, done: int, total: int) -> None:
+    """What will train, on what, and for how many steps, before the minutes of compilation."""
+    import jax
+
+    from footforge.rl.train import steps_per_iteration
+
+    devices = jax.devices()
+    backend = jax.default_backend()
+    iteration = steps_per_iteration(ppo)
+    line = (f"{name}: {env_config.feet} feet, policy {env_config.policy}, {ppo.num_envs:,} robots on {backend} "
+            f"({len(devices)} x {devices[0].device_kind}); steps {done:,} -> {total:,}")
+    if total != max(ppo.num_timesteps, done):
+        line += (f" (--timesteps {ppo.num_timesteps:,} rounded up to whole PPO iterations of {iteration:,} steps: "
+                 f"{ppo.batch_size} x {ppo.num_minibatches} trajectories of {ppo.unroll_length} steps)")
+    console.print(line, markup=False, highlight=False, soft_wrap=True)
+    if backend == "cpu" and ppo.num_envs > CPU_ROBOTS:
+        minutes = iteration / CPU_STEPS_PER_S / 60
+        console.print(f"{name}: warning: {ppo.num_envs:,} robots on a CPU: one iteration of {iteration:,} steps takes "
+                      f"about {minutes:.0f} min at a 2-core CPU's {CPU_STEPS_PER_S:,} steps/s (compilation first). "
+                      f"A CPU-sized run: --num-envs 128 --unroll-length 24 --batch-size 64 --minibatches 4",
+                      markup=False, highlight=False, soft_wrap=True)
 
 
 # The options that set a saved setting: flag, attribute of args, (config, field) it sets.
@@ -186,6 +252,8 @@ def _new_configs(task: str, args):
                  if section == "ppo" and getattr(args, attr) is not None}
     if args.timesteps is not None:
         overrides["num_timesteps"] = args.timesteps
+    if args.eval_envs is None and args.num_envs is not None:  # evaluations no larger than the training batch
+        overrides["num_eval_envs"] = min(train.PPOConfig.num_eval_envs, args.num_envs)
     return env_config, train.default_ppo(task, **overrides)
 
 
@@ -267,13 +335,15 @@ class _Reporter:
     def __call__(self, step: int, total: int, metrics: dict, evaluation: bool = True) -> None:
         if "eval/episode_reward" in metrics:
             reward = metrics["eval/episode_reward"]
-            err = metrics.get("eval/episode_error/lin_vel_x_per_step", float("nan"))
-            text = f"return {reward:7.2f}  vx error {err:5.3f} m/s"
-        else:  # no evaluations (--no-evaluations): the training episodes' figures
-            err = metrics.get("episode/error/lin_vel_x_per_step", float("nan"))
-            text = f"training episodes: length {metrics.get('episode/length', float('nan')):5.0f}  vx error {err:5.3f} m/s"
+            text = f"return {reward:7.2f}" + _figure("  vx error", metrics.get("eval/episode_error/lin_vel_x_per_step"),
+                                                     "5.3f", " m/s")
+        elif _finite(metrics.get("episode/length")):  # no evaluations (--no-evaluations): the training episodes'
+            text = (f"training episodes: length {metrics['episode/length']:5.0f}"
+                    + _figure("  vx error", metrics.get("episode/error/lin_vel_x_per_step"), "5.3f", " m/s"))
+        else:
+            text = "training: no episode has ended yet"
         if self.task == "rough":
-            text += f"  terrain level {metrics.get('episode/terrain/level_per_step', float('nan')):4.2f}"
+            text += _figure("  terrain level", metrics.get("episode/terrain/level_per_step"), "4.2f")
         diverged = metrics.get("eval/episode_diverged", 0.0)
         if diverged:
             text += f"  diverged {diverged:g}"
@@ -283,6 +353,17 @@ class _Reporter:
             elapsed = int(time.time() - self.t0)
             self._line(f"step {step:,}/{total:,} ({100 * step / total:.0f}%)  {text}  "
                        f"elapsed {elapsed // 3600}:{elapsed // 60 % 60:02d}:{elapsed % 60:02d}")
+
+
+def _finite(value) -> bool:
+    import math
+
+    return value is not None and math.isfinite(float(value))
+
+
+def _figure(label: str, value, spec: str, unit: str = "") -> str:
+    """' label value unit', or nothing where the value is absent or not a number (no episode yet)."""
+    return f"{label} {float(value):{spec}}{unit}" if _finite(value) else ""
 
 
 def _override(config, assignments: list[str]):

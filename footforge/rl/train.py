@@ -123,6 +123,28 @@ class PPOConfig:
 
 
 
+def steps_per_iteration(ppo: PPOConfig) -> int:
+    """Environment steps of one PPO iteration: batch_size x num_minibatches trajectories of
+    unroll_length steps (Brax's env_step_per_training_step)."""
+    return ppo.batch_size * ppo.num_minibatches * ppo.unroll_length
+
+
+def training_epochs(ppo: PPOConfig, done: int = 0) -> int:
+    """Epochs (each ending in a checkpoint) of a run that has done `done` steps: checkpoint_every_steps each."""
+    return max(1, math.ceil((ppo.num_timesteps - done) / ppo.checkpoint_every_steps))
+
+
+def planned_steps(ppo: PPOConfig, done: int = 0) -> int:
+    """The step at which a run that has done `done` steps will end. Brax trains whole iterations,
+    the same number in each epoch: ppo.num_timesteps rounded up to epochs x iterations x
+    steps_per_iteration (its train.py: num_training_steps_per_epoch)."""
+    remaining = ppo.num_timesteps - done
+    if remaining <= 0:
+        return done
+    epochs, iteration = training_epochs(ppo, done), steps_per_iteration(ppo)
+    return done + epochs * math.ceil(remaining / (epochs * iteration)) * iteration
+
+
 def default_ppo(task: str, **overrides) -> PPOConfig:
     """The paper's PPO settings for a task: rough terrain uses the larger 512-256-128 networks and
     the rough baseline's budget (OmniIsaacGymEnvs' AnymalTerrainPPO: 2000 iterations of 2048
@@ -387,16 +409,20 @@ def prepare_run_dir(run_dir: Path, *, resume: bool = False, force: bool = False,
         return run_dir
     if run_dir.is_dir() and any(run_dir.iterdir()):
         if is_run_folder(run_dir):
-            if not force:
-                last = latest_checkpoint(run_dir)
-                state = f"its last checkpoint at step {last[0]:,}" if last else "no checkpoint yet"
-                raise InputError(f"--out {given}: holds a training run ({state})",
+            last = latest_checkpoint(run_dir)
+            # A run that never reached a checkpoint (stopped while compiling or in its first epoch)
+            # has nothing to continue: the same command starts it again.
+            unfinished = last is None and not (run_dir / "policy").exists()
+            if not force and not unfinished:
+                raise InputError(f"--out {given}: holds a training run (its last checkpoint at step {last[0]:,})"
+                                 if last else f"--out {given}: holds a finished training run",
                                  fix="pass --resume to continue it, --force to start it over (removes only the "
                                      "files footforge wrote there), or give another --out")
             if write:
                 removed = _remove_run_files(run_dir)
                 if notice and removed:
-                    notice(f"--force: removed the earlier run's {', '.join(removed)} from {run_dir}")
+                    why = "--force" if force else "the earlier run reached no checkpoint, so it starts again"
+                    notice(f"{why}: removed its {', '.join(removed)} from {run_dir}")
         else:
             if not force:
                 raise InputError(f"--out {given}: the folder holds files footforge did not write (no {MARKER})",
@@ -593,7 +619,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         origin = {k: v for k, v in json.loads((run_dir / "config.json").read_text()).items()
                   if k == "initialised_from"}
     if primary:
-        _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo)} | origin)
+        _write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo), "evaluations": evaluate}
+                    | origin)
     remaining = ppo.num_timesteps - offset
     if remaining <= 0:
         return json.loads(state_file.read_text()).get("metrics", {}) if state_file.exists() else {}
@@ -605,7 +632,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         with atomic_file(run_dir / "terrain.png") as tmp:
             preview(env.terrain, tmp)
     writer = SummaryWriter(str(run_dir / "tensorboard")) if primary else None
-    epochs = max(1, math.ceil(remaining / ppo.checkpoint_every_steps))
+    epochs = training_epochs(ppo, offset)
+    total = planned_steps(ppo, offset)  # what Brax will run: whole iterations
     last: dict = {}
     t0 = time.time()
     this_machine = machine()
@@ -643,10 +671,10 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
             if clock["sps_logs"] > 1:  # the first log's interval holds the compilation
                 clock["sps"] = float(metrics["episode/sps"])
         if progress:
-            progress(global_step, ppo.num_timesteps, last, epoch_end or "eval/walltime" in metrics)
+            progress(global_step, total, last, epoch_end or "eval/walltime" in metrics)
         # Stop here if one more epoch, timed as the last one (training, checkpoint, evaluation),
         # would overrun the budget.
-        if max_wall_s is not None and step > 0 and epoch_end and offset + step < ppo.num_timesteps:
+        if max_wall_s is not None and step > 0 and epoch_end and offset + step < total:
             now_t = time.time()
             epoch_s = next_epoch_seconds(now_t - clock["last_eval"], clock["epochs"] == 0, clock["sps"],
                                          ppo.checkpoint_every_steps, float(metrics.get("eval/epoch_eval_time", 0.0)))
