@@ -56,6 +56,19 @@ def test_off_by_flag_or_variable_writes_nothing(tmp_path):
     assert not folder.exists() and not (tmp_path / "xdg").exists()
 
 
+def test_on_the_cpu_the_cache_is_off_unless_a_folder_is_named(tmp_path):
+    """JAX 0.9.2's CPU loader logs errors for every program and crashed reloading a long program
+    (compile_cache's docstring): on the CPU only FOOTFORGE_COMPILE_CACHE turns it on, and then a
+    note says once what XLA's lines mean."""
+    assert _run({"XDG_CACHE_HOME": str(tmp_path / "xdg")}) == ["None", "0"]
+    assert not (tmp_path / "xdg").exists()
+    env = {k: v for k, v in os.environ.items() if k not in ("FOOTFORGE_COMPILE_CACHE", "JAX_COMPILATION_CACHE_DIR")}
+    done = subprocess.run([sys.executable, "-c", "from footforge.rl import compile_cache as c; c.enable(); c.enable()"],
+                          capture_output=True, text=True, env=env | {"FOOTFORGE_COMPILE_CACHE": str(tmp_path / "c")},
+                          timeout=300)
+    assert done.returncode == 0 and done.stderr.count("note: JAX's compilation cache is on for the CPU") == 1
+
+
 def test_a_folder_given_to_jax_is_kept(tmp_path):
     """The GPU kit's run.sh sets JAX_COMPILATION_CACHE_DIR: that folder wins."""
     kit = tmp_path / "kit"
