@@ -225,13 +225,37 @@ def test_a_file_footforge_did_not_write_is_never_replaced(tmp_path, capsys):
     onnx.save_model(onnx.helper.make_model(onnx.helper.make_graph([], "g", [], []), producer_name="someone"),
                     str(foreign))
     foreign_bytes = foreign.read_bytes()
-    for path in (notes, foreign):
-        assert main(["export", str(policy_dir), "--out", str(path)]) == 2
-        err = capsys.readouterr().err
-        assert "not an ONNX policy footforge wrote" in err and "--force" in err and "Traceback" not in err
+    assert main(["export", str(policy_dir), "--out", str(foreign)]) == 2
+    err = capsys.readouterr().err
+    assert "not an ONNX policy footforge wrote" in err and "--force" in err and "Traceback" not in err
+    for flags in ([], ["--force"]):  # not an .onnx name: refused, whatever --force says
+        assert main(["export", str(policy_dir), "--out", str(notes), *flags]) == 2
+        assert "--out must end in .onnx" in capsys.readouterr().err
     assert notes.read_text() == "my notes" and foreign.read_bytes() == foreign_bytes
     ours = tmp_path / "ours.onnx"
     assert main(["export", str(policy_dir), "--out", str(ours)]) == 0
     assert main(["export", str(policy_dir), "--out", str(ours)]) == 0  # footforge's own: replaced
-    assert main(["export", str(policy_dir), "--out", str(notes), "--force"]) == 0
-    assert onnx.load(str(notes)).producer_name == "footforge"
+    assert main(["export", str(policy_dir), "--out", str(foreign), "--force"]) == 0
+    assert onnx.load(str(foreign)).producer_name == "footforge"
+
+
+def test_commands_take_a_run_folder_for_its_policy(tmp_path, capsys):
+    """export, evaluate, evaluate-closed-chain and play accept a training run's folder and use its
+    policy/; a run that has not written one yet is named as such (exit 2)."""
+    run = tmp_path / "run"
+    env_config = envs.default_config("flat", "ball", "B")
+    train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)), run / "policy",
+                         observations.size(env_config, 0))
+    assert train.policy_folder(run) == run / "policy" and train.policy_folder(run / "policy") == run / "policy"
+    assert main(["export", str(run), "--out", str(tmp_path / "p.onnx")]) == 0
+    assert onnx.load(str(tmp_path / "p.onnx")).producer_name == "footforge"
+    unfinished = tmp_path / "unfinished"
+    train.prepare_run_dir(unfinished)
+    (unfinished / "config.json").write_text("{}")
+    for argv in (["export", str(unfinished)], ["evaluate", "--policy", str(unfinished), "--out", str(tmp_path / "e")],
+                 ["evaluate-closed-chain", "--policy", str(unfinished), "--out", str(tmp_path / "c")]):
+        capsys.readouterr()
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert "is a training run without a policy yet" in err, (argv, err)
+    assert not (tmp_path / "e").exists() and not (tmp_path / "c").exists()

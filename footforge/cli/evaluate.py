@@ -33,7 +33,7 @@ def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
     from footforge.cli.help import DocstringHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
-    p.add_argument("--policy", type=Path, nargs="+", required=True, help="policy/ folders of training runs")
+    p.add_argument("--policy", type=Path, nargs="+", required=True, help="training runs' folders, or their policy/ folders")
     p.add_argument("--feet", nargs="+", choices=FEET, help="feet to evaluate on (default: each policy's own)")
     p.add_argument("--num-envs", type=int, default=1024, help="robots evaluated at once, each for --seconds")
     p.add_argument("--seconds", type=float, help="simulated time (default 60 s flat, 17.5 s rough)")
@@ -75,9 +75,10 @@ def _run(args) -> int:
     from footforge.outputs import check_output_folder
     from footforge.rl.policy_card import card_name, policy_card
     from footforge.cli.builds import build_defaults_if_missing
-    from footforge.rl.train import load_policy_config
+    from footforge.rl.train import load_policy_config, policy_folder
 
     check_output_folder(args.out, force=args.force)  # before minutes of evaluation
+    args.policy = [policy_folder(policy) for policy in args.policy]  # a run's folder: its policy/
     if args.video:
         from footforge.rl.render import check_renderer, render_frames, write_gif, write_strip
 

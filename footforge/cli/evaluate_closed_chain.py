@@ -25,7 +25,7 @@ def parser(prog: str = "footforge evaluate-closed-chain") -> argparse.ArgumentPa
     from footforge.cli.help import DocstringHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
-    p.add_argument("--policy", type=Path, nargs="+", required=True, help="policy/ folders of training runs")
+    p.add_argument("--policy", type=Path, nargs="+", required=True, help="training runs' folders, or their policy/ folders")
     p.add_argument("--seconds", type=float, default=10.0, help="simulated time per robot (default 10)")
     p.add_argument("--robots", type=int, default=4, help="robots per feet (default 4)")
     p.add_argument("--seed", type=int, default=0, help="seed of the commands and observation noise")
@@ -61,10 +61,11 @@ def _run(args) -> int:
     from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
     from footforge.outputs import check_output_folder
     from footforge.cli.builds import build_defaults_if_missing
-    from footforge.rl.train import load_policy_config
+    from footforge.rl.train import load_policy_config, policy_folder
 
     console = Console()
     check_output_folder(args.out, force=args.force)  # before minutes of simulation
+    args.policy = [policy_folder(policy) for policy in args.policy]  # a run's folder: its policy/
     trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder
     build_defaults_if_missing([*trained_on, "full"], args.build_root, console)
     results = []

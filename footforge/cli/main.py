@@ -219,7 +219,7 @@ def _parser() -> argparse.ArgumentParser:
     e = sub.add_parser("export", help="write a trained policy as ONNX (normaliser inside, metadata for deployment)",
                        description="Write a trained policy as one ONNX file: observation normaliser and network "
                                    "inside, the observation layout, action scale and joint order as metadata.")
-    e.add_argument("policy_dir", type=Path, metavar="POLICY_DIR", help="the policy/ folder of a training run")
+    e.add_argument("policy_dir", type=Path, metavar="POLICY_DIR", help="a training run's folder, or its policy/ folder")
     e.add_argument("--out", type=Path, metavar="FILE.onnx", help="output file (default POLICY_DIR/policy.onnx); an "
                    "existing file is replaced only where footforge exported it")
     e.add_argument("--force", action="store_true", help="replace --out even if footforge did not write it")

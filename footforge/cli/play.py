@@ -29,7 +29,7 @@ def parser(prog: str = "footforge play") -> argparse.ArgumentParser:
     from footforge.cli.help import DocstringHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
-    p.add_argument("policy", type=Path, metavar="POLICY", help="policy/ folder of a training run, or an .onnx file")
+    p.add_argument("policy", type=Path, metavar="POLICY", help="a training run's folder (or its policy/ folder), or an .onnx file")
     p.add_argument("--feet", help="ball, aff, aof or full (the 34-joint closed chain); default: the policy's own")
     p.add_argument("--terrain", action="store_true",
                    help="walk on terrain tiles (slopes, stairs down, obstacles) instead of flat ground")
@@ -84,7 +84,11 @@ def _check_arguments(args) -> None:
         raise InputError(f"unknown feet '{args.feet}'", fix=f"use one of {', '.join(FEET)}")
     if not args.policy.exists():
         raise InputError("no such policy folder or file", file=str(args.policy),
-                         fix="pass a policy/ folder of a training run or an .onnx file from footforge export")
+                         fix="pass a training run's folder (or its policy/ folder), or an .onnx file from footforge "
+                             "export")
+    from footforge.rl.train import policy_folder
+
+    args.policy = policy_folder(args.policy)  # a run's folder: its policy/
     for flag, path, suffix in (("--video", args.video, ".gif"), ("--log", args.log, ".json")):
         if path is not None:
             _check_output(flag, path, suffix, args.force)

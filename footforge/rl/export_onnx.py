@@ -62,12 +62,17 @@ def export(policy_dir: Path, out: Path | None = None, *, force: bool = False) ->
     from footforge.atomic import atomic_file
     from footforge.outputs import check_output_file
 
-    policy_dir = Path(policy_dir)
+    from footforge.rl.train import policy_folder
+
+    policy_dir = policy_folder(policy_dir)  # a run's folder: its policy/
     if not policy_dir.is_dir():
         raise InputError("no such folder", file=str(policy_dir),
-                         fix="pass the policy/ folder of a train_flat.py or train_rough.py run")
+                         fix="pass a training run's folder (footforge train), or its policy/ folder")
     out = Path(out) if out is not None else policy_dir / DEFAULT_FILE
     check_output_file(out)
+    if out.suffix.lower() != ".onnx":
+        raise InputError("export writes an ONNX model: --out must end in .onnx", file=str(out),
+                         fix=f"e.g. --out {out.with_suffix('.onnx')}")
     if out.exists() and not force and not _written_by_footforge(out):
         raise InputError("exists and is not an ONNX policy footforge wrote; footforge does not replace it",
                          file=str(out), fix="give another --out, or pass --force to replace it")

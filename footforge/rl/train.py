@@ -809,6 +809,15 @@ def load_policy_config(policy_dir: Path) -> EnvConfig:
     return env_config_from_dict(_policy_meta(Path(policy_dir).resolve())["env"])
 
 
+def policy_folder(path: Path) -> Path:
+    """`path` itself, or where `path` is a training run's folder, the policy/ folder inside it: the
+    commands that take a policy accept either."""
+    path = Path(path)
+    if not (path / "footforge.json").is_file() and (path / "policy" / "footforge.json").is_file():
+        return path / "policy"
+    return path
+
+
 def policy_meta(policy_dir: Path) -> dict:
     """A policy folder's footforge.json: "env" and "ppo" (the configurations as dicts),
     "global_step", and from training runs "wall_s" and "machine" (absent in older ones).
@@ -823,14 +832,18 @@ def _policy_meta(policy_dir: Path) -> dict:
     meta_file = policy_dir / "footforge.json"
     if not policy_dir.exists():
         raise InputError(f"{policy_dir} does not exist", file=str(policy_dir),
-                         fix="pass the policy/ folder of a train_flat.py or train_rough.py run (a run writes it "
-                             "when it ends, or stops at its time budget)")
+                         fix="pass a training run's folder, or its policy/ folder (a run writes it when it ends, or "
+                             "stops at its time budget)")
     if not policy_dir.is_dir():
         raise InputError(f"{policy_dir} is a file, not a policy folder", file=str(policy_dir),
-                         fix="pass the policy/ folder of a train_flat.py or train_rough.py run")
+                         fix="pass a training run's folder (footforge train), or its policy/ folder")
+    if not meta_file.is_file() and is_run_folder(policy_dir):
+        raise InputError(f"{policy_dir} is a training run without a policy yet", file=str(policy_dir),
+                         fix="a run writes policy/ when it ends or stops at --max-minutes; `footforge train ... "
+                             "--resume --max-minutes 1` writes it from the newest checkpoint")
     if not meta_file.is_file():
         raise InputError(f"{policy_dir} is not a footforge policy (no footforge.json)", file=str(policy_dir),
-                         fix="pass the policy/ folder of a train_flat.py or train_rough.py run")
+                         fix="pass a training run's folder (footforge train), or its policy/ folder")
     return json.loads(meta_file.read_text())
 
 
