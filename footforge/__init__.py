@@ -9,6 +9,8 @@ import sys as _sys
 # PyOpenGL ("'NoneType' object has no attribute 'glGetError'"). So the library is looked for the
 # way PyOpenGL does (dlopen of libNAME.so, then libNAME.so.N); where it is missing, MuJoCo is
 # imported without rendering and footforge.rl.render refuses with the reason and the fix.
+GL_SET_BY_FOOTFORGE = False
+"""Whether MUJOCO_GL=disable was footforge's choice (headless_by_default: the user named no backend)."""
 GL_UNAVAILABLE: "tuple[str, str] | None" = None
 """(backend asked for in MUJOCO_GL, why it cannot load), or None when nothing was switched off."""
 
@@ -44,7 +46,10 @@ def headless_by_default() -> None:
     then says which backend to set); without a backend named, dm_control probes for an X display
     (GLFW) at import and warns on headless machines. Importing footforge as a library leaves
     MUJOCO_GL as the user's script has it."""
-    _os.environ.setdefault("MUJOCO_GL", "disable")
+    global GL_SET_BY_FOOTFORGE
+    if "MUJOCO_GL" not in _os.environ and "mujoco" not in _sys.modules:
+        _os.environ["MUJOCO_GL"] = "disable"
+        GL_SET_BY_FOOTFORGE = True
     _check_gl_backend()
 
 

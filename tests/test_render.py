@@ -87,6 +87,19 @@ def test_evaluate_video_without_renderer_exits_2_before_any_work(tmp_path):
     assert not out.exists()
 
 
+def test_video_without_a_backend_named_says_which_variable_to_set(tmp_path):
+    """MUJOCO_GL unset: the command turned rendering off itself, so the message says to name a
+    backend, not that MUJOCO_GL=disable (a value the user never set) cannot render."""
+    out = tmp_path / "evaluation"
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    proc = subprocess.run([sys.executable, "-m", "footforge.cli", "evaluate", "--policy", str(tmp_path / "none"),
+                           "--video", "1", "--out", str(out)], env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "needs an OpenGL backend named in MUJOCO_GL, and none is set" in proc.stderr
+    assert "MUJOCO_GL=egl footforge" in proc.stderr and "MUJOCO_GL=disable" not in proc.stderr
+    assert not out.exists()
+
+
 def test_importing_footforge_leaves_mujoco_gl_as_the_user_has_it():
     """A library must not change global state on import: a user's own mujoco.Renderer keeps
     MuJoCo's default backend. footforge's command lines default to MUJOCO_GL=disable (they render

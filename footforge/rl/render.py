@@ -38,6 +38,10 @@ def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer
         model = copy.copy(model)  # the caller's model keeps its visual settings
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    if footforge.GL_SET_BY_FOOTFORGE and os.environ.get("MUJOCO_GL") == "disable":
+        raise InputError("rendering needs an OpenGL backend named in MUJOCO_GL, and none is set (footforge's "
+                         "commands then render nothing)", fix="run the command as MUJOCO_GL=egl footforge ... "
+                         "(a GPU or Mesa's EGL) or MUJOCO_GL=osmesa footforge ... (software: apt install libosmesa6)")
     if footforge.GL_UNAVAILABLE is not None:
         backend, reason = footforge.GL_UNAVAILABLE
         raise InputError(f"MuJoCo cannot render offscreen with MUJOCO_GL={backend}: {reason}", fix=RENDER_FIX)
