@@ -51,6 +51,59 @@ def headless_by_default() -> None:
         _os.environ["MUJOCO_GL"] = "disable"
         GL_SET_BY_FOOTFORGE = True
     _check_gl_backend()
+    _hold_back_warp_lines()
+
+
+WARP_ABSENT = ("Failed to import warp:", "Failed to import mujoco_warp:")
+"""The starts of the two lines `import mujoco.mjx` prints on stdout where warp-lang is missing."""
+
+
+class _QuietMjxWarp:
+    """An import hook for the module mujoco.mjx.warp, which every import of MJX (footforge's, or
+    Brax's, which imports MJX whatever one imports from it) runs once. Where warp-lang is missing it
+    prints "Failed to import warp: ..." and "Failed to import mujoco_warp: ..." on stdout at every
+    start. footforge's default MJX backend is "jax", which needs neither, and
+    EnvConfig.mjx_impl="warp" says itself what is missing (envs.anymal.check_mjx_impl): these two
+    lines are held back, and anything else the module prints passes through."""
+
+    NAME = "mujoco.mjx.warp"
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != self.NAME:
+            return None
+        import importlib.machinery
+
+        spec = importlib.machinery.PathFinder.find_spec(fullname, path)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _QuietLoader(spec.loader)
+        return spec
+
+
+class _QuietLoader:
+    def __init__(self, loader):
+        self.loader = loader
+
+    def create_module(self, spec):
+        return self.loader.create_module(spec)
+
+    def exec_module(self, module):
+        import contextlib
+        import io
+
+        printed = io.StringIO()
+        try:
+            with contextlib.redirect_stdout(printed):
+                self.loader.exec_module(module)
+        finally:
+            for line in printed.getvalue().splitlines(keepends=True):
+                if not line.startswith(WARP_ABSENT):
+                    _sys.stdout.write(line)
+
+
+def _hold_back_warp_lines() -> None:
+    """For footforge's command lines (headless_by_default): installs _QuietMjxWarp once."""
+    if not any(isinstance(finder, _QuietMjxWarp) for finder in _sys.meta_path):
+        _sys.meta_path.insert(0, _QuietMjxWarp())
 
 
 _check_gl_backend()

@@ -295,3 +295,20 @@ def test_every_option_of_every_job_says_what_it_does_and_its_default():
                     if value not in flat and (value.rstrip("0").rstrip(".") if "." in value else value) not in flat:
                         missing.append(f"{job} {name}: default {value} not shown")
     assert not missing, "\n".join(missing)
+
+
+def test_commands_hold_back_mjx_s_lines_about_a_missing_warp():
+    """`import mujoco.mjx` (Brax imports it too) prints two lines about warp-lang where it is
+    missing; footforge's commands hold exactly those back (footforge._QuietMjxWarp), and the
+    module still imports whole."""
+    import subprocess
+    import sys
+
+    code = ("import footforge; footforge.headless_by_default(); footforge.headless_by_default(); "
+            "import brax.envs.base; from mujoco.mjx import warp; print('imported', warp.WARP_INSTALLED in (True, False))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout == "imported True\n" and "Failed to import" not in out.stderr
+    import footforge
+
+    assert sum(isinstance(f, footforge._QuietMjxWarp) for f in sys.meta_path) <= 1
