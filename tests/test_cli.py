@@ -312,3 +312,27 @@ def test_commands_hold_back_mjx_s_lines_about_a_missing_warp():
     import footforge
 
     assert sum(isinstance(f, footforge._QuietMjxWarp) for f in sys.meta_path) <= 1
+
+
+def test_tables_are_not_cut_when_piped(monkeypatch):
+    """Printed into a pipe or a log, a table as wide as validate's keeps every header whole
+    (rich would cut it to 80 columns: 'varia… force…')."""
+    import io
+
+    from rich.table import Table
+
+    from footforge.cli.help import PIPED_WIDTH, console
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    out = console()
+    assert not out.is_terminal and out.width == PIPED_WIDTH  # pytest captures: not a terminal
+    headers = ["variant", "force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm",
+               "slip_mm", "speed vs full", "verdict"]
+    table = Table()
+    for h in headers:
+        table.add_column(h)
+    table.add_row("aff", *["0.123"] * 7, "FAIL")
+    out.file = io.StringIO()
+    out.print(table)
+    text = out.file.getvalue()
+    assert "…" not in text and all(h in text for h in headers)

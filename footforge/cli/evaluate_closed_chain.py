@@ -54,7 +54,6 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate-closed-c
 
 
 def _run(args) -> int:
-    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from footforge.atomic import atomic_directory
@@ -63,7 +62,9 @@ def _run(args) -> int:
     from footforge.cli.builds import build_defaults_if_missing
     from footforge.rl.train import load_policy_config, policy_folder
 
-    console = Console()
+    from footforge.cli.help import console as make_console
+
+    console = make_console()
     check_output_folder(args.out, force=args.force)  # before minutes of simulation
     args.policy = [policy_folder(policy) for policy in args.policy]  # a run's folder: its policy/
     trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder

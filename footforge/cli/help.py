@@ -1,9 +1,10 @@
-"""How footforge's commands print --help: every default shown, in the help's own words where it
-already says it."""
+"""How footforge's commands present themselves: --help with every default shown (in the help's
+own words where it already says it), and tables that fit where they are printed."""
 
 from __future__ import annotations
 
 import argparse
+import os
 
 
 class DefaultsHelpFormatter(argparse.HelpFormatter):
@@ -24,3 +25,18 @@ class DefaultsHelpFormatter(argparse.HelpFormatter):
 class DocstringHelpFormatter(DefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
     """DefaultsHelpFormatter with the description printed as written: a module docstring with its
     usage examples."""
+
+
+PIPED_WIDTH = 200
+"""Columns of the tables printed into a file or a pipe, where rich would otherwise cut them to 80."""
+
+
+def console(stderr: bool = False):
+    """A rich console: the terminal's width on a terminal; PIPED_WIDTH columns when the output is
+    piped or logged (unless COLUMNS says otherwise), so that tables are not cut."""
+    from rich.console import Console
+
+    out = Console(stderr=stderr)
+    if not out.is_terminal and "COLUMNS" not in os.environ:
+        out = Console(stderr=stderr, width=PIPED_WIDTH)
+    return out

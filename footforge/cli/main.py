@@ -377,8 +377,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    from rich.console import Console
-
     argv = sys.argv[1:] if argv is None else list(argv)
     first = next((i for i, a in enumerate(argv) if not a.startswith("-")), None)
     if first is not None and argv[first] in DELEGATED and all(a == "--verbose" for a in argv[:first]):
@@ -390,11 +388,13 @@ def _main(argv: list[str] | None) -> int:
         args = _parser().parse_args(argv)
     except SystemExit as e:  # usage errors (2) and --help (0), as exit codes
         return int(e.code or 0)
-    console, errors = Console(), Console(stderr=True)
+    from footforge.cli.help import console
+
+    console_out, errors = console(), console(stderr=True)
     try:
         run = {"build": _run_build, "validate": _run_validate, "check": _run_check,
                "export": _run_export}[args.command]
-        return run(args, console)
+        return run(args, console_out)
     except FootforgeError as e:
         if args.verbose:
             traceback.print_exc()

@@ -94,13 +94,14 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
     """`footforge train TASK` (and pipelines/train_TASK.py): one training run of `task`, flat or rough."""
     args = parser(task, description, prog).parse_args(argv)
 
-    from rich.console import Console
 
     from footforge.rl import train
     from footforge.errors import FootforgeError
     from footforge.processes import sigterm_as_interrupt
 
-    console = Console()
+    from footforge.cli.help import console as make_console
+
+    console = make_console()
     name = prog or f"train_{task}"
 
     try:
