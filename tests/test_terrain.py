@@ -110,3 +110,22 @@ def test_surface_height_matches_mujoco_ray_casts(tmp_path):
 def test_bad_terrain_configs_are_input_errors(field, value, message):
     with pytest.raises(InputError, match=message):
         generate(replace(TerrainConfig(), **{field: value}))
+
+
+def test_evaluation_robots_cover_every_terrain_kind_first():
+    """A rough evaluation with few robots measures every kind of terrain before a second level of
+    any (robot i used to go to level i mod 10 of column i // 10: 8 robots, smooth slopes only)."""
+    from footforge.envs.terrain import TerrainConfig, column_kinds
+    from footforge.rl.evaluate import spawn_tiles
+
+    kinds = column_kinds(TerrainConfig())
+    levels, columns = spawn_tiles(8, kinds, 10)
+    covered = [kinds[c] for c in columns]
+    assert set(covered[:6]) == set(kinds) and len(set(kinds)) == 6
+    assert list(levels[:6]) == [0] * 6 and list(levels[6:]) == [1, 1]
+    levels, columns = spawn_tiles(1200, kinds, 10)
+    tiles = set(zip(levels, columns))
+    assert len(tiles) == 10 * len(kinds)  # every tile (10 levels x 20 columns, one kind each) gets robots
+    assert {kinds[c] for c in columns} == set(kinds) and levels.max() == 9
+    few = spawn_tiles(4, kinds, 10)[1]
+    assert len({kinds[c] for c in few}) == 4

@@ -92,6 +92,11 @@ def _run(args) -> int:
             build_dir = str(args.build_root / feet) if args.build_root else None
             results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
                                     seed=args.seed, build_dir=build_dir))
+            if results[-1].get("kinds_not_covered"):
+                covered, missed = results[-1]["kinds_covered"], results[-1]["kinds_not_covered"]
+                print(f"evaluate: warning: {args.num_envs} robots cover {len(covered)} of {len(covered) + len(missed)} "
+                      f"terrain kinds; not measured: {', '.join(missed)} (give --num-envs {len(covered) + len(missed)} "
+                      f"or more)", file=sys.stderr)
             if results[-1]["diverged"]:
                 print(f"evaluate: warning: {policy} on {feet}: the simulation of {results[-1]['diverged']} of "
                       f"{args.num_envs} robots diverged (counted among the falls)", file=sys.stderr)

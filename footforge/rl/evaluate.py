@@ -61,9 +61,10 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     Returns {"indices": {name: {"mean", "std"}}, "slippage", "falls", "diverged", "traces": {...}}
     where "falls" counts the robots that fell, "diverged" those of them whose simulation diverged
     (a non-finite state or reward term: the environment's `diverged` metric), and the traces (robot 0's foot contacts, the mean base velocity error) feed the plots. Rough-terrain
-    policies walk the terrain they trained on (its seed): robot i starts on level i mod levels of
-    column (i // levels) mod columns, so every tile gets robots; "by_terrain" then holds each
-    kind's and level's indices and falls.
+    policies walk the terrain they trained on (its seed), the robots spread over the terrain kinds
+    first, then the levels, then each kind's columns (spawn_tiles); "by_terrain" then holds each
+    kind's and level's indices and falls, and "kinds_not_covered" the kinds that too few robots left
+    out.
 
     Raises:
       InputError: a haptic policy on feet whose passive joints differ from its training feet.
@@ -75,9 +76,8 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     config, robot = env.config, env.robot
     steps = int(round(seconds / env_config.policy_dt))
     rough = config.task == "rough"
-    robot_ids = np.arange(num_envs)
-    levels = robot_ids % config.terrain.num_levels
-    columns = (robot_ids // config.terrain.num_levels) % config.terrain.num_columns
+    levels, columns = spawn_tiles(num_envs, env.terrain.column_kinds if rough else ("flat",),
+                                  config.terrain.num_levels)
 
     from footforge.envs import rewards as reward_module
 
@@ -136,8 +136,26 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
             "diverged": int(rows["diverged"].any(axis=1).sum()),
             "walking": walking.to_dict() | {"line": walking.line()},
             "clipped_fraction": float(rows["clipped"][alive].mean()) if alive.any() else float("nan"),
-            **({"by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns)} if rough else {}),
+            **({"by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns),
+                "kinds_covered": sorted(set(np.array(env.terrain.column_kinds)[columns])),
+                "kinds_not_covered": sorted(set(env.terrain.column_kinds) - set(np.array(env.terrain.column_kinds)[columns]))}
+               if rough else {}),
             "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": np.nanmean(vx_error, axis=0)}}
+
+
+def spawn_tiles(num_robots: int, column_kinds, num_levels: int) -> tuple[np.ndarray, np.ndarray]:
+    """(level, column) of each robot's start tile: robot i goes to kind i mod K of the K kinds the
+    terrain has (in the order of its columns), then, among that kind's robots, the j-th to level
+    j mod num_levels of the kind's column (j // num_levels) mod its columns. A few robots thus
+    cover every kind first (8 robots: 6 kinds, 2 of them twice) instead of one kind's levels."""
+    kinds = list(dict.fromkeys(column_kinds))
+    kind_columns = {k: [c for c, kind in enumerate(column_kinds) if kind == k] for k in kinds}
+    levels, columns = np.zeros(num_robots, int), np.zeros(num_robots, int)
+    for i in range(num_robots):
+        kind, j = kinds[i % len(kinds)], i // len(kinds)
+        levels[i] = j % num_levels
+        columns[i] = kind_columns[kind][(j // num_levels) % len(kind_columns[kind])]
+    return levels, columns
 
 
 def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarray) -> dict:
