@@ -29,6 +29,8 @@ ablations of 2026-11-26 ran before the defaults changed: their `position+fast` i
 - stance / fast: the contact model (EnvConfig.contact_model) with its own physics step;
 - airtime=X: the feet-air-time scale X (airtime=0: off, as runs from before the term trained);
 - entropy=X: PPO's entropy cost alone (e.g. entropy=0.001).
+- height=X: the base-height penalty's weight alone (height=10: scale -10, the paper's guess; the
+            tuned flat task's is 2).
 
 Prints one line per training-episode log (steps, wall s, episode length, forward error, base height),
 then one JSON line: steps, wall_s, and the final policy's walking verdict (deterministic, 32 robots x
@@ -53,7 +55,7 @@ from pathlib import Path
 
 PRESETS = ("forward", "full")
 TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards", "paper_rewards", "noclip",
-          "airtime", "airtime=X", "stance", "fast", "entropy=X")
+          "airtime", "airtime=X", "stance", "fast", "entropy=X", "height=X")
 
 
 def _valued_token(token: str) -> bool:
@@ -101,6 +103,8 @@ def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
             cfg = replace(cfg, rewards=replace(cfg.rewards, clip_total_at_zero=False))
         elif token.startswith("airtime="):  # the feet-air-time scale, e.g. airtime=0 (off)
             cfg = replace(cfg, rewards=cfg.rewards.with_scales(feet_air_time=float(token.split("=", 1)[1])))
+        elif token.startswith("height="):  # the base-height penalty's weight: height=10 is scale -10
+            cfg = replace(cfg, rewards=cfg.rewards.with_scales(base_height=-float(token.split("=", 1)[1])))
         elif token.startswith("entropy="):  # PPO's entropy cost alone, e.g. entropy=0.001
             ppo = replace(ppo, entropy_cost=float(token.split("=", 1)[1]))
         elif token in ("stance", "fast"):
