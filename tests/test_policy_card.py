@@ -53,6 +53,22 @@ def test_card_of_a_trained_run(tmp_path):
                      "push_response_1.png", "video_1.gif", "strip_1.png"]  # not video_10: another result's
 
 
+def test_card_of_a_fine_tuned_run_counts_the_source_s_steps(tmp_path):
+    """A run started with --init-from counts its steps from 0; its card adds the source's."""
+    run = tmp_path / "tuned"
+    policy = run / "policy"
+    policy.mkdir(parents=True)
+    env, ppo = envs.default_config("flat", "aof", "B"), PPOConfig(num_timesteps=4_000_000)
+    (policy / "footforge.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo),
+                                                       "global_step": 3_526_656}))
+    (run / "config.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo),
+                                                 "initialised_from": {"run": "/runs/aof", "step": 10_027_008}}))
+    card = policy_card(policy, [(0, _result(policy, "aof", 0.0))], [])
+    assert "| started from | step 10,027,008 of /runs/aof (--init-from): 13,553,664 steps in all |" in card
+    (run / "config.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo)}))
+    assert "started from" not in policy_card(policy, [(0, _result(policy, "aof", 0.0))], [])
+
+
 def test_card_of_an_untrained_policy_says_what_was_not_recorded(tmp_path):
     policy = tmp_path / "policy"
     policy.mkdir()

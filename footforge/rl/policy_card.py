@@ -3,7 +3,8 @@
 footforge evaluate writes one per policy next to its metrics and plots. Read from the policy
 folder: footforge.json (the environment and PPO configurations, the global step, and from
 training the wall time and machine) and, where the policy folder sits in its run folder,
-../progress.json (resumes, the last evaluation's return, a wall-time stop). Runs trained before
+../progress.json (resumes, the last evaluation's return, a wall-time stop) and ../config.json (the
+run it was initialised from, with --init-from). Runs trained before
 the wall time and machine were recorded say "not recorded". Plots are linked by their path
 relative to the card, which lies in the same folder.
 """
@@ -32,6 +33,13 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
     env = meta["env"]
     progress_file = policy_dir.resolve().parent / "progress.json"
     progress = json.loads(progress_file.read_text()) if progress_file.is_file() else {}
+    config_file = policy_dir.resolve().parent / "config.json"
+    try:  # a run started with --init-from records its source there
+        origin = json.loads(config_file.read_text()).get("initialised_from") if config_file.is_file() else None
+    except (OSError, ValueError, AttributeError):
+        origin = None
+    if origin:
+        progress = progress | {"initialised_from": origin}
     name = policy_dir.resolve().parent.name if policy_dir.resolve().name == "policy" else policy_dir.name
     lines = [f"# Policy card: {name}", "",
              f"`{policy_dir}`: {env['task']} task, {env['feet']} feet, policy type {env['policy']}", ""]
@@ -60,6 +68,10 @@ def _training_rows(meta: dict, progress: dict) -> list[tuple[str, str]]:
     step = int(meta.get("global_step", 0))
     rows = [("steps trained", f"{step:,} of {int(ppo['num_timesteps']):,}"
              + (" (freshly initialised, untrained)" if step == 0 else ""))]
+    origin = progress.get("initialised_from")
+    if origin:  # fine-tuned: train --init-from
+        rows.append(("started from", f"step {int(origin['step']):,} of {origin['run']} (--init-from): "
+                                     f"{int(origin['step']) + step:,} steps in all"))
     wall_s = meta.get("wall_s") or progress.get("wall_s_total")
     resumes = progress.get("resumes", 0)
     rows.append(("wall time", (_duration(wall_s) if wall_s else "not recorded")
