@@ -282,16 +282,16 @@ class EnvConfig:
     diverged_speed: float = 1000.0
     """Generalised velocity (m/s for the base's translation, rad/s otherwise) above which a
     robot's physics counts as diverged, as a NaN does: its episode ends as a fall with zero
-    metrics. Far above anything a walking or falling ANYmal does; in the H100 campaign
-    (benchmarks/RESULTS.md, 2026-11-24) AOF training episodes logged finite velocities of up to
-    1e14 m/s that a NaN check alone let through into the returns and metrics."""
+    metrics. Far above anything a walking or falling ANYmal does; AOF training episodes on an
+    H100 once logged finite velocities of up to 1e14 m/s that a NaN check alone let through."""
     action: Literal["velocity", "position"] = "position"
     """How the 12 policy outputs a (clipped to +-action_clip) become the PD targets (rad), kept
     within the joint ranges. Both tasks use position actions (envs.default_config). The flat
     baseline's velocity actions stay an option: on ANYmal C's soft drive (kp 80 N m/rad, kd 2)
     their integral turns exploration noise into a random walk of the targets, and PPO learned to
-    stand, not walk, with them (48 M steps on an H100; benchmarks/RESULTS.md), where position
-    actions walked within 1.5 M CPU steps (fixed 0.6 m/s command) and 11 M GPU steps (full commands).
+    stand, not walk, with them (48 M steps on an H100), where position actions walked within
+    1.5 M CPU steps (fixed 0.6 m/s command) and 11 M GPU steps (full commands):
+    benchmarks/RESULTS.md#learning.
 
     - velocity (flat task): joint velocities integrated onto the previous *target*,
       target_t = target_t-1 + action_scale x a x policy_dt, with target_0 the joint angles the
@@ -315,64 +315,29 @@ class EnvConfig:
     solver_ls_iterations: int = 16
     """MJX line-search iterations per Newton iteration (stance: 16 on every feet)."""
     contact_model: ContactModel = "stance"
-    """The contact model the environment steps (limits: footforge.envs.anymal.check_contact_model).
+    """The MJX contact model (limits: envs.anymal.check_contact_model; envs.with_contact_model sets
+    the step and solver iterations each needs). Default "stance".
 
-    Why it matters: with the default PD gains (kp 80) ANYmal C cannot stand on frictionless
-    ground (there it splays into a crouch at 0.295 m base height, feet 23 cm out), so standing
-    still rests on static friction: at the `stand` keyframe each foot pushes sideways with about
-    half its normal force. MuJoCo's friction is regularised, so under that load a foot creeps at a
-    speed of about R f / b (the friction rows' regularisation R, the foot's sideways force f, the
-    reference damping b, itself at most about 1 / sim_dt), and the robot sinks towards that
-    crouch. PhysX, the baselines' engine, has true static friction and does not creep.
+    Why: with kp 80 N m/rad ANYmal C stands on static friction (each foot pushes sideways with
+    about half its load); MuJoCo's friction is regularised, so a robot holding still creeps
+    towards a crouch, where PhysX, the baselines' engine, holds. A robot that cannot stand still
+    corrupts the base-height and slippage indices that compare the feet.
 
-    - fast (`--contact-model fast`): MuJoCo's defaults, a pyramidal cone, impratio 1, solimp
-      0.9/0.95/0.001, implicitfast, 4 Newton / 8 line-search iterations, every feet at the
-      baselines' 5 ms x 4: stable from any start (MuJoCo Playground trains at 1-4 iterations) and
-      cheap, at the price of that creep: a robot holding still slides and sinks about 22 cm in
-      10-20 s (AFF: 150 mm of sinking and 174 mm of slip in 10 s), which corrupts the base height
-      and foot slippage indices that compare the feet. For throughput studies; the first GPU
-      campaign's policies trained with it (their saved configuration keeps it).
-    - stance (default, every feet): a pyramidal cone with impratio 10 and the build's solimp
-      0.99/0.999/0.001 (friction regularisation about 1/100 of fast's; in float32 the adaptive
-      feet, and every feet on a heightfield: 0.97/0.995/0.001, anymal.stance_contact_solimp;
-      in float32 the adaptive feet also rest on a softer normal, MuJoCo's direct solref (-1e4,
-      -400), anymal.stance_contact_solref), semi-implicit Euler integration, at sim_dt <= 2.5 ms with at least the feet's Newton and
-      line-search iterations (ball 8/16, AFF 16/16, AOF 8/16; AFF and AOF 16/16 under
-      float64_physics: with fewer its friction diverges under a policy's actions). Zero-action robots in MJX, 10 s from
-      the reset's random velocities (benchmarks/stance_mjx.py, benchmarks/stance_env.py;
-      benchmarks/RESULTS.md, 2026-11-25), sinking / sliding: ball 2.1 / 2.5 mm (float32); in one
-      robot's 10 s on flat ground in float32 AFF 1.3 / 2.6 mm and AOF 1.6 / 3.5 mm, with
-      float64_physics 0.4 / 0.9 and 0.5 / 1.0 mm (fast: 150 / 174 and 169 / 182 mm). The adaptive
-      feet hold in float32 since their passive joints carry an armature of 1e-3 kg m^2 (the
-      parameter file's; with 1e-5 the light links' ill-conditioned mass matrix let MJX's float32
-      solve creep about 1.3 mm/s: AFF 6.3 / 13.0 mm, AOF 6.6 / 11.2 mm). None diverged under
-      random actions. Cost per robot and policy step on this CPU, against fast at the same step:
-      ball 3.4x; AFF 1.4x (float32) and 2.3x (float64);
-      AOF 1.8x (float32) and 2.5x (float64). It needs a friction coefficient of about 0.7 or
-      more (the models' contacts have 1.0, the ground's, as the baseline: MuJoCo takes the larger
-      of two geoms'): a pyramidal cone bounds the sideways force by |fx| + |fy| <= mu fn, so
-      along a diagonal to mu / sqrt(2) of the normal force (0.53 at mu 0.75), against the
-      stance's 0.49. At mu 0.75 (10 s, 8 robots) ball sank 141 mm and slid 248 mm (3 of 8
-      diverged under random actions), AFF 125 / 199 mm, AOF 101 / 133 mm; most of legged_gym's
-      friction range (RandomizationConfig.friction_range) lies below. envs.with_contact_model
-      sets the step and iterations it needs.
-    - build: the built scene's (elliptic cone, impratio 10, solimp 0.99/0.999) under its
-      implicitfast integrator, at 2.5 ms. It needs a converged solve (solver_iterations >= 16,
-      solver_ls_iterations >= 50, refused with fewer). It holds a stance in MJX for ball, AFF and
-      AOF at rest (at 5 ms the ball robot slid 51 mm), but an untrained policy's actions diverge
-      AOF (7 of 16 robots in CPU MuJoCo), and it costs 5-10 times fast.
+    - stance (default): pyramidal cone, impratio 10, solimp 0.99/0.999/0.001 (0.97/0.995 in
+      float32 for the adaptive feet and on heightfields; the adaptive feet's soles also on a
+      softer normal, solref (-1e4, -400): anymal.stance_contact_solimp / _solref), semi-implicit
+      Euler, 2.5 ms x 8 per policy step, Newton / line-search iterations ball 8/16, AFF 16/16,
+      AOF 8/16 (AFF and AOF 16/16 under float64_physics). Zero-action robots sink and slide a few
+      millimetres in 10 s, flat and on rough level 0, float32 and float64. Needs a friction
+      coefficient of about 0.7 or more. Costs 1.4-3.4x fast per step on the CPU.
+    - fast: MuJoCo's defaults (pyramidal, impratio 1, solimp 0.9/0.95, implicitfast), 4 / 8
+      iterations, the baselines' 5 ms x 4, as MuJoCo Playground trains: stable and cheap, but a
+      robot at rest sinks and slides 150-180 mm in 10 s. The walking policies so far trained on it.
+    - build: the built scene's elliptic contact, converged (16 / 50 iterations, 2.5 ms): holds a
+      stance but diverges AOF under an untrained policy, at 5-10x fast's cost.
 
-    stance is the default (the issue 12 audit: a robot that cannot stand still corrupts the
-    evaluation's base height and slippage, the indices that compare the feet): it holds the stance
-    where the baselines' PhysX does, at their ground friction of 1.0. Its price is the 2.5 ms step
-    and the solver iterations (above; on a GPU not yet measured: `benchmarks/env_speed.py
-    --contact-models fast stance`). On flat ground the adaptive feet meet the stance target
-    (sinking < 10 mm, slip < 5 mm in 10 s) in float32 and in float64 (`--float64-physics`). On the
-    rough terrain's level 0 float64 holds every feet (ball 0.8 / 1.3 mm, AFF 0.8 / 1.5, AOF
-    0.7 / 2.2) and so does float32 (ball 2.4 / 4.1 mm; over three spawns AFF 1.3-1.4 / 2.7-4.0,
-    AOF 1.5-1.7 / 3.5-4.3, where the build's solref let AOF slide 6.9-8.0 mm: MJX's heightfield
-    contact points jumping across the sole, anymal.STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE)
-    (benchmarks/stance_env.py, benchmarks/RESULTS.md, 2026-11-26, second session)."""
+    Measurements (sinking and slip per feet, costs, friction limits):
+    benchmarks/RESULTS.md#stance-physics."""
     float64_physics: bool = False
     """Step MJX in float64 (JAX's x64 mode; MJX's own default is float32). x64 is a switch of the
     whole process, set before JAX makes its first array by
