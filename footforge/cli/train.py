@@ -63,12 +63,12 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     p.add_argument("--contact-model", choices=["stance", "fast"],
                    help="the MJX contact model (EnvConfig.contact_model) with the step and solver iterations it "
                         "needs: stance (default) holds a standing robot (2.5 ms step); fast is 2-3x cheaper on the "
-                        "CPU but a robot at rest creeps about 22 cm (ball feet at 5 ms)")
+                        "CPU but a robot at rest sinks and slides 150-180 mm in 10 s (5 ms step)")
     p.add_argument("--mjx-impl", choices=["jax", "warp"],
                    help="MJX's backend (EnvConfig.mjx_impl; default jax): warp needs MuJoCo Warp and an NVIDIA GPU")
     p.add_argument("--float64-physics", action="store_const", const=True,
-                   help="step MJX in float64 (EnvConfig.float64_physics): the adaptive feet's stance holds only in "
-                        "float64; the networks stay float32")
+                   help="step MJX in float64 (EnvConfig.float64_physics; off: float32): AFF and AOF standing still "
+                        "sink and slide about a third as far, at 1.4-1.6x the cost per step on the CPU; the networks stay float32")
     p.add_argument("--build-root", type=Path,
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/), as in "
                         "the evaluation pipelines")
