@@ -310,7 +310,7 @@ def test_the_default_environment_holds_a_robot_still(ten_second_stances, feet):
     first 0.5 s the base sinks less than 10 mm and no foot slides more than 5 mm. With
     contact_model 'fast' the same robots sink 150-220 mm in 10-20 s, and the adaptive feet crept
     11-13 mm in 10 s here while their passive joints' armature was 1e-5 kg m^2 (the parameter
-    file's is 1e-3; benchmarks/RESULTS.md)."""
+    file's is 1e-3; benchmarks/log/2026-11-21_to_26.md)."""
     stance = ten_second_stances[feet]
     assert not stance.fell, stance
     assert stance.drop_after_settle_m < 0.010, stance

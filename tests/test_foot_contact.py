@@ -131,7 +131,7 @@ def test_sole_stands_where_the_box_stands(builds, variant, shape):
 
 def test_shipped_parameters_read(tmp_path):
     params = load_params()
-    for variant in ("aff", "aof"):  # the sole box alone (benchmarks/RESULTS.md, 2026-11-25)
+    for variant in ("aff", "aof"):  # the sole box alone (benchmarks/log/2026-11-21_to_26.md, 2026-11-25)
         assert params.foot_contact[variant] == FootContact(sole="box", upper_collisions=False)
     # A file without `collision` keeps the box soles, everything colliding (files written before it).
     data = yaml.safe_load(default_params_path().read_text())

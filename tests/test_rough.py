@@ -253,9 +253,9 @@ def test_the_stance_holds_on_level_0_in_float64(built, feet):
     float64_physics, zero actions for 10 s, no fall, and after the first 0.5 s the base sinks
     less than 10 mm and no foot slides more than 5 mm. In float32 the sphere-heightfield contact
     is solved too inexactly for it (a ball robot at 8/16 iterations slid 169 mm after 2 s;
-    benchmarks/RESULTS.md, 2026-11-25). The adaptive feet slid 5.2-5.8 mm here while their passive
+    benchmarks/log/2026-11-21_to_26.md, 2026-11-25). The adaptive feet slid 5.2-5.8 mm here while their passive
     joints had an armature of 1e-5 kg m^2; with the parameter file's 1e-3 they hold (0.8 / 1.5 mm
-    AFF, 0.7 / 2.2 mm AOF; benchmarks/RESULTS.md, 2026-11-25, fifth session)."""
+    AFF, 0.7 / 2.2 mm AOF; benchmarks/log/2026-11-21_to_26.md, 2026-11-25, fifth session)."""
     result = float64_stance("rough", feet, built[feet][0].parent)
     assert result["physics"] == "float64" and not result["fell"], result
     assert result["drop_after_settle_m"] < 0.010, result
@@ -296,7 +296,7 @@ def test_the_adaptive_feet_stand_on_level_0_in_float32(built, feet):
 
     Seed-robust form, because one spawn's slip is chaotic: seed 1's AOF slip was 3.5-4.3 mm, then
     5.7 mm after the `stand` keyframe moved by 1e-4 rad (a rebuild; seeds 0, 2-5 stayed at
-    3.5-4.0 mm, benchmarks/RESULTS.md). The worst spawn must still stay under 8 mm: with the
+    3.5-4.0 mm, benchmarks/log/2026-11-21_to_26.md). The worst spawn must still stay under 8 mm: with the
     build's contact solref AOF slid 8.0 mm at seed 1 (MJX's heightfield manifold jumping across
     the sole; anymal.STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE), the regression this test guards."""
     import jax

@@ -20,14 +20,14 @@ FLAT_FEET_AIR_TIME = 1.0
 """The flat task's scale of RewardConfig.feet_air_time, a term the paper does not list: legged_gym's
 1.0. Without it a ball policy trained 3 M CPU steps on a straight 0.6 m/s command tracked it (error
 0.04 m/s) on three legs, RH on the ground 13 % of the time; with it, the same run walked on all four
-(32 of 32 robots up 20 s, every foot on the ground 21-84 %; benchmarks/RESULTS.md, 2026-11-26,
+(32 of 32 robots up 20 s, every foot on the ground 21-84 %; benchmarks/log/2026-11-21_to_26.md, 2026-11-26,
 fourth session). The rough task keeps the paper's ten terms."""
 FEET = ("ball", "aff", "aof")
 FLAT_TUNED_REWARDS = {"lin_vel_xy": 2.0, "yaw_rate": 1.0, "base_height": -2.0}
 """The flat task's reward scales that the paper leaves unpublished ("opportunely tuned"), tuned:
 tracking weighed twice the baseline's 1.0 and 0.5 against the same penalties (MuJoCo Playground's
 Go1 weighs tracking 3 and 1.5) and base height -2 where -10 was a guess. Chosen by the H100
-ablations of 2026-11-26 (benchmarks/RESULTS.md): ball, position actions, full commands, 11-12 M
+ablations of 2026-11-26 (benchmarks/log/2026-11-21_to_26.md): ball, position actions, full commands, 11-12 M
 steps: with the legged_gym PPO settings (PPOConfig) 28 of 32 robots stayed up through 20 s against
 20 of 32 without the tuning (27 and 24 of 32 with the baseline's PPO settings)."""
 
@@ -86,7 +86,7 @@ def physics(feet: str, contact_model: str) -> dict:
     19 of 32 robots, CPU MuJoCo 23 of 32; in the H100 campaign 29-37% of AOF and up to 3% of AFF
     training episodes). With the parameter file's 1e-3 none diverges at 5 ms (CPU MuJoCo, 12 AOF
     robots, tests/test_envs.py; MJX, 16 robots each, 10 s of random actions, 0 AFF and 0 AOF;
-    benchmarks/RESULTS.md, 2026-11-25, sixth session), which halves their physics cost under
+    benchmarks/log/2026-11-21_to_26.md, 2026-11-25, sixth session), which halves their physics cost under
     'fast'. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground trains at 1-4),
     'stance' and 'build' anymal.min_solver_iterations.
 

@@ -36,7 +36,7 @@ FAST_CONTACT_SOLIMP = (0.9, 0.95, 0.001)
 BUILD_CONTACT_MIN_ITERATIONS = (16, 50)
 """Newton and line-search iterations the build's stiff contact needs: with fewer, an unconverged
 solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo (measured at 5 ms,
-benchmarks/contact_sweep.py; at 2.5 ms 4/8 diverged too; benchmarks/RESULTS.md)."""
+benchmarks/contact_sweep.py; at 2.5 ms 4/8 diverged too; benchmarks/log/2026-11-21_to_26.md)."""
 STANCE_CONTACT_SOLIMP = (0.99, 0.999, 0.001)
 """Contact impedance of EnvConfig.contact_model 'stance' (the build's): 99-99.9% of the constraint
 force is kept, so the friction's regularisation, and with it the creep speed, is about 1/20 of
@@ -85,7 +85,7 @@ less to throw. The friction's creep does not get worse, since it goes with the d
 0.5 s, mm (rough level 0, spawn seeds 0, 1, 2; flat): 3.3 / 7.7, 3.1 / 8.0, 3.0 / 6.9 and
 1.8 / 4.1 before; 1.5 / 3.5, 1.7 / 4.3, 1.7 / 4.0 and 1.6 / 3.5 with this (stiffness 2.5e3 the
 same within 0.1 mm, 2e4 4.8 mm of slip on seed 1); AFF on level 0 4.7 -> 4.0 mm (seed 0), flat
-2.6 mm both (benchmarks/RESULTS.md, 2026-11-26, second session). Ball feet keep the build's
+2.6 mm both (benchmarks/log/2026-11-21_to_26.md, 2026-11-26, second session). Ball feet keep the build's
 solref: their single sphere per foot slid 31 mm on flat ground and 184 mm on level 0 with this."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
@@ -99,7 +99,7 @@ the armature of 1e-3 and STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE, 8/16 holds: ran
 10 s, 0 of 16 robots diverged in MJX (0 of 8 in CPU MuJoCo, 8 s), and one robot standing 10 s
 from four spawns sinks 1.6 mm and slides 3.3-3.5 mm on flat ground, 3.3-4.3 mm on rough level 0,
 as at 30/30. AFF keeps 16/16: at 8/16 none diverged either, but one flat-ground spawn (seed 0)
-slid 45 mm in 10 s (2.6 mm at 16/16; benchmarks/RESULTS.md, 2026-11-26, third session). The
+slid 45 mm in 10 s (2.6 mm at 16/16; benchmarks/log/2026-11-21_to_26.md, 2026-11-26, third session). The
 Newton solve's cost grows with its iterations (benchmarks/step_profile.py: AOF's solve was 80%
 of its flat step at 30/30)."""
 STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = {"ball": (8, 16), "aff": (16, 16), "aof": (16, 16)}

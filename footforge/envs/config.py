@@ -85,7 +85,7 @@ class RewardConfig:
     """sum over touchdowns of (air time - feet_air_time_target_s), s, under a moving command: not
     among the paper's terms, so off (0) here and on the rough task; the flat task sets legged_gym's
     1.0 (envs.FLAT_FEET_AIR_TIME; Playground's Go1 uses 0.8). It pays for steps long enough to lift every foot (a policy without it
-    may walk on three legs: benchmarks/RESULTS.md, 2026-11-26, fourth session)."""
+    may walk on three legs: benchmarks/log/2026-11-21_to_26.md, 2026-11-26, fourth session)."""
     feet_air_time_target_s: float = 0.5
     """Air time a step must last to pay, s (legged_gym's 0.5)."""
     tracking_sigma: float = 0.25
@@ -169,7 +169,7 @@ class ObservationConfig:
     differ by torque / kp, 0.11-0.21 rad standing at the `stand` keyframe and up to 1 rad at the
     80 N m limit, so a policy that cannot see the target is partially blind to its own torques.
     Under position actions (rough task) the target, default + scale x last action, is observed
-    already. benchmarks/RESULTS.md (2026-11-25, fifth session): the CPU learning run with it,
+    already. benchmarks/log/2026-11-21_to_26.md (2026-11-25, fifth session): the CPU learning run with it,
     beside the earlier run without it."""
     noise: bool = True
     """Add the uniform noise (off for evaluation of the noiseless state)."""
@@ -207,7 +207,7 @@ class RandomizationConfig:
     cone (contact_model 'stance', 'fast') bounds a diagonal sideways force to mu / sqrt(2) of the
     normal force, against the 0.49 that ANYmal C's default stance needs (EnvConfig.contact_model):
     below mu of about 0.7 a robot holding still slides (at 0.75 'stance' robots slid 133-248 mm in
-    10 s; benchmarks/RESULTS.md, 2026-11-25)."""
+    10 s; benchmarks/log/2026-11-21_to_26.md, 2026-11-25)."""
     payload_mass_kg_range: tuple[float, float] | None = None
     """Mass added to the base at its centre of mass, kg; legged_gym's added_mass_range is (-1, 1),
     off by default there. The base's inertia scales with its mass."""
@@ -372,7 +372,7 @@ class EnvConfig:
     extent: MJX cannot collide cylinders with heightfields), so shanks stop at stair risers as in
     OmniIsaacGymEnvs, where the whole robot collides. False: feet only (with the geometric base
     and knee probes that end episodes), as MuJoCo Playground's Go1. Their price on MJX:
-    benchmarks/env_speed.py --shank-collisions on off (benchmarks/RESULTS.md)."""
+    benchmarks/env_speed.py --shank-collisions on off (benchmarks/log/2026-11-21_to_26.md)."""
     terminate_on_knees: int = 2
     """A step with at least this many thigh (knee) contacts ends the episode; any base contact does."""
 

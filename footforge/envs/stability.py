@@ -6,7 +6,7 @@ settings) under an untrained policy's actions: each policy step a ~ N(0, 1) clip
 velocity model at its 13.5 rad/s per unit (target += 13.5 a policy_dt, within the joint ranges):
 the harshest targets an untrained policy gives, whatever action model the configuration trains with. A robot diverges
 by the environment's own criterion (diverged). A proxy for MJX, which runs the same model in float32 (benchmarks/action_stability.py
---sim mjx measures both; on AOF they agreed, benchmarks/RESULTS.md).
+--sim mjx measures both; on AOF they agreed, benchmarks/log/2026-11-21_to_26.md).
 """
 
 from __future__ import annotations

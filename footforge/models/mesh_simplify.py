@@ -20,7 +20,7 @@ import trimesh
 DEFAULT_FACE_BUDGET = 1000
 """Faces a collision mesh keeps before CoACD (0: no simplification). At this budget the public
 SoftFoot-Q's 30-75 mm parts keep their shape to about a millimetre, and CoACD's time on its ankle
-falls from about 200 s to about 70 s on 2 shared cores (benchmarks/RESULTS.md). The project's own
+falls from about 200 s to about 70 s on 2 shared cores (benchmarks/log/2026-11-21_to_26.md). The project's own
 meshes have fewer faces and are left as they are."""
 
 

@@ -83,7 +83,7 @@ class PPOConfig:
     entropy_cost: float = 0.01
     """legged_gym's (the baseline's 0.001 let the policy's std fall only from 1.0 to 0.94 in 3 M
     CPU steps). These three and policy_output_init_scale 0.01 were chosen by the H100 ablations of
-    2026-11-26 (benchmarks/RESULTS.md): with position actions under the full commands the forward
+    2026-11-26 (benchmarks/log/2026-11-21_to_26.md): with position actions under the full commands the forward
     error of the training episodes fell to 0.14 m/s in 4 M steps against 0.34 with the baseline's."""
     discounting: float = 0.99
     gae_lambda: float = 0.95
@@ -569,7 +569,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     `evaluate`: Brax's deterministic evaluation (num_eval_envs robots, one whole episode) at the
     start and at each checkpoint. Its policy steps run one after another, so on a GPU one
     evaluation takes as long as about 20 PPO iterations of the paper's settings (measured on an
-    H100, benchmarks/RESULTS.md); time-limited jobs may turn it off. The learning curve then comes
+    H100, benchmarks/log/2026-11-21_to_26.md); time-limited jobs may turn it off. The learning curve then comes
     from the training episodes (episode/...: the stochastic policy), and footforge evaluate
     evaluates the policy afterwards. A run-time choice, not a setting of the run: it changes
     nothing that is learned, and a resumed run may choose again.
