@@ -47,7 +47,8 @@ def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true",
                    help="replace --out even if footforge did not write it (it may hold your files)")
     p.add_argument("--no-compile-cache", action="store_true",
-                   help="compile without JAX's persistent cache (on by default: footforge/rl/compile_cache.py)")
+                   help="compile without JAX's persistent cache (on by default on a GPU; on the CPU only where "
+                        "FOOTFORGE_COMPILE_CACHE names a folder: footforge/rl/compile_cache.py)")
     return p
 
 

@@ -51,8 +51,9 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     p.add_argument("--checkpoint-every", type=int, help="environment steps between checkpoints (default 5e6)")
     p.add_argument("--eval-envs", type=int, help="robots per evaluation (default 128, or --num-envs if fewer)")
     p.add_argument("--no-compile-cache", action="store_true",
-                   help="compile without JAX's persistent cache (footforge/rl/compile_cache.py: on by default, in "
-                        "~/.cache/footforge/jax or $FOOTFORGE_COMPILE_CACHE)")
+                   help="compile without JAX's persistent cache (footforge/rl/compile_cache.py: on a GPU on by default, "
+                        "in ~/.cache/footforge/jax or $FOOTFORGE_COMPILE_CACHE; on the CPU only where "
+                        "FOOTFORGE_COMPILE_CACHE names a folder)")
     p.add_argument("--no-evaluations", action="store_true",
                    help="skip the deterministic evaluation at the start and at each checkpoint (on a GPU one "
                         "costs as much time as about 20 PPO iterations); the curve then comes from the training "
