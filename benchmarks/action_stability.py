@@ -17,6 +17,7 @@ import numpy as np
 
 from footforge import envs
 from footforge.envs.stability import divergence_times
+from footforge.variants import VALIDATED
 
 
 def run(feet: str, robots: int, seconds: float, sim_dt: float, decimation: int, seed: int, **physics) -> dict:
@@ -53,7 +54,7 @@ def run_mjx(feet: str, robots: int, seconds: float, sim_dt: float, decimation: i
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--sim", choices=("cpu", "mjx"), default="cpu")
-    p.add_argument("--feet", nargs="+", default=["aof", "aff", "ball"])
+    p.add_argument("--feet", nargs="+", default=list(VALIDATED))
     p.add_argument("--robots", type=int, default=16)
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--sim-dt", type=float, nargs="+", default=[0.005])

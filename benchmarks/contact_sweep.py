@@ -29,6 +29,8 @@ import time
 import mujoco
 import numpy as np
 
+from footforge.variants import FEET
+
 SETTINGS = {
     # name: (cone, impratio, solimp[:2], solref time constant s, iterations, ls_iterations[, step s])
     "fast": ("pyramidal", 1.0, (0.9, 0.95), 0.02, 4, 8),
@@ -144,7 +146,7 @@ def run_mjx(m, robot, qvel, steps, settle):
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--feet", nargs="+", default=["ball", "aff", "aof"], choices=["ball", "aff", "aof"])
+    p.add_argument("--feet", nargs="+", default=list(FEET), choices=FEET)
     p.add_argument("--settings", nargs="+", default=list(SETTINGS), choices=list(SETTINGS))
     p.add_argument("--sim", choices=["cpu", "mjx"], default="cpu")
     p.add_argument("--robots", type=int, default=6)

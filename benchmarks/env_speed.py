@@ -38,13 +38,14 @@ import jax
 import jax.numpy as jp
 
 from footforge import envs
+from footforge.variants import FEET
 
 
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--batches", type=int, nargs="+", default=[16, 64, 256])
     p.add_argument("--steps", type=int, default=20, help="policy steps timed per batch size")
-    p.add_argument("--feet", nargs="+", default=["ball", "aff", "aof"])
+    p.add_argument("--feet", nargs="+", default=list(FEET))
     p.add_argument("--tasks", nargs="+", default=["flat", "rough"], choices=list(envs.TASKS))
     p.add_argument("--policies", nargs="+", default=["B", "PH"],
                    help="policy types where the task has them (PH on ball feet falls back to P)")

@@ -53,6 +53,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from footforge.variants import FEET
+
 PRESETS = ("forward", "full")
 TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards", "paper_rewards", "noclip",
           "airtime", "airtime=X", "stance", "fast", "entropy=X", "height=X")
@@ -119,7 +121,7 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, required=True, help="run folder (a new one, or the run to --resume)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint "
                    "(parameters only: Brax restarts Adam and the adaptive learning rate)")
-    p.add_argument("--feet", default="ball", choices=("ball", "aff", "aof"))
+    p.add_argument("--feet", default="ball", choices=FEET)
     p.add_argument("--preset", default="full", choices=PRESETS, help="commands (default full)")
     p.add_argument("--variant", default="today", help=f"'+'-joined tokens among {', '.join(TOKENS)} (default today)")
     p.add_argument("--timesteps", type=int, default=5_000_000)

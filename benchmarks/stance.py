@@ -20,11 +20,13 @@ from pathlib import Path
 
 import mujoco
 
+from footforge.variants import FEET
+
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--build-root", type=Path, default=Path("build"), help="holds <variant>/scene.xml")
-    p.add_argument("--variants", nargs="+", default=["ball", "aff", "aof"])
+    p.add_argument("--variants", nargs="+", default=list(FEET))
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--pyramidal", action="store_true", help="also MuJoCo's default contact model")
     p.add_argument("--loads", action="store_true", help="also the stance's sideways loads and frictionless rest")

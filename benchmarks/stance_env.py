@@ -21,11 +21,13 @@ import platform
 import sys
 import time
 
+from footforge.variants import FEET
+
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--tasks", nargs="+", default=["flat", "rough"], choices=["flat", "rough"])
-    p.add_argument("--feet", nargs="+", default=["ball", "aff", "aof"], choices=["ball", "aff", "aof"])
+    p.add_argument("--feet", nargs="+", default=list(FEET), choices=FEET)
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--contact-model", choices=["stance", "fast", "build"], help="default: the environments' own")
     p.add_argument("--float64-physics", action="store_true")

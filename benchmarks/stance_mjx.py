@@ -38,6 +38,7 @@ from mujoco import mjx
 
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
+from footforge.variants import FEET
 
 FLAT = EnvConfig()
 """The flat task's velocity action model: target += action_scale x a x policy_dt (a clipped)."""
@@ -78,7 +79,7 @@ def rollout(mx, d0, qvel, key, decimation, policy_steps, acting, robot):
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--feet", choices=["ball", "aff", "aof"], default="ball")
+    p.add_argument("--feet", choices=FEET, default="ball")
     p.add_argument("--integrator", choices=["euler", "implicitfast"], default="euler")
     p.add_argument("--cone", choices=["pyramidal", "elliptic"], default="pyramidal")
     p.add_argument("--iterations", type=int, nargs=2, default=[8, 16], metavar=("NEWTON", "LINESEARCH"))

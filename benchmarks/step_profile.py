@@ -102,7 +102,7 @@ def profile(env, batch: int, repeats: int, settle_steps: int) -> dict:
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--tasks", nargs="+", default=["flat", "rough"], choices=list(envs.TASKS))
-    p.add_argument("--feet", nargs="+", default=["ball", "aff", "aof"], choices=list(envs.FEET))
+    p.add_argument("--feet", nargs="+", default=list(envs.FEET), choices=list(envs.FEET))
     p.add_argument("--contact-models", nargs="+", default=["stance"], choices=["stance", "fast"])
     p.add_argument("--batch", type=int, default=128)
     p.add_argument("--repeats", type=int, default=20)

@@ -104,3 +104,24 @@ def test_the_package_exports_its_entry_points_lazily():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=120)
     assert out.returncode == 0, out.stderr
     assert "ValidateOptions" in out.stdout and "check_description" in out.stdout
+
+
+def test_each_enumeration_is_spelled_once():
+    """Foot variants, feet and policy types are declared in footforge/variants.py; a tuple, list or
+    set of three or more of their names anywhere else in footforge/ or benchmarks/, or of two in a
+    membership test (`x in ("aof", "aff")`), is a second list to keep in step. (A default chosen
+    among them, e.g. a benchmark's ["B", "PH"], is a choice, not a list.)"""
+    groups = ({"full", "aof", "aff", "ball"}, {"B", "BH", "P", "PH"})
+    found = []
+    for path in [*(REPO / "footforge").rglob("*.py"), *(REPO / "benchmarks").glob("*.py")]:
+        if path.name == "variants.py" and path.parent.name == "footforge":
+            continue
+        tree = ast.parse(path.read_text())
+        tested = {id(c) for n in ast.walk(tree) if isinstance(n, ast.Compare)
+                  and any(isinstance(op, (ast.In, ast.NotIn)) for op in n.ops) for c in n.comparators}
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Tuple, ast.List, ast.Set)) and len(node.elts) >= (2 if id(node) in tested else 3):
+                names = {e.value for e in node.elts if isinstance(e, ast.Constant)}
+                if len(names) == len(node.elts) and any(names <= g for g in groups):
+                    found.append(f"{path.relative_to(REPO)}:{node.lineno} {sorted(names)}")
+    assert not found, "import these from footforge.variants:\n" + "\n".join(found)

@@ -38,9 +38,9 @@ from footforge.models.urdf import parse_urdf
 from footforge.outputs import check_output_folder
 from footforge.provenance import json_default, sha256_file, versions
 from footforge.timing import StageTimer
+from footforge.variants import DERIVED, VARIANTS, Variant  # noqa: F401  (VARIANTS, Variant re-exported: footforge.build)
 
-VARIANTS = ("full", "aof", "aff", "ball")
-Variant = Literal["full", "aof", "aff", "ball"]
+
 FORMATS = ("mjcf", "usd")
 
 REPORT_FORMAT = C.BUILD_FORMAT
@@ -145,7 +145,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
                 data = massprops.at_keyframe(robot_model, "home")
                 gaps = closure_gaps(robot_model, data)
                 report["closure_residual_at_home_m"] = max(gaps.values())
-        elif options.variant in ("aof", "aff"):
+        elif options.variant in DERIVED:
             with stage("compare mass properties"):
                 full_robot = build_robot(robot_parsed, full_foot, variant="full", params=params, friction=friction,
                                          stand_keyframe=False)
@@ -192,8 +192,6 @@ def _export_usd(options: BuildOptions, stage: StageTimer, report: dict, stages: 
         raise CheckFailure(f"the exported {stem} USD stage differs from its MJCF model:\n  " + "\n  ".join(failures),
                            fix="report this as a bug in footforge's USD exporter; use --format mjcf meanwhile")
     stages[stem] = exported.stage
-
-
 
 
 def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dict], report: dict,

@@ -14,15 +14,14 @@ from typing import get_args
 from footforge.envs.config import (CommandConfig, ContactModel, EnvConfig, ObservationConfig, ResetConfig,
                                    RewardConfig, check_feet_and_policy)
 from footforge.errors import InputError
+from footforge.variants import FEET, HAPTIC, TASKS
 
-TASKS = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
 FLAT_FEET_AIR_TIME = 1.0
 """The flat task's scale of RewardConfig.feet_air_time, a term the paper does not list: legged_gym's
 1.0. Without it a ball policy trained 3 M CPU steps on a straight 0.6 m/s command tracked it (error
 0.04 m/s) on three legs, RH on the ground 13 % of the time; with it, the same run walked on all four
 (32 of 32 robots up 20 s, every foot on the ground 21-84 %; benchmarks/log/2026-11-21_to_26.md, 2026-11-26,
 fourth session). The rough task keeps the paper's ten terms."""
-FEET = ("ball", "aff", "aof")
 FLAT_TUNED_REWARDS = {"lin_vel_xy": 2.0, "yaw_rate": 1.0, "base_height": -2.0}
 """The flat task's reward scales that the paper leaves unpublished ("opportunely tuned"), tuned:
 tracking weighed twice the baseline's 1.0 and 0.5 against the same penalties (MuJoCo Playground's
@@ -181,4 +180,4 @@ def make(task: str, feet: str, policy: str, **overrides):
 def registry() -> list[tuple[str, str, str]]:
     """Every valid (task, feet, policy) combination."""
     return [(t, f, p) for t, policies in TASKS.items() for f in FEET for p in policies
-            if not (p in ("BH", "PH") and f == "ball")]  # check_feet_and_policy's rule
+            if not (p in HAPTIC and f == "ball")]  # check_feet_and_policy's rule

@@ -14,9 +14,8 @@ from footforge import constants as C
 from footforge.envs import observations, rewards
 from footforge.envs.terrain import TerrainConfig
 from footforge.errors import InputError
+from footforge.variants import HAPTIC, PERCEPTIVE, Feet, PolicyType
 
-PolicyType = Literal["B", "BH", "P", "PH"]
-Feet = Literal["ball", "aff", "aof"]
 ContactModel = Literal["stance", "fast", "build"]
 """EnvConfig.contact_model's choices, the default first."""
 MjxImpl = Literal["jax", "warp"]
@@ -379,12 +378,12 @@ class EnvConfig:
     @property
     def haptic(self) -> bool:
         """The policy reads the passive foot joints (BH, PH)."""
-        return self.policy in ("BH", "PH")
+        return self.policy in HAPTIC
 
     @property
     def perceptive(self) -> bool:
         """The policy reads the height scan (P, PH)."""
-        return self.policy in ("P", "PH")
+        return self.policy in PERCEPTIVE
 
     @property
     def policy_dt(self) -> float:
@@ -410,7 +409,7 @@ def check_policy_on_feet(config: EnvConfig, feet: str, source: str | None = None
 
 def check_feet_and_policy(feet: str, policy: str) -> None:
     """Raises InputError for a haptic policy on feet without passive joints."""
-    if policy in ("BH", "PH") and feet == "ball":
+    if policy in HAPTIC and feet == "ball":
         raise InputError(f"policy type {policy} reads the feet's passive joints; the ball foot has none",
                          fix="use B with ball feet, or aff/aof feet")
 

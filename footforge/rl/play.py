@@ -32,9 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from footforge.errors import InputError
-
-FEET = ("ball", "aff", "aof", "full")
-"""Feet a policy can walk on here: the training variants and the closed chain."""
+from footforge.variants import PLAY_FEET as FEET  # the training feet and the closed chain
 
 TOOL = "footforge play"
 """Written into play's outputs (the GIF's comment, the log's "tool"): files play may replace."""

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from footforge.errors import InputError
+from footforge.variants import DERIVED
 from footforge.inputs.params import VariantParams, load_params
 from footforge.validate import fidelity
 
@@ -54,10 +55,6 @@ def _values(x: np.ndarray, variant: str) -> tuple[dict, float]:
         for name in group:
             joints[name] = {"stiffness": float(f"{10 ** x[2 * i]:.4g}"), "damping": float(f"{10 ** x[2 * i + 1]:.4g}")}
     return joints, float(f"{x[-1] / 100.0:.4g}")
-
-
-DERIVED = ("aof", "aff")
-"""The variants with free parameters to calibrate."""
 
 
 def training_split(scenarios: list) -> tuple[list, list]:

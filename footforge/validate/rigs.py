@@ -11,6 +11,7 @@ from footforge.mjcf.rig import build_rig
 from footforge.models.foot_source import FootSource
 from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
 from footforge.validate.simulate import RigCase
+from footforge.variants import DERIVED
 
 
 
@@ -19,7 +20,7 @@ def build_feet(source: FootSource, variants) -> dict[str, foot_lib.FootModel | N
     full = foot_lib.build_full(source)
     feet: dict[str, foot_lib.FootModel | None] = {"full": full}
     for v in variants:
-        if v in ("aof", "aff"):
+        if v in DERIVED:
             feet[v] = foot_lib.build_derived(source, v, full=full)
         elif v == "ball":
             feet[v] = None

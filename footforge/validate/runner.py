@@ -13,6 +13,7 @@ from typing import Callable
 from footforge import __version__
 from footforge.mjcf import foot as foot_lib
 from footforge.errors import InputError
+from footforge.variants import VALIDATED
 from footforge.inputs.params import VariantParams
 from footforge.models.foot_source import FootInputs, load_foot_source
 from footforge.processes import die_with_parent
@@ -31,7 +32,7 @@ exceed its initial value by more than this (about 1e-4 of a 10 cm drop's energy)
 
 @dataclass(frozen=True)
 class ValidateOptions:
-    variants: tuple[str, ...] = ("aof", "aff", "ball")
+    variants: tuple[str, ...] = VALIDATED
     """Variants compared with the closed chain."""
     scenarios: tuple[str, ...] = ("quick",)
     """'quick', 'all' or scenario names."""
@@ -50,9 +51,9 @@ class ValidateOptions:
 
 def parse_variants(text: str) -> tuple[str, ...]:
     if text == "all":
-        return ("aof", "aff", "ball")
+        return VALIDATED
     names = tuple(v.strip() for v in text.split(",") if v.strip())
-    bad = [v for v in names if v not in ("aof", "aff", "ball")]
+    bad = [v for v in names if v not in VALIDATED]
     if bad or not names:
         raise InputError(f"unknown variant '{', '.join(bad)}' for validate", fix="use aof, aff, ball or all")
     return names
