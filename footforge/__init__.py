@@ -80,8 +80,14 @@ class _QuietMjxWarp:
 
 
 class _QuietLoader:
+    """The module's own loader, its exec_module run with stdout filtered; every other attribute
+    (is_package, get_source, get_resource_reader, ...) is the wrapped loader's."""
+
     def __init__(self, loader):
         self.loader = loader
+
+    def __getattr__(self, name):
+        return getattr(self.loader, name)
 
     def create_module(self, spec):
         return self.loader.create_module(spec)
