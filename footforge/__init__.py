@@ -124,7 +124,7 @@ _EXPORTS = {
     "check_description": "footforge.build.check",
     "ValidateOptions": "footforge.validate.runner",
     "make_env": "footforge.envs",
-    "load_policy": "footforge.rl.train",
+    "load_policy": "footforge.rl.policy_files",
 }
 __all__ = ["__version__", "headless_by_default", *_EXPORTS]
 

@@ -8,6 +8,7 @@ else removed them) from those of a run still going: `remove_stale_temporaries`.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -104,3 +105,12 @@ def atomic_file(path: Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def write_json(path: Path, data: dict) -> None:
+    """Writes `data` as JSON to `path` whole or not at all (a temporary `.NAME.tmp` renamed into
+    place): a run killed mid-write must still resume."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=float))
+    os.replace(tmp, path)

@@ -632,7 +632,7 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     assert (stance_on_aof.contact_model, stance_on_aof.solver_iterations, stance_on_aof.solver_ls_iterations,
             stance_on_aof.sim_dt, stance_on_aof.decimation) == ("stance", 16, 16, 0.0025, 8)
     built_configs = []
-    monkeypatch.setattr("footforge.rl.train.load_policy", lambda d: (None, ball, None))
+    monkeypatch.setattr("footforge.rl.policy_files.load_policy", lambda d: (None, ball, None))
     monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)
     evaluation._policy_and_env("policy", "aof", 1.0, None)
     assert (built_configs[0].feet, built_configs[0].sim_dt, built_configs[0].decimation) == ("aof", 0.005, 4)

@@ -76,7 +76,7 @@ def _run(args) -> int:
     from footforge.outputs import check_output_folder
     from footforge.rl.policy_card import card_name, policy_card
     from footforge.cli.builds import build_defaults_if_missing
-    from footforge.rl.train import load_policy_config, policy_folder
+    from footforge.rl.policy_files import load_policy_config, policy_folder
 
     check_output_folder(args.out, force=args.force)  # before minutes of evaluation
     args.policy = [policy_folder(policy) for policy in args.policy]  # a run's folder: its policy/

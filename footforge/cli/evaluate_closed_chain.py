@@ -60,7 +60,7 @@ def _run(args) -> int:
     from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
     from footforge.outputs import check_output_folder
     from footforge.cli.builds import build_defaults_if_missing
-    from footforge.rl.train import load_policy_config, policy_folder
+    from footforge.rl.policy_files import load_policy_config, policy_folder
 
     from footforge.cli.help import console as make_console
 

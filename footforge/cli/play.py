@@ -86,7 +86,7 @@ def _check_arguments(args) -> None:
         raise InputError("no such policy folder or file", file=str(args.policy),
                          fix="pass a training run's folder (or its policy/ folder), or an .onnx file from footforge "
                              "export")
-    from footforge.rl.train import policy_folder
+    from footforge.rl.policy_files import policy_folder
 
     args.policy = policy_folder(args.policy)  # a run's folder: its policy/
     for flag, path, suffix in (("--video", args.video, ".gif"), ("--log", args.log, ".json")):

@@ -205,7 +205,7 @@ def _announce(console, name: str, env_config, ppo, done: int, total: int) -> Non
     """What will train, on what, and for how many steps, before the minutes of compilation."""
     import jax
 
-    from footforge.rl.train import steps_per_iteration
+    from footforge.rl.config import steps_per_iteration
 
     devices = jax.devices()
     backend = jax.default_backend()

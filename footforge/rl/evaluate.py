@@ -42,7 +42,7 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
       InputError: a haptic policy on other feet (or no policy in the folder).
     """
     from footforge.envs import enable_float64_physics, from_config, on_feet
-    from footforge.rl.train import load_policy
+    from footforge.rl.policy_files import load_policy
 
     policy, env_config, _ = load_policy(policy_dir)
     enable_float64_physics(env_config)  # the physics it trained on (EnvConfig.float64_physics)

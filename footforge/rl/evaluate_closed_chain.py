@@ -80,7 +80,7 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
       InputError: non-positive seconds or robots, or a policy step that is not a
         whole number of the closed chain's physics steps.
     """
-    from footforge.rl.train import load_policy
+    from footforge.rl.policy_files import load_policy
 
     policy, config, _ = load_policy(policy_dir)
     check_policy_on_feet(config, FULL, str(policy_dir))  # any policy: haptic ones read the sensors' estimates

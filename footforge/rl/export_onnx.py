@@ -62,7 +62,7 @@ def export(policy_dir: Path, out: Path | None = None, *, force: bool = False) ->
     from footforge.atomic import atomic_file
     from footforge.outputs import check_output_file
 
-    from footforge.rl.train import policy_folder
+    from footforge.rl.policy_files import policy_folder
 
     policy_dir = policy_folder(policy_dir)  # a run's folder: its policy/
     if not policy_dir.is_dir():
@@ -100,7 +100,7 @@ def build_model(policy_dir: Path):
     """The onnx.ModelProto of a policy folder (see the module's docstring)."""
     import onnx
 
-    from footforge.rl.train import load_policy_parameters
+    from footforge.rl.policy_files import load_policy_parameters
 
     policy = load_policy_parameters(policy_dir)
     kwargs = policy.network_config["network_factory_kwargs"]

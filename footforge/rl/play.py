@@ -102,7 +102,7 @@ def load_policy(path: Path) -> OnnxPolicy:
     import onnxruntime
 
     from footforge.rl.export_onnx import METADATA_KEYS, build_model
-    from footforge.rl.train import load_policy_config
+    from footforge.rl.policy_files import load_policy_config
 
     path = Path(path)
     if not path.exists():

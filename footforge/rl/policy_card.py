@@ -26,7 +26,7 @@ def card_name(policy_index: int, policies: int) -> str:
 def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: list[str]) -> str:
     """The card (markdown) of `policy_dir` from its evaluations, each (index of the result in the
     evaluation's output, evaluate()'s result), and the output's file names (to link the plots)."""
-    from footforge.rl.train import policy_meta
+    from footforge.rl.policy_files import policy_meta
 
     policy_dir = Path(policy_dir)
     meta = policy_meta(policy_dir)

@@ -1,0 +1,155 @@
+"""PPO's settings and how a run saves them.
+
+PPOConfig holds Brax PPO's hyperparameters; steps_per_iteration, training_epochs and planned_steps
+say where a run of them ends (Brax trains whole iterations); to_dict/from_dict are config.json's
+form of any frozen config (the environment's and PPO's), config_differences compares two.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, is_dataclass, replace
+
+from footforge.envs.config import EnvConfig
+from footforge.errors import InputError
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """PPO hyperparameters (Brax): networks and rollout after the paper (flat task) and its
+    baseline, learning rate, KL target, entropy and output initialisation after legged_gym."""
+
+    num_timesteps: int = 100_000_000
+    """Environment steps in total."""
+    num_envs: int = 2048
+    """Parallel robots (the paper's 2048)."""
+    unroll_length: int = 48
+    """Policy steps per robot per PPO iteration (the paper's 48)."""
+    num_minibatches: int = 4
+    batch_size: int = 512
+    """Trajectories per minibatch; batch_size * num_minibatches must be a multiple of num_envs."""
+    num_updates_per_batch: int = 5
+    """Epochs over each batch."""
+    learning_rate: float = 1e-3
+    """Adam's initial rate (rsl_rl's in legged_gym; the paper's rl_games baseline starts at 3e-4)."""
+    adaptive_kl: float = 0.01
+    """Desired KL of the adaptive learning-rate schedule (legged_gym's 0.01; the baseline's 0.008);
+    0 keeps the rate fixed."""
+    entropy_cost: float = 0.01
+    """legged_gym's (the baseline's 0.001 let the policy's std fall only from 1.0 to 0.94 in 3 M
+    CPU steps). These three and policy_output_init_scale 0.01 were chosen by the H100 ablations of
+    2026-11-26 (benchmarks/log/2026-11-21_to_26.md): with position actions under the full commands the forward
+    error of the training episodes fell to 0.14 m/s in 4 M steps against 0.34 with the baseline's."""
+    discounting: float = 0.99
+    gae_lambda: float = 0.95
+    clipping_epsilon: float = 0.2
+    vf_loss_coefficient: float = 2.0
+    max_grad_norm: float = 1.0
+    reward_scaling: float = 1.0
+    normalize_observations: bool = True
+    policy_hidden_layers: tuple[int, ...] = (256, 128, 64)
+    """The paper's flat-task network; state-independent Gaussian std."""
+    value_hidden_layers: tuple[int, ...] = (256, 128, 64)
+    init_noise_std: float = 1.0
+    policy_mean_clip: float | None = None
+    """Bounds the policy mean to +-this with Brax's softsign (mean_clip_scale: c x m / (1 + |m|));
+    None leaves it unbounded. rl_games (the paper's framework) keeps the mean near the action
+    bounds with its bounds loss; Brax's PPO has no such loss, and an unbounded mean far past the
+    environment's clip (EnvConfig.action_clip) gets no gradient from the clipped action."""
+    policy_output_init_scale: float = 0.01
+    """Factor on the initial weights of the policy's output (mean) layer (Brax's lecun_uniform
+    scaled); below 1 the first actions sit near zero (the default pose under position actions)
+    instead of up to +-3. Only the initialisation: a saved policy loads the same either way."""
+    checkpoint_every_steps: int = 5_000_000
+    """Environment steps between checkpoints (each one is also an evaluation)."""
+    num_eval_envs: int = 128
+    seed: int = 0
+
+    def check(self) -> None:
+        """Raises InputError on values Brax would reject later with a cryptic assertion."""
+        for f in ("num_timesteps", "num_envs", "unroll_length", "num_minibatches", "batch_size",
+                  "num_updates_per_batch", "checkpoint_every_steps", "num_eval_envs"):
+            if getattr(self, f) < 1:
+                raise InputError(f"{f} must be positive, got {getattr(self, f)}", fix=f"give a positive {f}")
+        if (self.batch_size * self.num_minibatches) % self.num_envs:
+            raise InputError(f"batch_size x num_minibatches ({self.batch_size} x {self.num_minibatches}) is not a "
+                             f"multiple of num_envs ({self.num_envs})",
+                             fix="e.g. num_envs = batch_size x num_minibatches (the defaults: 2048 = 512 x 4)")
+
+
+def steps_per_iteration(ppo: PPOConfig) -> int:
+    """Environment steps of one PPO iteration: batch_size x num_minibatches trajectories of
+    unroll_length steps (Brax's env_step_per_training_step)."""
+    return ppo.batch_size * ppo.num_minibatches * ppo.unroll_length
+
+
+def training_epochs(ppo: PPOConfig, done: int = 0) -> int:
+    """Epochs (each ending in a checkpoint) of a run that has done `done` steps: checkpoint_every_steps each."""
+    return max(1, math.ceil((ppo.num_timesteps - done) / ppo.checkpoint_every_steps))
+
+
+def planned_steps(ppo: PPOConfig, done: int = 0) -> int:
+    """The step at which a run that has done `done` steps will end. Brax trains whole iterations,
+    the same number in each epoch: ppo.num_timesteps rounded up to epochs x iterations x
+    steps_per_iteration (its train.py: num_training_steps_per_epoch)."""
+    remaining = ppo.num_timesteps - done
+    if remaining <= 0:
+        return done
+    epochs, iteration = training_epochs(ppo, done), steps_per_iteration(ppo)
+    return done + epochs * math.ceil(remaining / (epochs * iteration)) * iteration
+
+
+def default_ppo(task: str, **overrides) -> PPOConfig:
+    """The paper's PPO settings for a task: rough terrain uses the larger 512-256-128 networks and
+    the rough baseline's budget (OmniIsaacGymEnvs' AnymalTerrainPPO: 2000 iterations of 2048
+    robots x 48 steps, about 200 M steps; the paper stopped when 1000 iterations brought no gain)."""
+    if task == "rough":
+        overrides = {"policy_hidden_layers": (512, 256, 128), "value_hidden_layers": (512, 256, 128),
+                     "num_timesteps": 200_000_000} | overrides
+    return PPOConfig(**overrides)
+
+
+def to_dict(config) -> dict:
+    """A (nested) frozen dataclass as config.json holds it: every field but those declared in code
+    (metadata "saved": False, e.g. an observation group's reading function)."""
+    return {f.name: to_dict(v) if is_dataclass(v := getattr(config, f.name)) else
+            (list(v) if isinstance(v, tuple) else v)
+            for f in fields(config) if f.metadata.get("saved", True)}
+
+
+def from_dict(cls, data: dict, default=None):
+    """A (nested) frozen dataclass from its to_dict() form; tuples restored from lists. Fields
+    not in `data` keep their defaults (`default`, an instance, where the class has none)."""
+    kwargs = {}
+    types = {f.name: f for f in fields(cls)}
+    for name, value in data.items():
+        if name not in types:
+            raise InputError(f"unknown configuration key '{name}' for {cls.__name__}",
+                             fix="use the footforge version that wrote the configuration")
+        field_default = getattr(default, name) if default is not None else (
+            types[name].default_factory() if callable(types[name].default_factory) else types[name].default)
+        if is_dataclass(field_default):
+            value = from_dict(type(field_default), value, field_default)
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[name] = value
+    return replace(default, **kwargs) if default is not None else cls(**kwargs)
+
+
+def env_config_from_dict(data: dict) -> EnvConfig:
+    """An EnvConfig from a run's config.json "env" (older forms upgraded: envs.config.upgrade_saved)."""
+    from footforge.envs.config import upgrade_saved
+
+    return from_dict(EnvConfig, upgrade_saved(data))
+
+
+def config_differences(saved: dict, now: dict, prefix: str = "") -> list[str]:
+    """'field: saved -> now' for every leaf that differs between two to_dict()/JSON forms."""
+    out = []
+    for key in sorted(set(saved) | set(now)):
+        a, b = saved.get(key), now.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += config_differences(a, b, f"{prefix}{key}.")
+        elif a != b:
+            out.append(f"{prefix}{key}: {a!r} in the run, {b!r} now")
+    return out
