@@ -15,7 +15,7 @@ from footforge import constants as C
 from footforge import envs
 from footforge.rl import train
 from footforge.rl.evaluate_closed_chain import Controller, comparison_markdown, evaluate_closed_chain
-from footforge.envs import observations
+from footforge.envs import observation_layout
 from footforge.envs import terrain as terrain_lib
 from footforge.envs.config import ObservationConfig
 from footforge.errors import InputError
@@ -87,8 +87,8 @@ def untrained(built, tmp_path_factory):
     root = tmp_path_factory.mktemp("policies")
     b = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]))
     bh = replace(envs.default_config("flat", "aof", "BH"), build_dir=str(built["aof"][0]))
-    return {"B": train.initial_policy(b, train.PPOConfig(), root / "B", observation_size=observations.size(b, 0)),
-            "BH": train.initial_policy(bh, train.PPOConfig(), root / "BH", observation_size=observations.size(bh, 16))}
+    return {"B": train.initial_policy(b, train.PPOConfig(), root / "B", observation_size=observation_layout.size(b, 0)),
+            "BH": train.initial_policy(bh, train.PPOConfig(), root / "BH", observation_size=observation_layout.size(bh, 16))}
 
 
 def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import float64_stance
 from footforge import envs
-from footforge.envs import anymal, observations, rewards
+from footforge.envs import anymal, observation_layout, rewards
 from footforge.envs.anymal import GEOM_BASE
 from footforge.envs.config import EnvConfig, ObservationConfig, ObservationTerm, RewardConfig
 from footforge.envs.locomotion import LocomotionEnv, ground_contacts
@@ -37,24 +37,24 @@ def test_registry_and_its_errors():
 
 def test_observation_layout_is_documented_and_sized():
     b, bh = EnvConfig(policy="B"), EnvConfig(policy="BH")
-    assert observations.size(b, 16) == 48  # the baseline's 48
-    assert observations.size(bh, 8) == 48 + 16 and observations.size(bh, 16) == 48 + 32
-    assert [name for name, _ in observations.layout(bh, 16)][-2:] == ["foot_joint_pos", "foot_joint_vel"]
+    assert observation_layout.size(b, 16) == 48  # the baseline's 48
+    assert observation_layout.size(bh, 8) == 48 + 16 and observation_layout.size(bh, 16) == 48 + 32
+    assert [name for name, _ in observation_layout.layout(bh, 16)][-2:] == ["foot_joint_pos", "foot_joint_vel"]
     # Velocity actions need the 12 PD targets observed (ObservationConfig.pd_targets); under both
     # tasks' position actions the target is default + scale x the observed last action already.
     flat, rough = envs.default_config("flat", "aof", "BH"), envs.default_config("rough", "aof", "PH")
     assert flat.action == rough.action == "position"
     assert not flat.observations.pd_targets and not rough.observations.pd_targets
     velocity = dataclasses.replace(flat, action="velocity", observations=ObservationConfig(pd_targets=True))
-    assert observations.layout(velocity, 16)[7] == ("pd_target", 12)
-    assert observations.size(velocity, 16) == 48 + 12 + 32 and observations.size(flat, 16) == 48 + 32
-    assert "pd_target" not in dict(observations.layout(flat, 16))
+    assert observation_layout.layout(velocity, 16)[7] == ("pd_target", 12)
+    assert observation_layout.size(velocity, 16) == 48 + 12 + 32 and observation_layout.size(flat, 16) == 48 + 32
+    assert "pd_target" not in dict(observation_layout.layout(flat, 16))
     # Each group is declared once, in ObservationConfig: its reading function says what it holds
     # and in which unit, and every group is read by some policy type.
     groups = [f.name for f in dataclasses.fields(ObservationConfig) if isinstance(getattr(bh.observations, f.name),
                                                                                 ObservationTerm)]
-    assert all(observations.description(bh, name) for name in groups)
-    read = {name for config in (b, bh, velocity, rough) for name, _ in observations.layout(config, 16)}
+    assert all(observation_layout.description(bh, name) for name in groups)
+    read = {name for config in (b, bh, velocity, rough) for name, _ in observation_layout.layout(config, 16)}
     assert read == set(groups)
 
 
@@ -83,7 +83,7 @@ def test_reset_and_step_every_registered_env(rollouts, built):
     for feet, (env, states, _) in rollouts.items():
         n_passive = {"ball": 0, "aff": 8, "aof": 16}[feet]
         assert len(env.robot.passive_qpos) == n_passive
-        assert env.observation_size == observations.size(env.config, n_passive)
+        assert env.observation_size == observation_layout.size(env.config, n_passive)
         for state in states:
             assert state.obs.shape == (env.observation_size,)
             assert bool(jp.isfinite(state.obs).all()) and bool(jp.isfinite(state.reward))
@@ -115,7 +115,7 @@ def test_reset_and_step_every_registered_env(rollouts, built):
         target = np.clip(np.asarray(env.robot.default_q, np.float64) + 0.5 * last, lo, hi)
         np.testing.assert_allclose(states[-1].info["target"], target, atol=1e-5)
         seeing = LocomotionEnv(replace(env.config, observations=replace(quiet, pd_targets=True)), env.robot)
-        layout = observations.layout(seeing.config, n_passive)
+        layout = observation_layout.layout(seeing.config, n_passive)
         start = sum(w for _, w in layout[:[n for n, _ in layout].index("pd_target")])
         seen = seeing.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
         np.testing.assert_allclose(seen[start:start + 12], target - env.robot.default_q, atol=1e-5)

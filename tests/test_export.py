@@ -17,7 +17,7 @@ from footforge import constants as C
 from footforge import envs
 from footforge.rl import train
 from footforge.cli.main import main
-from footforge.envs import observations
+from footforge.envs import observation_layout
 from footforge.rl.train import PPOConfig, load_policy
 
 TOLERANCE = 1e-5
@@ -116,8 +116,8 @@ def test_onnx_matches_the_jax_policy_on_random_observations(tmp_path, capsys, ca
     assert meta["pd_gains"]["kp_nm_per_rad"] == C.KP_NM_PER_RAD and meta["pd_gains"]["kd_nms_per_rad"] == C.KD_NMS_PER_RAD
     assert meta["control_period_s"] == pytest.approx(env_config.sim_dt * env_config.decimation)
     layout = meta["observation"]["layout"]
-    n_passive = (size - observations.size(env_config, 0)) // 2
-    assert [(s["name"], s["size"]) for s in layout] == observations.layout(env_config, n_passive)
+    n_passive = (size - observation_layout.size(env_config, 0)) // 2
+    assert [(s["name"], s["size"]) for s in layout] == observation_layout.layout(env_config, n_passive)
     assert [s["start"] for s in layout] == list(np.cumsum([0] + [s["size"] for s in layout])[:-1])
     assert meta["observation"]["size"] == size and meta["observation"]["clip"] == env_config.observations.clip
     scales = {s["name"]: s["scale"] for s in layout}
@@ -142,7 +142,7 @@ def test_onnx_matches_the_jax_policy_on_a_recorded_rollout(tmp_path, ball_build)
     env_config = replace(envs.default_config("flat", "ball", "B"), build_dir=str(ball_build),
                          pushes=replace(envs.default_config("flat", "ball", "B").pushes, interval_s=0.2))
     ppo = PPOConfig(policy_hidden_layers=(64, 32), value_hidden_layers=(8,))
-    policy_dir = _perturbed_policy(env_config, ppo, tmp_path / "policy", observations.size(env_config, 0), seed=5)
+    policy_dir = _perturbed_policy(env_config, ppo, tmp_path / "policy", observation_layout.size(env_config, 0), seed=5)
     out = tmp_path / "deploy" / "anymal.onnx"
     out.parent.mkdir()
     assert main(["export", str(policy_dir), "--out", str(out)]) == 0
@@ -168,7 +168,7 @@ def test_onnx_matches_the_jax_policy_on_a_recorded_rollout(tmp_path, ball_build)
 def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, capsys, monkeypatch):
     env_config = envs.default_config("flat", "ball", "B")
     policy_dir = train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
-                                      tmp_path / "policy", observations.size(env_config, 0))
+                                      tmp_path / "policy", observation_layout.size(env_config, 0))
     (tmp_path / "not_a_policy").mkdir()
     (tmp_path / "a_file").write_text("x")
     (tmp_path / "a_folder").mkdir()
@@ -218,7 +218,7 @@ def test_a_file_footforge_did_not_write_is_never_replaced(tmp_path, capsys):
     file untouched; footforge's own export is replaced; --force replaces anything."""
     env_config = envs.default_config("flat", "ball", "B")
     policy_dir = train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
-                                      tmp_path / "policy", observations.size(env_config, 0))
+                                      tmp_path / "policy", observation_layout.size(env_config, 0))
     notes = tmp_path / "todo.txt"
     notes.write_text("my notes")
     foreign = tmp_path / "theirs.onnx"
@@ -245,7 +245,7 @@ def test_commands_take_a_run_folder_for_its_policy(tmp_path, capsys):
     run = tmp_path / "run"
     env_config = envs.default_config("flat", "ball", "B")
     train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)), run / "policy",
-                         observations.size(env_config, 0))
+                         observation_layout.size(env_config, 0))
     assert train.policy_folder(run) == run / "policy" and train.policy_folder(run / "policy") == run / "policy"
     assert main(["export", str(run), "--out", str(tmp_path / "p.onnx")]) == 0
     assert onnx.load(str(tmp_path / "p.onnx")).producer_name == "footforge"

@@ -125,3 +125,95 @@ def test_each_enumeration_is_spelled_once():
                 if len(names) == len(node.elts) and any(names <= g for g in groups):
                     found.append(f"{path.relative_to(REPO)}:{node.lineno} {sorted(names)}")
     assert not found, "import these from footforge.variants:\n" + "\n".join(found)
+
+
+def _import_graph(package: Path) -> dict[str, set[str]]:
+    """module -> the modules of `package` it imports (at the top, inside functions or for type
+    checking alike); `from package.sub import name` counts as importing package.sub.name where that
+    is a module, else package.sub."""
+    root = package.parent
+
+    def name_of(path: Path) -> str:
+        parts = path.relative_to(root).with_suffix("").parts
+        return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+    modules = {name_of(p): p for p in package.rglob("*.py") if "__pycache__" not in p.parts}
+
+    def known(name: str) -> str:
+        while name and name not in modules:
+            name = name.rpartition(".")[0]
+        return name
+
+    graph = {}
+    for module, path in modules.items():
+        out = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module and \
+                    node.module.split(".")[0] == package.name:
+                out |= {f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in modules else known(node.module)
+                        for a in node.names}
+            elif isinstance(node, ast.Import):
+                out |= {known(a.name) for a in node.names if a.name.split(".")[0] == package.name}
+        graph[module] = out - {module, ""}
+    return graph
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import circles: each strongly connected group of two or more modules (Tarjan)."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while not group or group[-1] != v:
+                group.append(stack.pop())
+                on_stack.discard(group[-1])
+            if len(group) > 1:
+                found.append(sorted(group))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_module_imports_itself_round_a_circle():
+    """No import circle in footforge/: e.g. the term modules (envs.rewards, envs.observations)
+    import nothing from the configuration that declares their terms (envs.config)."""
+    graph = _import_graph(PACKAGE)
+    assert "footforge.envs.config" not in graph["footforge.envs.rewards"] | graph["footforge.envs.observations"]
+    assert not _circles(graph), _circles(graph)
+
+
+def test_the_circle_check_sees_a_circle(tmp_path):
+    """The check above can fail: a circle through a function-level import is found, a chain is not."""
+    package = tmp_path / "pkg"
+    (package / "sub").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "sub" / "__init__.py").write_text("")
+    (package / "sub" / "a.py").write_text("from pkg.sub import b\n")
+    (package / "sub" / "b.py").write_text("def f():\n    from pkg.sub.c import name\n")
+    (package / "sub" / "c.py").write_text("import pkg.sub.a\nname = 1\n")
+    (package / "d.py").write_text("from pkg.sub import a\n")
+    graph = _import_graph(package)
+    assert graph["pkg.sub.b"] == {"pkg.sub.c"} and graph["pkg.d"] == {"pkg.sub.a"}
+    assert _circles(graph) == [["pkg.sub.a", "pkg.sub.b", "pkg.sub.c"]]
+
+
+def test_private_mjx_state_is_read_only_in_its_adapter():
+    """`mujoco.mjx._src` and the `_impl` fields of MJX's Model and Data are used in
+    footforge/envs/mjx_private.py alone (tests/test_mjx_private.py pins them)."""
+    private = re.compile(r"mjx\._src|\._impl\b|\b_impl=")
+    found = [f"{p.relative_to(REPO)}:{n}" for p in _modules() if p != PACKAGE / "envs" / "mjx_private.py"
+             for n, line in enumerate(p.read_text().splitlines(), 1) if private.search(line)]
+    assert not found, "read MJX's private state through footforge.envs.mjx_private:\n" + "\n".join(found)
+    assert private.search("support = mujoco.mjx._src.support") and private.search("data._impl.contact")

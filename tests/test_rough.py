@@ -18,7 +18,7 @@ from mujoco import mjx
 from conftest import REPO, float64_stance
 
 from footforge import envs
-from footforge.envs import curriculum, observations
+from footforge.envs import curriculum, observation_layout
 from footforge.envs.anymal import GEOM_FOOT, GEOM_SHANK
 from footforge.envs.config import CurriculumConfig
 from footforge.envs.locomotion import foot_contacts, ground_contacts
@@ -71,7 +71,7 @@ def test_reset_and_step_every_feet_and_policy_type(rough, built):
             other = envs.make("rough", feet, policy, build_dir=str(built[feet][0]), terrain=SMALL,
                               observations=replace(env.config.observations, noise=False))
             obs = other.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
-            assert obs.shape == (observations.size(other.config, len(other.robot.passive_qpos)),)
+            assert obs.shape == (observation_layout.size(other.config, len(other.robot.passive_qpos)),)
             assert bool(jp.isfinite(obs).all()), (feet, policy)
         assert {"terrain/level_per_step", "terrain/at_level_0_per_step"} <= set(states[-1].metrics)
     assert rough["aof"][0].observation_size == 48 + 140 + 32 and rough["ball"][0].observation_size == 188

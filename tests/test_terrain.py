@@ -14,7 +14,7 @@ SMALL = TerrainConfig(num_levels=5, num_columns=6, tile_size_m=4.0, border_m=1.0
 
 
 def tile(terrain, level, column):
-    c, n = terrain.config, terrain.config.samples_per_tile
+    n = terrain.config.samples_per_tile
     i0, j0 = terrain.border_samples + column * n, terrain.border_samples + level * n
     return terrain.heights_m[i0:i0 + n, j0:j0 + n]
 

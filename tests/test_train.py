@@ -16,7 +16,7 @@ import pytest
 from conftest import REPO
 
 from footforge import envs
-from footforge.envs import observations, rewards
+from footforge.envs import observation_layout, rewards
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 from footforge.rl.train import (
@@ -169,7 +169,7 @@ def test_saved_policy_loads_for_inference(resumed):
     out, _, _ = resumed
     policy, env_config, ppo = load_policy(out / "policy")
     assert env_config.feet == "ball" and env_config.policy == "B" and ppo.num_envs == 8
-    action, _ = policy(jp.zeros(observations.size(env_config, 0)), jax.random.PRNGKey(0))
+    action, _ = policy(jp.zeros(observation_layout.size(env_config, 0)), jax.random.PRNGKey(0))
     assert action.shape == (12,) and bool(jp.isfinite(action).all())
     with pytest.raises(InputError, match="not a footforge policy"):
         load_policy(out / "checkpoints")
@@ -230,7 +230,7 @@ def test_initial_policy_of_a_privileged_critic_loads_and_acts(tmp_path):
 
     cfg = replace(envs.default_config("flat", "ball", "B"), privileged_critic=True)
     ppo = PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,))
-    n = observations.size(cfg, 0)
+    n = observation_layout.size(cfg, 0)
     sizes = {"state": (n,), "privileged_state": (n + 148,)}
     train.initial_policy(cfg, ppo, tmp_path / "policy", observation_size=sizes)
     policy, env_config, _ = load_policy(tmp_path / "policy")
@@ -672,8 +672,8 @@ def test_training_with_float64_physics_keeps_the_networks_float32(built, tmp_pat
         "saved = load_policy_parameters(sys.argv[sys.argv.index('--out') + 1] + '/policy').params\n"
         "leaves = jax.tree_util.tree_leaves(saved[1:])  # policy and value networks (saved[0]: the normaliser)\n"
         "print('PARAMS', sorted({str(x.dtype) for x in leaves}))\n"
-        "from footforge.envs import observations\n"
-        "n = observations.size(config, 0)  # 48 + the flat task's 12 PD targets\n"
+        "from footforge.envs import observation_layout\n"
+        "n = observation_layout.size(config, 0)  # 48 + the flat task's 12 PD targets\n"
         "action = policy(jax.numpy.zeros(n, jax.numpy.float32), jax.random.PRNGKey(0))[0]\n"
         "print('ACTION', action.shape, bool(jax.numpy.isfinite(action).all()))\n")
     run = subprocess.run(

@@ -15,7 +15,7 @@ import json
 import platform
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Literal, Mapping
+from typing import Callable, Mapping
 
 import mujoco
 

@@ -313,10 +313,12 @@ def fit_heightfield_subgrids(mjx_model, model: mujoco.MjModel):
     benchmarks/step_profile.py); every other footforge geom keeps its subgrid. The near side is
     MJX's own: a yawed box's corner can reach up to r - a beyond the start, with or without this.
     Spheres and capsules start at their own bound and keep it."""
-    fitted = np.array(mjx_model._impl.geom_rbound_hfield, copy=True)  # mujoco-mjx 3.17: a static numpy field
+    from footforge.envs import mjx_private
+
+    fitted = mjx_private.heightfield_bounds(mjx_model)  # mujoco-mjx 3.17: a static numpy field
     boxes = model.geom_type == mujoco.mjtGeom.mjGEOM_BOX
     fitted[boxes] = (model.geom_size[boxes].max(axis=1) + model.geom_rbound[boxes]) / 2
-    return mjx_model.replace(_impl=mjx_model._impl.replace(geom_rbound_hfield=fitted))
+    return mjx_private.with_heightfield_bounds(mjx_model, fitted)
 
 
 def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[float, float, float]:

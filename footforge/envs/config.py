@@ -8,10 +8,11 @@ cfg/task YAML). PPO hyperparameters live apart, in footforge.rl.train.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Callable, Literal
+from typing import Literal
 
 from footforge import constants as C
 from footforge.envs import observations, rewards
+from footforge.envs.terms import NOT_SAVED, ObservationTerm, RewardTerm  # noqa: F401 (re-exported)
 from footforge.envs.terrain import TerrainConfig
 from footforge.errors import InputError
 from footforge.variants import HAPTIC, PERCEPTIVE, Feet, PolicyType
@@ -38,21 +39,6 @@ class CommandConfig:
     """Planar commands slower than this (m/s) are set to zero (the rough baseline uses 0.25)."""
     resample_s: float = 10.0
     """Commands are redrawn this often within an episode, s."""
-
-
-NOT_SAVED = {"saved": False}
-"""Field metadata: declared in code, not written to a run's config.json (functions, widths)."""
-
-
-@dataclass(frozen=True)
-class RewardTerm:
-    """One reward term: its function and its scale."""
-
-    compute: Callable = field(default=None, metadata=NOT_SAVED)
-    """(rewards.Quantities, RewardConfig) -> the unscaled term (envs.rewards, whose docstrings give
-    each term's formula and unit)."""
-    scale: float = 0.0
-    """Multiplies the term (and the policy step dt): positive rewards, negative penalises."""
 
 
 @dataclass(frozen=True)
@@ -101,26 +87,6 @@ class RewardConfig:
     def with_scales(self, **scales: float) -> RewardConfig:
         """This configuration with the named terms' scales replaced."""
         return replace(self, **{name: replace(getattr(self, name), scale=s) for name, s in scales.items()})
-
-
-@dataclass(frozen=True)
-class ObservationTerm:
-    """One observation group: its reading function, width and readers (declared in code), and
-    its scale and noise (configurable)."""
-
-    read: Callable = field(default=None, metadata=NOT_SAVED)
-    """(env, data, info) -> the group's value in its unit (envs.observations, whose docstrings
-    give what each holds)."""
-    width: int | str = field(default=0, metadata=NOT_SAVED)
-    """Number of values, or "passive_joints" / "scan_points": one per passive foot joint / scan point."""
-    read_by: str = field(default="always", metadata=NOT_SAVED)
-    """Which policies read it: "always", "haptic" (BH, PH), "perceptive" (P, PH), "pd_targets"
-    (where ObservationConfig.pd_targets)."""
-    scale: float | tuple[float, ...] = 1.0
-    """Factor the noisy value is multiplied by (per component for a tuple)."""
-    noise: float = 0.0
-    """Half-width of the uniform noise added before scaling, in the group's unit (where
-    ObservationConfig.noise)."""
 
 
 @dataclass(frozen=True)

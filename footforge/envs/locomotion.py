@@ -23,7 +23,7 @@ from brax.envs.base import Env, State
 from mujoco import mjx
 
 from footforge import constants as C
-from footforge.envs import observations, rewards
+from footforge.envs import mjx_private, observation_layout, rewards
 from footforge.envs.anymal import (GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
                                    load_robot)
 from footforge.envs.config import EnvConfig, check_feet_and_policy
@@ -91,7 +91,7 @@ class LocomotionEnv(Env):
         if config.mjx_impl == "jax":  # MJX Warp collides heightfields its own way
             self.sys = fit_heightfield_subgrids(self.sys, r.model)
         self._n_passive = len(r.passive_qpos)
-        self._obs_size = observations.size(config, self._n_passive)
+        self._obs_size = observation_layout.size(config, self._n_passive)
         # Privileged (critic-only) observations: true base velocity (3), each foot's normal
         # force over the robot's weight (4), the noiseless height scan (points), ground friction (1).
         self._privileged_size = 3 + 4 + config.height_scan.num_points + 1
@@ -372,19 +372,17 @@ class LocomotionEnv(Env):
 
     def foot_forces(self, data):
         """Per leg (LF, RF, LH, RH): the normal force of its foot's contacts with the ground, N."""
-        from mujoco.mjx._src import support
-
-        force, index = support.contact_force_dim(self.mjx_model, data, 3)  # condim 3: every robot contact
-        contact = data._impl.contact
-        hit, other = _floor_hits(self._geom_category, self.robot.floor_geom, contact.geom[index], contact.dist[index])
-        return jp.stack([jp.sum(jp.where(hit & (other == GEOM_FOOT + i), force[:, 0], 0.0)) for i in range(4)])
+        normal, index = mjx_private.contact_normal_forces(self.mjx_model, data)
+        geoms, dist = mjx_private.contacts(data)
+        hit, other = _floor_hits(self._geom_category, self.robot.floor_geom, geoms[index], dist[index])
+        return jp.stack([jp.sum(jp.where(hit & (other == GEOM_FOOT + i), normal, 0.0)) for i in range(4)])
 
     def observe(self, data, info, key):
         """The policy's observation: each group this policy type reads (envs.observations), with
         uniform noise of +-noise in its unit (where ObservationConfig.noise), times its scale,
         the whole clipped to +-clip."""
         cfg = self.config.observations
-        groups = observations.terms(self.config)
+        groups = observation_layout.terms(self.config)
         chunks = []
         for (_, term), k in zip(groups, jax.random.split(key, len(groups))):
             value = term.read(self, data, info)
@@ -462,8 +460,7 @@ class LocomotionEnv(Env):
 
     def foot_contacts(self, data):
         """Per leg (LF, RF, LH, RH): does its foot touch the ground."""
-        contact = data._impl.contact
-        return foot_contacts(self._geom_category, self.robot.floor_geom, contact.geom, contact.dist)
+        return foot_contacts(self._geom_category, self.robot.floor_geom, *mjx_private.contacts(data))
 
     def _terminated(self, data):
         """Base contact, or the configured number of thigh (knee) contacts (a boolean)."""

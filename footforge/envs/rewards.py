@@ -1,16 +1,16 @@
 """The paper's ten reward terms (and an optional gait term) as pure functions of what they penalise or reward.
 
 Each term is declared once, as a field of RewardConfig (envs.config): its function (here), unit
-and scale. The environment measures a step's Quantities once; each function returns its
+and scale (a RewardTerm, envs.terms). The environment measures a step's Quantities once; each function returns its
 unscaled term, which the environment multiplies by the term's scale and the policy step dt.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from dataclasses import fields
+from typing import NamedTuple
 
-if TYPE_CHECKING:
-    from footforge.envs.config import RewardConfig
+from footforge.envs.terms import RewardParameters, RewardTerm
 
 
 class Quantities(NamedTuple):
@@ -43,7 +43,7 @@ class Quantities(NamedTuple):
     again; zero on every other step."""
 
 
-def lin_vel_xy(q: Quantities, cfg: RewardConfig):
+def lin_vel_xy(q: Quantities, cfg: RewardParameters):
     """exp(-|command - velocity|^2 / sigma) of the planar velocity, base frame (m/s)."""
     import jax.numpy as jp  # here, not at the top: envs.config imports this module and stays free of JAX
 
@@ -51,55 +51,55 @@ def lin_vel_xy(q: Quantities, cfg: RewardConfig):
     return jp.exp(-(error * error).sum() / cfg.tracking_sigma)
 
 
-def yaw_rate(q: Quantities, cfg: RewardConfig):
+def yaw_rate(q: Quantities, cfg: RewardParameters):
     """exp(-(command - yaw rate)^2 / sigma), rad/s."""
     import jax.numpy as jp
 
     return jp.exp(-(q.command[2] - q.ang_vel[2]) ** 2 / cfg.tracking_sigma)
 
 
-def lin_vel_z(q: Quantities, cfg: RewardConfig):
+def lin_vel_z(q: Quantities, cfg: RewardParameters):
     """Vertical base velocity squared, (m/s)^2."""
     return q.lin_vel[2] ** 2
 
 
-def ang_vel_xy(q: Quantities, cfg: RewardConfig):
+def ang_vel_xy(q: Quantities, cfg: RewardParameters):
     """Roll and pitch rate squared, (rad/s)^2."""
     return (q.ang_vel[:2] ** 2).sum()
 
 
-def orientation(q: Quantities, cfg: RewardConfig):
+def orientation(q: Quantities, cfg: RewardParameters):
     """|projected gravity_xy|^2: zero when the base is level (gravity along -z of the base)."""
     return (q.gravity[:2] ** 2).sum()
 
 
-def base_height(q: Quantities, cfg: RewardConfig):
+def base_height(q: Quantities, cfg: RewardParameters):
     """(h - target)^2, m^2, with h the base height over the ground."""
     return (q.base_height - cfg.base_height_target_m) ** 2
 
 
-def torques(q: Quantities, cfg: RewardConfig):
+def torques(q: Quantities, cfg: RewardParameters):
     """sum tau^2, (N m)^2."""
     return (q.torques ** 2).sum()
 
 
-def joint_acc(q: Quantities, cfg: RewardConfig):
+def joint_acc(q: Quantities, cfg: RewardParameters):
     """sum of squared joint-velocity changes over one policy step, (rad/s)^2: how the paper's
     baseline computes its "joint accelerations" term (the change, not divided by the step)."""
     return ((q.joint_vel - q.last_joint_vel) ** 2).sum()
 
 
-def action_rate(q: Quantities, cfg: RewardConfig):
+def action_rate(q: Quantities, cfg: RewardParameters):
     """sum (a - a_prev)^2."""
     return ((q.action - q.last_action) ** 2).sum()
 
 
-def hip(q: Quantities, cfg: RewardConfig):
+def hip(q: Quantities, cfg: RewardParameters):
     """sum |q_HAA - default|, rad."""
     return abs(q.haa_offset).sum()
 
 
-def feet_air_time(q: Quantities, cfg: RewardConfig):
+def feet_air_time(q: Quantities, cfg: RewardParameters):
     """sum over the feet touching down of (air time - feet_air_time_target_s), s, while the planar
     command is above 0.1 m/s (legged_gym's feet_air_time: steps of at least the target length
     pay, shorter ones cost; no reward for stepping in place under a zero command)."""
@@ -110,10 +110,6 @@ def feet_air_time(q: Quantities, cfg: RewardConfig):
     return jp.where(landed, q.touchdown_air_time - cfg.feet_air_time_target_s, 0.0).sum() * moving
 
 
-def terms(cfg: RewardConfig) -> dict:
-    """name -> RewardTerm of every term, in declaration order."""
-    from dataclasses import fields
-
-    from footforge.envs.config import RewardTerm
-
+def terms(cfg) -> dict[str, RewardTerm]:
+    """name -> RewardTerm of every term of a RewardConfig, in declaration order."""
     return {f.name: getattr(cfg, f.name) for f in fields(cfg) if isinstance(getattr(cfg, f.name), RewardTerm)}

@@ -194,13 +194,13 @@ def _activation(name: str, x: str, y: str, prefix: str) -> list:
 def metadata(env, ppo, observation_size: int, global_step: int, network_kwargs: dict) -> dict[str, str]:
     """metadata_props of the exported model: METADATA_KEYS, each value a JSON string."""
     from footforge import constants as C
-    from footforge.envs import observations
+    from footforge.envs import observation_layout
 
-    n_passive = observations.passive_joints_of(env, observation_size)
+    n_passive = observation_layout.passive_joints_of(env, observation_size)
     slices, start = [], 0
-    for name, width in observations.layout(env, n_passive):
-        slices.append({"name": name, "start": start, "size": width, "scale": observations.scale(env, name),
-                       "description": observations.description(env, name)})
+    for name, width in observation_layout.layout(env, n_passive):
+        slices.append({"name": name, "start": start, "size": width, "scale": observation_layout.scale(env, name),
+                       "description": observation_layout.description(env, name)})
         start += width
     if start != observation_size:
         raise InputError(f"the policy reads {observation_size} observations but its configuration lays out {start}",

@@ -147,7 +147,7 @@ def _config_from_metadata(meta: dict, path: Path):
     The file's layout (slices, widths, scales, height scan) must be the configuration's: a file
     from a run with other observation settings is refused, not misread."""
     from footforge import envs
-    from footforge.envs import observations
+    from footforge.envs import observation_layout
 
     config = envs.default_config(meta["task"], meta["feet"], meta["policy_type"])
     a, o = meta["action"], meta["observation"]
@@ -155,8 +155,8 @@ def _config_from_metadata(meta: dict, path: Path):
                      decimation=meta["decimation"],
                      observations=replace(config.observations, clip=o["clip"], noise=o["noise_in_training"],
                                           pd_targets=any(s["name"] == "pd_target" for s in o["layout"])))
-    ours = [(name, width, np.ravel(observations.scale(config, name)).tolist())
-            for name, width in observations.layout(config, o["passive_foot_joints"])]
+    ours = [(name, width, np.ravel(observation_layout.scale(config, name)).tolist())
+            for name, width in observation_layout.layout(config, o["passive_foot_joints"])]
     theirs = [(s["name"], s["size"], np.ravel(s["scale"]).tolist()) for s in o["layout"]]
     scan = o.get("height_scan")
     same_scan = scan is None or (scan["x_m"] == list(config.height_scan.x_m) and scan["y_m"] == list(config.height_scan.y_m)

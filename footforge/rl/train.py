@@ -109,14 +109,14 @@ def _initialisation(source: Path, env_config: EnvConfig, ppo: PPOConfig, notice)
     """(step, parameters) of the newest intact checkpoint of run `source`, refused where its
     networks cannot be this run's: other observations (policy type, PD targets, height scan, a
     haptic policy on other feet), another critic, other hidden layers or observation normalising."""
-    from footforge.envs import observations
+    from footforge.envs import observation_layout
 
     source_env, source_ppo = load_run_config(source)
     problems = []
     if (source_env.haptic or env_config.haptic) and source_env.feet != env_config.feet:
         problems.append(f"a haptic policy reads its feet's joints: feet {source_env.feet} there, {env_config.feet} here")
     else:
-        widths = observations.size(source_env, 16), observations.size(env_config, 16)
+        widths = observation_layout.size(source_env, 16), observation_layout.size(env_config, 16)
         if widths[0] != widths[1]:
             problems.append(f"observation width {widths[0]} there, {widths[1]} here (policy {source_env.policy} / "
                             f"{env_config.policy})")
