@@ -4,7 +4,8 @@
     footforge evaluate-closed-chain --policy runs/flat_ball_B/policy runs/flat_aof_B/policy \\
         --seconds 20 --robots 8 --terrain --out closed_chain_eval
 
-Blind (B) and perceptive (P) policies only. The closed chain steps at its own 0.25 ms (80 physics
+Any policy type: haptic ones (BH, PH) read the closed chain's passive joints as estimated from the
+foot's IMUs. The closed chain steps at its own 0.25 ms (80 physics
 steps per policy step, about real time or slower per robot on one core: keep --robots small).
 Without --build-root the builds are build/<feet> (build/full for the closed chain), made on first use.
 Writes <out>/metrics.json, closed_chain.md (tracking errors, falls, closure drift and real-time

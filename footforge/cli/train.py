@@ -26,6 +26,7 @@ DESCRIPTIONS = {
 def parser(task: str, description: str, prog: str | None = None) -> argparse.ArgumentParser:
     """The options of `footforge train TASK`."""
     from footforge.envs import FEET, TASKS
+    from footforge.rl.config import default_ppo
 
     from footforge.cli.help import DefaultsHelpFormatter
 
@@ -33,8 +34,8 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     p.add_argument("--feet", choices=FEET, help="foot variant (default aof)")
     p.add_argument("--policy", choices=TASKS[task], help="policy type (default B)")
     p.add_argument("--num-envs", type=int, help="parallel robots (default 2048)")
-    p.add_argument("--timesteps", type=int, help="environment steps in total (default 1e8; with --resume it may "
-                                                 "extend the run)")
+    p.add_argument("--timesteps", type=int, help=f"environment steps in total (default {default_ppo(task).num_timesteps:,}; "
+                                                 "with --resume it may extend the run)")
     p.add_argument("--seed", type=int, help="(default 0)")
     p.add_argument("--out", type=Path, required=True, help="run folder")
     p.add_argument("--resume", action="store_true",
@@ -80,7 +81,7 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
                         "rewards or feet; the networks must match")
     p.add_argument("--coordinator", metavar="HOST:PORT",
                    help="several machines (with --num-processes and --process-id): refused for now, exit 2: "
-                        "Brax 0.14.2's PPO does not train over several JAX processes on JAX 0.9 (see README); "
+                        "Brax 0.14.2's PPO does not train over several JAX processes on JAX 0.9 (docs/training.md); "
                         "one machine's GPUs are all used without it")
     p.add_argument("--num-processes", type=int, help="with --coordinator: refused for now")
     p.add_argument("--process-id", type=int, help="with --coordinator: refused for now")

@@ -24,7 +24,7 @@ max_mib="${KIT_MAX_MIB:-60}"
 fail() { echo "prepare: error: $*" >&2; exit 1; }
 
 # The wheels the GPU machine lacks (Python 3.12, x86-64 Linux). Each one's Requires-Dist was
-# checked against the machine's packages (see README, "Training on an offline GPU machine").
+# checked against the machine's packages (docs/training.md, "Training on an offline GPU machine").
 WHEELS=(
     mujoco==3.17.0 mujoco-mjx==3.17.0 brax==0.14.2
     tensorboardX==2.6.5   # footforge.rl.train's logger (the machine has tensorboard, not tensorboardX)
