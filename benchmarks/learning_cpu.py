@@ -162,9 +162,10 @@ def main(argv=None) -> int:
         num_envs=args.num_envs, num_timesteps=args.timesteps, unroll_length=args.unroll_length,
         batch_size=args.batch_size or args.num_envs // 2, num_minibatches=args.minibatches,
         checkpoint_every_steps=args.eval_every, num_eval_envs=args.eval_envs, seed=args.seed))
-    if args.resume:  # the run's own settings
+    if args.resume:  # the run's own settings; --feet, --preset and --variant are not read
         cfg, saved = train.load_run_config(args.out)
         ppo = replace(saved, num_timesteps=args.timesteps)
+        args.feet, args.preset, args.variant = cfg.feet, "(the run's)", "(the run's)"
     if args.build_dir:  # where the feet are built is this machine's, not the run's
         cfg = replace(cfg, build_dir=str(args.build_dir))
     t0 = time.time()
