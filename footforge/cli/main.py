@@ -14,6 +14,7 @@ import os
 import sys
 import traceback
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import footforge
 
@@ -21,6 +22,9 @@ footforge.headless_by_default()  # before any import of MuJoCo
 
 from footforge.errors import EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError
 from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET
+
+if TYPE_CHECKING:
+    from footforge.validate.results import ValidationReport
 
 
 class _Parser(argparse.ArgumentParser):
@@ -313,7 +317,7 @@ def _run_validate(args, console) -> int:
     return EXIT_OK if report.passed else EXIT_CHECK_FAILED
 
 
-def _print_validation(report, out: Path, console) -> None:
+def _print_validation(report: ValidationReport, out: Path, console) -> None:
     from rich.table import Table
 
     from footforge.validate.report import METRICS, format_value, failing_metrics
