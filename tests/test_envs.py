@@ -14,7 +14,8 @@ from footforge import envs
 from footforge.envs import anymal, observation_layout, rewards
 from footforge.envs.anymal import GEOM_BASE
 from footforge.envs.config import EnvConfig, ObservationConfig, ObservationTerm, RewardConfig
-from footforge.envs.locomotion import LocomotionEnv, ground_contacts
+from footforge.envs.contacts import ground_contacts
+from footforge.envs.locomotion import LocomotionEnv
 from footforge.errors import InputError
 
 

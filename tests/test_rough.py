@@ -21,7 +21,7 @@ from footforge import envs
 from footforge.envs import curriculum, observation_layout
 from footforge.envs.anymal import GEOM_FOOT, GEOM_SHANK
 from footforge.envs.config import CurriculumConfig
-from footforge.envs.locomotion import foot_contacts, ground_contacts
+from footforge.envs.contacts import foot_contacts, ground_contacts
 from footforge.envs.terrain import TerrainConfig, column_kinds
 from footforge.envs.wrappers import wrap_for_training
 

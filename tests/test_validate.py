@@ -12,6 +12,7 @@ from footforge.errors import InputError
 from footforge.inputs.params import load_params
 from footforge.validate import fidelity
 from footforge.validate.calibrate import write_params
+from footforge.validate.results import JSON_SCHEMA_PATH, ValidationReport, json_schema
 from footforge.validate.runner import (
     CLOSURE_LIMIT_MM,
     ENERGY_GAIN_TOL_J,
@@ -25,10 +26,11 @@ PARAMS = REPO / "descriptions/softfoot_q/config/variant_params.yaml"
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    """The quick set end to end through the command line, as CI runs it: (exit code, report.json, folder)."""
+    """The quick set end to end through the command line, as CI runs it: (exit code, report.json
+    read back as a ValidationReport, folder)."""
     out = tmp_path_factory.mktemp("validate") / "report"
     code = main(["validate", "--scenarios", "quick", "--jobs", "2", "--out", str(out)])
-    return code, json.loads((out / "report.json").read_text()), out
+    return code, ValidationReport.from_json(json.loads((out / "report.json").read_text())), out
 
 
 @pytest.fixture(scope="module")
@@ -42,13 +44,13 @@ def test_quick_run_writes_every_output(quick):
     code, report, out = quick
     # The ball has no sole to stand on: its settled height misses the closed chain's by about 4 cm,
     # far past the 5 mm threshold, so the quick set cannot pass and the exit code says so.
-    assert report["fidelity"]["ball"]["summary"]["passed"] is False and not report["passed"] and code == 1
+    assert report.fidelity["ball"].summary.passed is False and not report.passed and code == 1
     for name in ("report.md", "report.html", "report.json", "series.npz"):
         assert (out / name).is_file()
     assert sorted(p.stem for p in (out / "plots").iterdir()) == sorted(QUICK)
-    assert [s["name"] for s in report["scenarios"]] == list(QUICK)
-    assert set(report["fidelity"]) == {"aof", "aff", "ball"}
-    assert report["versions"]["mujoco"] and report["seed"] == 0
+    assert [s["name"] for s in report.scenarios] == list(QUICK)
+    assert set(report.fidelity) == {"aof", "aff", "ball"}
+    assert report.versions["mujoco"] and report.seed == 0
     series = np.load(out / "series.npz")
     assert series["full/flat_2cm/force_z_n"].shape == series["aof/flat_2cm/force_z_n"].shape
     html = (out / "report.html").read_text()
@@ -58,16 +60,16 @@ def test_quick_run_writes_every_output(quick):
 def test_closed_chain_reference_is_trustworthy(quick, extra):
     """Loops stay shut within 0.5 mm, nothing blows up, and the energy never exceeds its start."""
     _, report, _ = quick
-    for ref in (report["reference"], extra["reference"]):
-        assert ref["passed"]
-        assert ref["max_closure_gap_mm"] < CLOSURE_LIMIT_MM
-        assert ref["max_energy_gain_j"] <= ENERGY_GAIN_TOL_J
-        assert not any(p["failed"] for p in ref["per_scenario"].values())
+    for ref in (report.reference, extra.reference):
+        assert ref.passed
+        assert ref.max_closure_gap_mm < CLOSURE_LIMIT_MM
+        assert ref.max_energy_gain_j <= ENERGY_GAIN_TOL_J
+        assert not any(p["failed"] for p in ref.per_scenario.values())
 
 
 def test_settled_force_on_flat_ground_equals_the_supported_weight(quick):
     _, report, _ = quick
-    for variant, runs in report["runs"].items():
+    for variant, runs in report.runs.items():
         run = runs["flat_2cm"]
         assert run["scalars"]["final_force_n"] == pytest.approx(run["supported_weight_n"], rel=0.01), variant
 
@@ -75,7 +77,7 @@ def test_settled_force_on_flat_ground_equals_the_supported_weight(quick):
 def test_symmetric_obstacle_gives_a_symmetric_response(extra):
     """A rock under the middle of the sole: no roll, no lateral centre of pressure; a leg tilted
     +10 or -10 degrees in roll: mirror images."""
-    for variant, runs in extra["runs"].items():
+    for variant, runs in extra.runs.items():
         rock = runs["rock_middle"]["scalars"]
         assert abs(rock["final_roll_deg"]) < 0.1 and abs(rock["cop_y_mm"]) < 0.5, variant
         plus, minus = runs["leg_roll_+10deg"]["scalars"], runs["leg_roll_-10deg"]["scalars"]
@@ -93,7 +95,7 @@ def test_errors_measure_known_departures_from_the_reference(extra):
     1.5 mm, force NRMSE 0.1 RMS(F) / span(F)."""
     import copy
 
-    for name, run in extra["runs"]["full"].items():
+    for name, run in extra.runs["full"].items():
         moved = copy.deepcopy(run)
         a, series = moved["scalars"], moved["series"]
         a["peak_force_n"] *= 1.1
@@ -120,9 +122,9 @@ def test_errors_measure_known_departures_from_the_reference(extra):
 
 def test_same_seed_same_figures_other_seed_other_terrain(extra):
     again = validate(ValidateOptions(variants=("aof",), jobs=1, scenarios=("rough_seed0",)))
-    assert again["runs"]["aof"]["rough_seed0"]["scalars"] == extra["runs"]["aof"]["rough_seed0"]["scalars"]
+    assert again.runs["aof"]["rough_seed0"]["scalars"] == extra.runs["aof"]["rough_seed0"]["scalars"]
     other = validate(ValidateOptions(variants=("aof",), jobs=1, scenarios=("rough_seed0",), seed=7))
-    assert other["runs"]["aof"]["rough_seed0"]["scalars"] != extra["runs"]["aof"]["rough_seed0"]["scalars"]
+    assert other.runs["aof"]["rough_seed0"]["scalars"] != extra.runs["aof"]["rough_seed0"]["scalars"]
 
 
 def test_scenario_sets():
@@ -226,7 +228,7 @@ def test_ground_impulse_equals_momentum_change_plus_weight_times_time(drops):
     """From the last sample before contact to the end, the ground's impulse (summed over every
     physics step from contact forces) equals the hanging mass's momentum change (from its
     velocities) plus weight x time: two independent routes to the same number."""
-    for variant, runs in drops["runs"].items():
+    for variant, runs in drops.runs.items():
         run = runs["flat_2cm"]
         s = run["series"]
         first = int(np.flatnonzero(s["force_z_n"] > 1e-6)[0])
@@ -261,31 +263,31 @@ def test_obstacles_are_hit_or_the_miss_is_reported_and_excluded(drops, quick):
     under the middle of the sole, misses the step under the toe, which is then reported and left
     out of its means."""
     _, report, _ = quick
-    obstacle_scenarios = [s["name"] for s in report["scenarios"] if s["obstacle"] not in ("flat", "slope")]
+    obstacle_scenarios = [s["name"] for s in report.scenarios if s["obstacle"] not in ("flat", "slope")]
     assert "step_toe" in obstacle_scenarios and len(obstacle_scenarios) >= 3
     for variant in ("full", "aof", "aff"):
         for name in obstacle_scenarios:
-            assert report["runs"][variant][name]["scalars"]["obstacle_share"] >= fidelity.OBSTACLE_SHARE_MIN, \
+            assert report.runs[variant][name]["scalars"]["obstacle_share"] >= fidelity.OBSTACLE_SHARE_MIN, \
                 (variant, name)
-    ball = drops["runs"]["ball"]["step_toe"]["scalars"]
+    ball = drops.runs["ball"]["step_toe"]["scalars"]
     assert ball["obstacle_share"] < fidelity.OBSTACLE_SHARE_MIN
-    summary = drops["fidelity"]["ball"]["summary"]
-    assert summary["missed_obstacle"] == ["step_toe"]
-    assert drops["fidelity"]["ball"]["per_scenario"]["step_toe"] == {"failed": False, "missed_obstacle": True}
-    flat_only = fidelity.errors(drops["runs"]["ball"]["flat_2cm"], drops["runs"]["full"]["flat_2cm"])
-    assert summary["metrics"]["final_height_mm"]["mean"] == pytest.approx(flat_only["final_height_mm"])
-    assert report["fidelity"]["ball"]["summary"]["missed_obstacle"] == ["step_toe"]
+    summary = drops.fidelity["ball"].summary
+    assert summary.missed_obstacle == ["step_toe"]
+    assert drops.fidelity["ball"].per_scenario["step_toe"] == {"failed": False, "missed_obstacle": True}
+    flat_only = fidelity.errors(drops.runs["ball"]["flat_2cm"], drops.runs["full"]["flat_2cm"])
+    assert summary.metrics["final_height_mm"].mean == pytest.approx(flat_only["final_height_mm"])
+    assert report.fidelity["ball"].summary.missed_obstacle == ["step_toe"]
     assert "ball: the obstacle carried under 1% of the ground impulse in step_toe" in (quick[2] / "report.md").read_text()
 
 
-def _obstacle_means(report: dict, metric: str) -> dict[str, float]:
+def _obstacle_means(report: ValidationReport, metric: str) -> dict[str, float]:
     """Each variant's mean of `metric` over the obstacle scenarios (slopes included) that every
     variant engaged."""
-    fid = report["fidelity"]
-    names = [s["name"] for s in report["scenarios"] if s["obstacle"] != "flat"
-             and not any(fid[v]["per_scenario"][s["name"]].get("missed_obstacle") for v in fid)]
+    fid = report.fidelity
+    names = [s["name"] for s in report.scenarios if s["obstacle"] != "flat"
+             and not any(fid[v].per_scenario[s["name"]].get("missed_obstacle") for v in fid)]
     assert len(names) >= 3
-    return {v: float(np.mean([fid[v]["per_scenario"][n][metric] for n in names])) for v in fid}
+    return {v: float(np.mean([fid[v].per_scenario[n][metric] for n in names])) for v in fid}
 
 
 def test_adaptive_feet_follow_the_closed_chain_closer_than_the_ball_on_obstacles(quick):
@@ -313,12 +315,12 @@ def test_the_report_names_what_failed(quick):
     _, report, out = quick
     text = (out / "report.md").read_text()
     html_text = (out / "report.html").read_text()
-    for variant, f in report["fidelity"].items():
-        for name, m in f["summary"]["metrics"].items():
-            if m["passed"] is False:
+    for variant, f in report.fidelity.items():
+        for name, m in f.summary.metrics.items():
+            if m.passed is False:
                 assert f"{name} " in text.split(f"{variant} fails on:")[1].split("\n")[0], (variant, name)
     assert "`" not in html_text  # markdown code spans became <code>
-    verdicts = [f["summary"]["passed"] for f in report["fidelity"].values()]
+    verdicts = [f.summary.passed for f in report.fidelity.values()]
     assert html_text.count("<td class='fail'>FAIL</td>") == verdicts.count(False)
     assert html_text.count("<td class='pass'>pass</td>") == verdicts.count(True)
 
@@ -350,3 +352,55 @@ def test_closed_chain_reference_pose_is_at_rest():
         mujoco.mj_step(model, data)
     moved = np.linalg.norm(foot_lib.collision_points(model, data, sole) - start, axis=1).max()
     assert moved < 1e-4, f"{moved * 1e3:.3f} mm"
+
+
+def _conforms(value, schema: dict, root: dict, where: str = "report") -> list[str]:
+    """Where `value` breaks the JSON Schema `schema` (the subset json_schema writes: $ref, type,
+    properties, required, additionalProperties, items, anyOf)."""
+    if "$ref" in schema:
+        return _conforms(value, root["$defs"][schema["$ref"].rsplit("/", 1)[1]], root, where)
+    if "anyOf" in schema:
+        return [] if any(not _conforms(value, s, root, where) for s in schema["anyOf"]) else [f"{where}: {value!r:.60}"]
+    kind = schema.get("type")
+    ok = {None: True, "object": isinstance(value, dict), "array": isinstance(value, list),
+          "string": isinstance(value, str), "boolean": isinstance(value, bool), "null": value is None,
+          "integer": isinstance(value, int) and not isinstance(value, bool),
+          "number": isinstance(value, (int, float)) and not isinstance(value, bool)}[kind]
+    if not ok:
+        return [f"{where}: {type(value).__name__} where the schema says {kind}"]
+    out = []
+    if kind == "object":
+        out += [f"{where}: no {k}" for k in schema.get("required", []) if k not in value]
+        for k, v in value.items():
+            sub = schema.get("properties", {}).get(k, schema.get("additionalProperties"))
+            if sub is None:
+                out.append(f"{where}: unexpected {k}")
+            else:
+                out += _conforms(v, sub, root, f"{where}.{k}")
+    if kind == "array":
+        for i, v in enumerate(value):
+            out += _conforms(v, schema["items"], root, f"{where}[{i}]")
+    return out
+
+
+def test_report_json_is_a_typed_report_with_a_shipped_schema(quick):
+    """report.json reads back as a ValidationReport and writes out the same; it conforms to the
+    JSON Schema shipped with the package, which is the one the typed report generates; a report
+    written before reports were typed (the quick set on 2026-11-27) still loads and conforms; and
+    the conformance check fails on a report with a wrong type or a missing key."""
+    _, report, out = quick
+    written = json.loads((out / "report.json").read_text())
+    assert json.dumps(report.to_json()) == json.dumps(written)
+    schema = json.loads(JSON_SCHEMA_PATH.read_text())
+    assert schema == json_schema(), "regenerate footforge/validate/report.schema.json from results.json_schema()"
+    assert _conforms(written, schema, schema) == []
+    old = json.loads((REPO / "tests/fixtures/validation_report_untyped.json").read_text())
+    assert _conforms(old, schema, schema) == []
+    loaded = ValidationReport.from_json(old)
+    assert loaded.fidelity["ball"].summary.missed_obstacle == ["step_toe"] and loaded.reference.passed
+    assert json.dumps(loaded.to_json()) == json.dumps(old)
+    broken = json.loads(json.dumps(old))
+    broken["speed"]["aof"]["vs_full"] = "fast"
+    del broken["reference"]["passed"]
+    assert sorted(_conforms(broken, schema, schema)) == ["report.reference: no passed",
+                                                         "report.speed.aof.vs_full: str where the schema says number"]

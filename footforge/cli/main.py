@@ -14,6 +14,7 @@ import os
 import sys
 import traceback
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import footforge
 
@@ -21,6 +22,9 @@ footforge.headless_by_default()  # before any import of MuJoCo
 
 from footforge.errors import EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError
 from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET
+
+if TYPE_CHECKING:
+    from footforge.validate.results import ValidationReport
 
 
 class _Parser(argparse.ArgumentParser):
@@ -310,34 +314,34 @@ def _run_validate(args, console) -> int:
         progress.add_task("writing the report", total=None)
         report_lib.write(report, args.out, "footforge " + " ".join(sys.argv[1:]), force=args.force)
     _print_validation(report, args.out, console)
-    return EXIT_OK if report["passed"] else EXIT_CHECK_FAILED
+    return EXIT_OK if report.passed else EXIT_CHECK_FAILED
 
 
-def _print_validation(report: dict, out: Path, console) -> None:
+def _print_validation(report: ValidationReport, out: Path, console) -> None:
     from rich.table import Table
 
     from footforge.validate.report import METRICS, format_value, failing_metrics
 
-    ref = report["reference"]
+    ref = report.reference
     table = Table(title=f"footforge validate -> {out}/report.md")
     for column in ("variant", *METRICS, "speed vs full", "verdict"):
         table.add_column(column)
-    for v, f in report["fidelity"].items():
-        m = f["summary"]["metrics"]
-        table.add_row(v, *[format_value(m[k]["mean"]) for k in METRICS], f"{report['speed'][v]['vs_full']:.1f}x",
-                      "[green]pass[/green]" if f["summary"]["passed"] else "[red]FAIL[/red]")
-    table.add_row("threshold", *[format_value(report["thresholds"][k]) for k in METRICS], "", "")
+    for v, f in report.fidelity.items():
+        m = f.summary.metrics
+        table.add_row(v, *[format_value(m[k].mean) for k in METRICS], f"{report.speed[v].vs_full:.1f}x",
+                      "[green]pass[/green]" if f.summary.passed else "[red]FAIL[/red]")
+    table.add_row("threshold", *[format_value(report.thresholds[k]) for k in METRICS], "", "")
     console.print(table)
-    for v, f in report["fidelity"].items():
-        failing = failing_metrics(f["summary"])
+    for v, f in report.fidelity.items():
+        failing = failing_metrics(f.summary)
         if failing:
             console.print(f"[red]{v} fails[/red] on: " + "; ".join(failing))
-        if f["summary"].get("missed_obstacle"):
-            console.print(f"{v} missed the obstacle in {', '.join(f['summary']['missed_obstacle'])}: excluded from the means")
-    console.print(f"closed-chain reference: largest closure opening {format_value(ref['max_closure_gap_mm'])} mm "
-                  f"(limit {ref['closure_limit_mm']}), largest energy gain {format_value(ref['max_energy_gain_j'])} J: "
-                  + ("[green]trustworthy[/green]" if ref["passed"] else "[red]NOT trustworthy[/red]"))
-    for v, cal in report.get("calibration", {}).items():
+        if f.summary.missed_obstacle:
+            console.print(f"{v} missed the obstacle in {', '.join(f.summary.missed_obstacle)}: excluded from the means")
+    console.print(f"closed-chain reference: largest closure opening {format_value(ref.max_closure_gap_mm)} mm "
+                  f"(limit {ref.closure_limit_mm}), largest energy gain {format_value(ref.max_energy_gain_j)} J: "
+                  + ("[green]trustworthy[/green]" if ref.passed else "[red]NOT trustworthy[/red]"))
+    for v, cal in (report.calibration or {}).items():
         console.print(f"calibrated {v}: objective {cal['series_errors_before']['train']['objective']:.3g} -> "
                       f"{cal['series_errors_after']['train']['objective']:.3g} (train), "
                       f"{format_value(cal['series_errors_before']['held_out'].get('objective'))} -> "

@@ -18,17 +18,14 @@ from footforge.variants import FEET, HAPTIC, TASKS
 
 FLAT_FEET_AIR_TIME = 1.0
 """The flat task's scale of RewardConfig.feet_air_time, a term the paper does not list: legged_gym's
-1.0. Without it a ball policy trained 3 M CPU steps on a straight 0.6 m/s command tracked it (error
-0.04 m/s) on three legs, RH on the ground 13 % of the time; with it, the same run walked on all four
-(32 of 32 robots up 20 s, every foot on the ground 21-84 %; benchmarks/log/2026-11-21_to_26.md, 2026-11-26,
-fourth session). The rough task keeps the paper's ten terms."""
+1.0. Without it a ball policy under a straight command tracked it on three legs; with it, on all four
+(benchmarks/RESULTS.md#why-the-defaults). The rough task keeps the paper's ten terms."""
 FLAT_TUNED_REWARDS = {"lin_vel_xy": 2.0, "yaw_rate": 1.0, "base_height": -2.0}
 """The flat task's reward scales that the paper leaves unpublished ("opportunely tuned"), tuned:
 tracking weighed twice the baseline's 1.0 and 0.5 against the same penalties (MuJoCo Playground's
-Go1 weighs tracking 3 and 1.5) and base height -2 where -10 was a guess. Chosen by the H100
-ablations of 2026-11-26 (benchmarks/log/2026-11-21_to_26.md): ball, position actions, full commands, 11-12 M
-steps: with the legged_gym PPO settings (PPOConfig) 28 of 32 robots stayed up through 20 s against
-20 of 32 without the tuning (27 and 24 of 32 with the baseline's PPO settings)."""
+Go1 weighs tracking 3 and 1.5) and base height -2 where -10 was a guess. Chosen by an ablation in
+which the tuning kept more robots up through 20 s, with either PPO settings
+(benchmarks/RESULTS.md#why-the-defaults)."""
 
 
 def default_config(task: str, feet: str, policy: str, contact_model: str | None = None) -> EnvConfig:
@@ -78,16 +75,11 @@ def physics(feet: str, contact_model: str) -> dict:
     on `feet` at the 50 Hz policy step (what envs.default_config sets).
 
     Step: 'fast' the baselines' 5 ms x 4 on every feet; 'stance' and 'build' 2.5 ms x 8, the
-    step at which they hold a stance (anymal.STANCE_CONTACT_MAX_SIM_DT; the build's contact slid
-    51 mm in 10 s at 5 ms, 2.9 mm at 2.5 ms). The adaptive feet stepped at 2.5 ms under 'fast'
-    too until 2026-11-25: with their passive joints' armature of 1e-5 kg m^2, 5 ms diverged under
-    a policy's actions (benchmarks/action_stability.py, 32 robots, 10 s: 30 AOF episodes in MJX,
-    19 of 32 robots, CPU MuJoCo 23 of 32; in the H100 campaign 29-37% of AOF and up to 3% of AFF
-    training episodes). With the parameter file's 1e-3 none diverges at 5 ms (CPU MuJoCo, 12 AOF
-    robots, tests/test_envs.py; MJX, 16 robots each, 10 s of random actions, 0 AFF and 0 AOF;
-    benchmarks/log/2026-11-21_to_26.md, 2026-11-25, sixth session), which halves their physics cost under
-    'fast'. Iterations: 'fast' 4 Newton / 8 line search (MuJoCo Playground trains at 1-4),
-    'stance' and 'build' anymal.min_solver_iterations.
+    step at which they hold a stance (anymal.STANCE_CONTACT_MAX_SIM_DT). The adaptive feet take
+    5 ms under 'fast' too, half the physics of 2.5 ms: with the parameter file's passive-joint
+    armature (1e-3 kg m^2) none diverges there under a policy's actions, where AOF did with the
+    earlier 1e-5 (benchmarks/RESULTS.md#why-the-defaults). Iterations: 'fast' 4 Newton / 8 line search (MuJoCo
+    Playground trains at 1-4), 'stance' and 'build' anymal.min_solver_iterations.
 
     Raises:
       InputError: an unknown contact model.

@@ -35,80 +35,45 @@ FAST_CONTACT_SOLIMP = (0.9, 0.95, 0.001)
 """MuJoCo's default solimp, for EnvConfig.contact_model 'fast'."""
 BUILD_CONTACT_MIN_ITERATIONS = (16, 50)
 """Newton and line-search iterations the build's stiff contact needs: with fewer, an unconverged
-solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo (measured at 5 ms,
-benchmarks/contact_sweep.py; at 2.5 ms 4/8 diverged too; benchmarks/log/2026-11-21_to_26.md)."""
+solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo (at 5 ms; at
+2.5 ms 4/8 diverged too: benchmarks/RESULTS.md#why-the-defaults)."""
 STANCE_CONTACT_SOLIMP = (0.99, 0.999, 0.001)
 """Contact impedance of EnvConfig.contact_model 'stance' (the build's): 99-99.9% of the constraint
 force is kept, so the friction's regularisation, and with it the creep speed, is about 1/20 of
 MuJoCo's default (0.9-0.95)."""
 STANCE_CONTACT_SOLIMP_FLOAT32 = (0.97, 0.995, 0.001)
 """'stance' impedance in float32 MJX (stance_contact_solimp says where): for the adaptive feet, whose
-stiff friction rows on light links are solved less exactly than in float64, and for every feet
-on a heightfield. With the passive joints' armature of 1e-5 kg m^2
-(before 2026-11-25's fifth session) zero-action robots in 10 s (MJX, 4 robots) sank / slid
-16.8 / 28.8 mm (AFF) and 37.4 / 72.7 mm (AOF) at 0.99/0.999 and 6.7 / 14.7 and 7.1 / 12.2 mm at
-0.95/0.99, the best of 16 settings then. With the armature of 1e-3 (the parameter file's, which
-conditions the light links' mass matrix) one robot on flat ground, 10 s (benchmarks/stance_env.py
-and a patched copy of this constant): AFF 1.2 / 2.6 mm at 0.97/0.995, 2.1 / 4.4 at 0.95/0.99;
-AOF 1.8 / 4.1 at 0.97/0.995, 2.7 / 5.5 at 0.95/0.99, 5.3 / 10.6 at 0.9/0.95 and 6.8 / 20.5 at
-0.99/0.999 (stiffer is solved less exactly, softer creeps by its regularisation). In float64
-(EnvConfig.float64_physics) the stiffer 0.99/0.999 holds them.
-
-On a heightfield MJX finds a contact only where a geom penetrates a cell's prism (its sphere,
-capsule and box colliders return nothing once a separating axis exists, whatever the margin),
-and in float32 the prism's distance comes in steps of 0.12 um (heights near 1 m in the
-heightfield's frame). At 0.99/0.999 a standing ball foot rests 1.5 um deep; that noise lifts a
-foot out every so often, its contact vanishes, its leg kicks down within a step and the next
-contact throws the robot (MJX, float32, rough level 0, 6 robots on 6 tiles, 10 s: 3 fell, 2 slid
-315 and 534 mm; at 0.97/0.995 none fell and the tile (0, 0) robot slid 4.1 mm). On a plane the
-distance is exact and ball keeps the stiffer 0.99/0.999 (1.3 mm of slip against 3-9 mm at
-0.97/0.995, 6 robots, flat, float32). With the build's solref AOF slid 7-8 mm on level 0 in
-float32 (spawns 0, 1 and 2), against about 4 mm on a plane: not because its contacts switch on and
-off more often (about 1000 times/s on both) but because on the heightfield the points MJX keeps
-jump across the sole; STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE says why and holds it (3.5-4.3 mm).
-float64_physics holds every feet there."""
+stiff friction rows on light links float32 solves less exactly, and for every feet on a heightfield,
+where MJX keeps a contact only while a geom penetrates and float32 resolves the depth too coarsely
+for a foot resting micrometres deep at the stiffer impedance: it flickers out of contact and the
+robot is thrown. Stiffer is solved less exactly, softer creeps by its regularisation; 0.97/0.995
+was the best compromise measured (benchmarks/RESULTS.md#why-the-defaults). Ball feet on a plane,
+where the depth is exact, and float64_physics on every feet keep the stiffer STANCE_CONTACT_SOLIMP."""
 STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE = (-10000.0, -400.0)
 """'stance' contact solref of the adaptive feet in float32 MJX (stance_contact_solref says where),
-in MuJoCo's direct form (-stiffness 1/s^2, -damping 1/s): the damping of the build's time
-constant at the 2.5 ms step (2 / 5 ms = 400 1/s, the most the step allows: MuJoCo clamps a time
-constant to at least two steps, and at 800 1/s AOF sank 183 mm and slid 256 mm in 10 s), with a
-quarter of its stiffness (1e4 instead of 4e4 1/s^2: damping ratio 2 instead of 1).
-
-Why: the soles rest only micrometres deep. On a heightfield MJX collides a sole box with each
-terrain prism under it and keeps 4 of the clipped points, chosen afresh every step starting from
-the first penetrating one, so as shallow points come and go the 4 jump between the box's corners
-and points where prism edges cross it; each jump redistributes the foot's load, an impulse that
-the float32 solve does not hold exactly (one 2.5 ms step moved a standing AOF foot 225 um). A
-softer normal lets the sole settle deeper, where fewer points come and go, and gives the jumps
-less to throw. The friction's creep does not get worse, since it goes with the damping (at
-200 1/s AOF slid 8.8 mm). One AOF robot, 10 s of zero actions from `stand`, sinking / slip after
-0.5 s, mm (rough level 0, spawn seeds 0, 1, 2; flat): 3.3 / 7.7, 3.1 / 8.0, 3.0 / 6.9 and
-1.8 / 4.1 before; 1.5 / 3.5, 1.7 / 4.3, 1.7 / 4.0 and 1.6 / 3.5 with this (stiffness 2.5e3 the
-same within 0.1 mm, 2e4 4.8 mm of slip on seed 1); AFF on level 0 4.7 -> 4.0 mm (seed 0), flat
-2.6 mm both (benchmarks/log/2026-11-21_to_26.md, 2026-11-26, second session). Ball feet keep the build's
-solref: their single sphere per foot slid 31 mm on flat ground and 184 mm on level 0 with this."""
+in MuJoCo's direct form (-stiffness 1/s^2, -damping 1/s): the build's damping at the 2.5 ms step
+(400 1/s, the most that step allows, as MuJoCo clamps a time constant to at least two steps) with a
+quarter of its stiffness (1e4, not 4e4 1/s^2: damping ratio 2, not 1). On a heightfield MJX re-picks
+every step the 4 points it keeps under a sole box, and each jump throws a load the float32 solve does
+not hold exactly; a softer normal lets the sole settle deeper, where fewer points come and go, and
+the creep, which goes with the damping, does not grow. It halved AOF's slip on rough level 0. Ball
+feet keep the build's solref: their single sphere per foot slid far more with this one
+(benchmarks/RESULTS.md#why-the-defaults)."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
 STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (8, 16)}
 """Newton and line-search iterations 'stance' needs per feet (2.5 ms), float32 physics (the
-default). Below them an unconverged solve of its stiff friction diverges under a policy's
-actions, or lets a standing robot creep: ball at 6 Newton iterations (MJX, float32: 1 of 8
-robots fell at rest, 1 diverged acting). AOF needed 30/30 until 2026-11-26, measured when its
-passive joints' armature was 1e-5 kg m^2 and its float32 contact the stiffer default solref; with
-the armature of 1e-3 and STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE, 8/16 holds: random actions for
-10 s, 0 of 16 robots diverged in MJX (0 of 8 in CPU MuJoCo, 8 s), and one robot standing 10 s
-from four spawns sinks 1.6 mm and slides 3.3-3.5 mm on flat ground, 3.3-4.3 mm on rough level 0,
-as at 30/30. AFF keeps 16/16: at 8/16 none diverged either, but one flat-ground spawn (seed 0)
-slid 45 mm in 10 s (2.6 mm at 16/16; benchmarks/log/2026-11-21_to_26.md, 2026-11-26, third session). The
-Newton solve's cost grows with its iterations (benchmarks/step_profile.py: AOF's solve was 80%
-of its flat step at 30/30)."""
+default); check_contact_model refuses fewer. Below them an unconverged solve of its stiff friction
+diverges under a policy's actions or lets a standing robot creep (ball at 6 Newton iterations, AFF
+at 8/16), and the solve's cost grows with them (benchmarks/RESULTS.md#why-the-defaults)."""
 STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = {"ball": (8, 16), "aff": (16, 16), "aof": (16, 16)}
 """The same under float64_physics, whose adaptive feet keep the stiffer impedance (0.99/0.999)
-and the build's solref: at 8/16, 3 of 8 AFF and 2 of 8 AOF robots diverged within 8 s of random
-actions (CPU MuJoCo), none at 16/16."""
+and the build's solref: at 8/16 some AFF and AOF robots diverged under random actions, none at
+16/16 (benchmarks/RESULTS.md#why-the-defaults)."""
 STANCE_CONTACT_MAX_SIM_DT = 0.0025
 """Largest physics step of 'stance', s: at 5 ms (its friction's time constant then 10 ms) an
-unconverged step lets a ball foot chatter and walk (47 mm of slip in 6 s at 16/50 iterations)."""
+unconverged step lets a ball foot chatter and walk, even at 16/50 iterations
+(benchmarks/RESULTS.md#why-the-defaults)."""
 
 
 @dataclass(frozen=True)
@@ -324,7 +289,8 @@ def fit_heightfield_subgrids(mjx_model, model: mujoco.MjModel):
 def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[float, float, float]:
     """Contact impedance (solimp's first three) of contact_model 'stance' for config's feet and
     precision: the stiff STANCE_CONTACT_SOLIMP where MJX solves it exactly enough (float64; ball
-    feet on a plane), else STANCE_CONTACT_SOLIMP_FLOAT32 (whose docstring has the measurements)."""
+    feet on a plane), else STANCE_CONTACT_SOLIMP_FLOAT32 (its measurements:
+    benchmarks/RESULTS.md#why-the-defaults)."""
     if config.float64_physics or (config.feet == "ball" and not on_heightfield):
         return STANCE_CONTACT_SOLIMP
     return STANCE_CONTACT_SOLIMP_FLOAT32
@@ -332,8 +298,9 @@ def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[f
 
 def stance_contact_solref(config: EnvConfig) -> tuple[float, float] | None:
     """Contact solref of contact_model 'stance' for config's feet and precision:
-    STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE for the adaptive feet in float32 (whose docstring has the
-    measurements), else None: the build's (0.004, 1), clamped by MuJoCo to the 5 ms of two steps."""
+    STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE for the adaptive feet in float32 (its measurements:
+    benchmarks/RESULTS.md#why-the-defaults), else None: the build's (0.004, 1), clamped by MuJoCo
+    to the 5 ms of two steps."""
     if config.feet != "ball" and not config.float64_physics:
         return STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE
     return None

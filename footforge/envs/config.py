@@ -2,7 +2,7 @@
 
 Defaults are the paper's (Scaldaferri et al. 2024) and, where it is silent, its public baseline's:
 OmniIsaacGymEnvs' Anymal and AnymalTerrain tasks (tasks/anymal.py, anymal_terrain.py and their
-cfg/task YAML). PPO hyperparameters live apart, in footforge.rl.train.
+cfg/task YAML). PPO hyperparameters live apart, in footforge.rl.config (PPOConfig).
 """
 
 from __future__ import annotations
@@ -67,10 +67,10 @@ class RewardConfig:
     hip: RewardTerm = RewardTerm(rewards.hip, -0.06)
     """sum |q_HAA - default|, rad."""
     feet_air_time: RewardTerm = RewardTerm(rewards.feet_air_time, 0.0)
-    """sum over touchdowns of (air time - feet_air_time_target_s), s, under a moving command: not
-    among the paper's terms, so off (0) here and on the rough task; the flat task sets legged_gym's
-    1.0 (envs.FLAT_FEET_AIR_TIME; Playground's Go1 uses 0.8). It pays for steps long enough to lift every foot (a policy without it
-    may walk on three legs: benchmarks/log/2026-11-21_to_26.md, 2026-11-26, fourth session)."""
+    """sum over touchdowns of (air time - feet_air_time_target_s), s, under a moving command: it
+    pays for steps long enough to lift every foot. Not among the paper's terms, so off (0) here and
+    on the rough task; the flat task sets legged_gym's 1.0 (envs.FLAT_FEET_AIR_TIME; Playground's
+    Go1 uses 0.8): without it a flat policy walked on three legs (benchmarks/RESULTS.md#why-the-defaults)."""
     feet_air_time_target_s: float = 0.5
     """Air time a step must last to pay, s (legged_gym's 0.5)."""
     tracking_sigma: float = 0.25
@@ -125,17 +125,14 @@ class ObservationConfig:
     height_clip_m: float = 1.0
     """The height scan's values are clipped to +-this, m (before the scale)."""
     pd_targets: bool = False
-    """Observe the actuated joints' PD targets (pd_target): turn it on with velocity actions
-    (EnvConfig.action); off by default (and in configurations saved before it existed, whose
-    networks do not read it). Why: under velocity actions the target is the integral of
-    every past action (EnvConfig.action), a state of the controller that neither q nor the last
-    action reveals. OmniIsaacGymEnvs' flat Anymal needs no such input because its drive is so
-    stiff (about 22.9k N m/rad) that q equals the target; at ANYmal C's kp 80 N m/rad the two
-    differ by torque / kp, 0.11-0.21 rad standing at the `stand` keyframe and up to 1 rad at the
-    80 N m limit, so a policy that cannot see the target is partially blind to its own torques.
-    Under position actions (rough task) the target, default + scale x last action, is observed
-    already. benchmarks/log/2026-11-21_to_26.md (2026-11-25, fifth session): the CPU learning run with it,
-    beside the earlier run without it."""
+    """Observe the actuated joints' PD targets (pd_target); off by default, and in configurations
+    saved before it existed (whose networks do not read it). Turn it on with velocity actions
+    (EnvConfig.action), whose target is the integral of every past action: neither q nor the last
+    action reveals it, and at ANYmal C's kp 80 N m/rad q lags it by torque / kp, up to 1 rad, so a
+    policy without it is partly blind to its own torques (OmniIsaacGymEnvs' flat Anymal needs no
+    such input: its far stiffer drive holds q at the target). Position actions observe the target
+    already (default + scale x last action). With it a CPU run learned to survive its episodes
+    sooner (benchmarks/RESULTS.md#why-the-defaults)."""
     noise: bool = True
     """Add the uniform noise (off for evaluation of the noiseless state)."""
     clip: float = 5.0
@@ -171,8 +168,7 @@ class RandomizationConfig:
     geoms' by their maximum; the models' ground is 1.0, the robot's 0.8); and MuJoCo's pyramidal
     cone (contact_model 'stance', 'fast') bounds a diagonal sideways force to mu / sqrt(2) of the
     normal force, against the 0.49 that ANYmal C's default stance needs (EnvConfig.contact_model):
-    below mu of about 0.7 a robot holding still slides (at 0.75 'stance' robots slid 133-248 mm in
-    10 s; benchmarks/log/2026-11-21_to_26.md, 2026-11-25)."""
+    below mu of about 0.7 a robot holding still slides (benchmarks/RESULTS.md#why-the-defaults)."""
     payload_mass_kg_range: tuple[float, float] | None = None
     """Mass added to the base at its centre of mass, kg; legged_gym's added_mass_range is (-1, 1),
     off by default there. The base's inertia scales with its mass."""
@@ -247,8 +243,8 @@ class EnvConfig:
     diverged_speed: float = 1000.0
     """Generalised velocity (m/s for the base's translation, rad/s otherwise) above which a
     robot's physics counts as diverged, as a NaN does: its episode ends as a fall with zero
-    metrics. Far above anything a walking or falling ANYmal does; AOF training episodes on an
-    H100 once logged finite velocities of up to 1e14 m/s that a NaN check alone let through."""
+    metrics. Far above anything a walking or falling ANYmal does; it catches diverged states that
+    stay finite, which a NaN check alone lets through (benchmarks/RESULTS.md#why-the-defaults)."""
     action: Literal["velocity", "position"] = "position"
     """How the 12 policy outputs a (clipped to +-action_clip) become the PD targets (rad), kept
     within the joint ranges. Both tasks use position actions (envs.default_config). The flat
@@ -314,9 +310,9 @@ class EnvConfig:
     (train.network_factory). Under contact_model 'stance' float64 holds the adaptive feet at the
     stiffer impedance and the build's solref, about twice as still as float32 (contact_model)."""
     mjx_impl: MjxImpl = "jax"
-    """MJX's backend (mujoco.mjx.put_model's impl): "jax", MJX in JAX on any device (the default,
-    and everything measured so far); "warp", MuJoCo Warp's kernels, NVIDIA GPUs only, with
-    mujoco-mjx's `warp` extra installed (warp-lang, mujoco_warp). Refused with a clear error
+    """MJX's backend (mujoco.mjx.put_model's impl): "jax", MJX in JAX on any device (the default;
+    every MJX figure in benchmarks/RESULTS.md uses it); "warp", MuJoCo Warp's kernels, NVIDIA GPUs
+    only, with mujoco-mjx's `warp` extra installed (warp-lang, mujoco_warp). Refused with a clear error
     where it cannot run (envs.anymal.check_mjx_impl); not yet measured on a GPU."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardConfig = field(default_factory=RewardConfig)
@@ -336,8 +332,9 @@ class EnvConfig:
     """Rough task: the shank tubes collide with the terrain (as capsules of the same radius and
     extent: MJX cannot collide cylinders with heightfields), so shanks stop at stair risers as in
     OmniIsaacGymEnvs, where the whole robot collides. False: feet only (with the geometric base
-    and knee probes that end episodes), as MuJoCo Playground's Go1. Their price on MJX:
-    benchmarks/env_speed.py --shank-collisions on off (benchmarks/log/2026-11-21_to_26.md)."""
+    and knee probes that end episodes), as MuJoCo Playground's Go1. On MJX the shanks cost about
+    half the ball robot's rough-terrain throughput and nothing measurable on AOF
+    (benchmarks/RESULTS.md#why-the-defaults)."""
     terminate_on_knees: int = 2
     """A step with at least this many thigh (knee) contacts ends the episode; any base contact does."""
 

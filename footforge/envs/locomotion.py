@@ -17,19 +17,17 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jp
 import mujoco
-import numpy as np
 from brax import math as brax_math
 from brax.envs.base import Env, State
 from mujoco import mjx
 
 from footforge import constants as C
-from footforge.envs import mjx_private, observation_layout, rewards
-from footforge.envs.anymal import (GEOM_BASE, GEOM_FOOT, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
+from footforge.envs import contacts, mjx_private, observation_layout, rewards
+from footforge.envs.anymal import (GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
                                    load_robot)
 from footforge.envs.config import EnvConfig, check_feet_and_policy
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
-from footforge.geometry import box_corners
 
 N_ACTUATED = len(C.ACTUATED_JOINTS)
 
@@ -97,7 +95,7 @@ class LocomotionEnv(Env):
         self._privileged_size = 3 + 4 + config.height_scan.num_points + 1
         self._weight_n = float(r.model.body_subtreemass[0] * -r.model.opt.gravity[2])
         self._geom_category = jp.asarray(r.geom_category)
-        geoms, local, category = _surface_points(r.model, r.geom_category)
+        geoms, local, category = contacts.surface_points(r.model, r.geom_category)
         self._probe_geom, self._probe_local, self._probe_category = (jp.asarray(geoms), jp.asarray(local),
                                                                      jp.asarray(category))
         self._stand = jp.asarray(r.stand_qpos)
@@ -374,8 +372,7 @@ class LocomotionEnv(Env):
         """Per leg (LF, RF, LH, RH): the normal force of its foot's contacts with the ground, N."""
         normal, index = mjx_private.contact_normal_forces(self.mjx_model, data)
         geoms, dist = mjx_private.contacts(data)
-        hit, other = _floor_hits(self._geom_category, self.robot.floor_geom, geoms[index], dist[index])
-        return jp.stack([jp.sum(jp.where(hit & (other == GEOM_FOOT + i), normal, 0.0)) for i in range(4)])
+        return contacts.foot_normal_forces(self._geom_category, self.robot.floor_geom, geoms[index], dist[index], normal)
 
     def observe(self, data, info, key):
         """The policy's observation: each group this policy type reads (envs.observations), with
@@ -449,7 +446,7 @@ class LocomotionEnv(Env):
 
         Geometric, on flat ground as on the heightfield: the base's and thighs' colliders are off
         in MJX (footforge.envs.anymal), since their contact only ends episodes. Sample points
-        (_surface_points): box corners, 8 points around each rim of a cylinder, the corners of the
+        (contacts.surface_points): box corners, 8 points around each rim of a cylinder, the corners of the
         bounding box of anything else."""
         world = data.geom_xpos[self._probe_geom] + jp.einsum(
             "pij,pj->pi", data.geom_xmat[self._probe_geom], self._probe_local)
@@ -460,57 +457,12 @@ class LocomotionEnv(Env):
 
     def foot_contacts(self, data):
         """Per leg (LF, RF, LH, RH): does its foot touch the ground."""
-        return foot_contacts(self._geom_category, self.robot.floor_geom, *mjx_private.contacts(data))
+        return contacts.foot_contacts(self._geom_category, self.robot.floor_geom, *mjx_private.contacts(data))
 
     def _terminated(self, data):
         """Base contact, or the configured number of thigh (knee) contacts (a boolean)."""
         base, knees = self.contact_flags(data)
         return base | (knees >= self.config.terminate_on_knees)
-
-
-
-
-def _floor_hits(geom_category, floor_geom, geoms, dist):
-    """Which contacts touch the floor, and the category of the geom touching it."""
-    floor = geoms == floor_geom
-    other = jp.where(floor[:, 0], geom_category[geoms[:, 1]], geom_category[geoms[:, 0]])
-    return (dist < 0) & (floor[:, 0] | floor[:, 1]), other
-
-
-def ground_contacts(geom_category, floor_geom, geoms, dist):
-    """(any base geom touches the floor, number of legs with a thigh geom touching it), from
-    fixed-size contact arrays (geom pairs (ncon, 2), signed distances (ncon,)): for CPU MuJoCo's
-    models, where the base and thighs collide (footforge.rl.evaluate_closed_chain)."""
-    hit, other = _floor_hits(geom_category, floor_geom, geoms, dist)
-    base = jp.any(hit & (other == GEOM_BASE))
-    knees = sum(jp.any(hit & (other == GEOM_THIGH + i)).astype(jp.int32) for i in range(4))
-    return base, knees
-
-
-def _surface_points(model: mujoco.MjModel, geom_category: np.ndarray):
-    """Sample points on the base and thigh geoms: (geom ids, points in the geom frame, category)."""
-    geoms, points, category = [], [], []
-    for g in np.flatnonzero((geom_category == GEOM_BASE) | ((geom_category >= GEOM_THIGH) & (geom_category < GEOM_THIGH + 4))):
-        size = model.geom_size[g]
-        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
-            local = box_corners(size)
-        elif model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER:
-            angles = np.arange(8) * np.pi / 4
-            rim = np.stack([size[0] * np.cos(angles), size[0] * np.sin(angles)], axis=1)
-            local = np.concatenate([np.hstack([rim, np.full((8, 1), z)]) for z in (-size[1], size[1])])
-        else:  # the corners of its bounding box in the geom frame
-            centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-            local = box_corners(half, centre)
-        geoms += [g] * len(local)
-        points.append(local)
-        category += [geom_category[g]] * len(local)
-    return np.array(geoms), np.concatenate(points), np.array(category)
-
-
-def foot_contacts(geom_category, floor_geom, geoms, dist):
-    """Per leg (LF, RF, LH, RH): does any of its foot geoms touch the floor."""
-    hit, other = _floor_hits(geom_category, floor_geom, geoms, dist)
-    return jp.stack([jp.any(hit & (other == GEOM_FOOT + i)) for i in range(4)])
 
 
 def _given(command, own):

@@ -8,7 +8,10 @@ unscaled term, which the environment multiplies by the term's scale and the poli
 from __future__ import annotations
 
 from dataclasses import fields
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
+
+if TYPE_CHECKING:
+    import jax
 
 from footforge.envs.terms import RewardParameters, RewardTerm
 
@@ -16,34 +19,34 @@ from footforge.envs.terms import RewardParameters, RewardTerm
 class Quantities(NamedTuple):
     """What the reward terms read after a policy step's physics (base frame where a vector)."""
 
-    command: object = None
+    command: jax.Array = None
     """vx, vy (m/s), yaw rate (rad/s)."""
-    lin_vel: object = None
+    lin_vel: jax.Array = None
     """Base linear velocity, m/s."""
-    ang_vel: object = None
+    ang_vel: jax.Array = None
     """Base angular velocity, rad/s."""
-    gravity: object = None
+    gravity: jax.Array = None
     """Unit gravity direction."""
-    base_height: object = None
+    base_height: jax.Array = None
     """Base height over the ground under it, m."""
-    torques: object = None
+    torques: jax.Array = None
     """Actuator torques, N m."""
-    joint_vel: object = None
+    joint_vel: jax.Array = None
     """Actuated joint velocities, rad/s."""
-    last_joint_vel: object = None
+    last_joint_vel: jax.Array = None
     """The same one policy step earlier, rad/s."""
-    action: object = None
+    action: jax.Array = None
     """This step's clipped action."""
-    last_action: object = None
+    last_action: jax.Array = None
     """The previous step's."""
-    haa_offset: object = None
+    haa_offset: jax.Array = None
     """Hip abduction/adduction angles minus their defaults, rad."""
-    touchdown_air_time: object = None
+    touchdown_air_time: jax.Array = None
     """Per foot (LF, RF, LH, RH): how long it was in the air, s, on the step it touches down
     again; zero on every other step."""
 
 
-def lin_vel_xy(q: Quantities, cfg: RewardParameters):
+def lin_vel_xy(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """exp(-|command - velocity|^2 / sigma) of the planar velocity, base frame (m/s)."""
     import jax.numpy as jp  # here, not at the top: envs.config imports this module and stays free of JAX
 
@@ -51,55 +54,55 @@ def lin_vel_xy(q: Quantities, cfg: RewardParameters):
     return jp.exp(-(error * error).sum() / cfg.tracking_sigma)
 
 
-def yaw_rate(q: Quantities, cfg: RewardParameters):
+def yaw_rate(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """exp(-(command - yaw rate)^2 / sigma), rad/s."""
     import jax.numpy as jp
 
     return jp.exp(-(q.command[2] - q.ang_vel[2]) ** 2 / cfg.tracking_sigma)
 
 
-def lin_vel_z(q: Quantities, cfg: RewardParameters):
+def lin_vel_z(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """Vertical base velocity squared, (m/s)^2."""
     return q.lin_vel[2] ** 2
 
 
-def ang_vel_xy(q: Quantities, cfg: RewardParameters):
+def ang_vel_xy(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """Roll and pitch rate squared, (rad/s)^2."""
     return (q.ang_vel[:2] ** 2).sum()
 
 
-def orientation(q: Quantities, cfg: RewardParameters):
+def orientation(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """|projected gravity_xy|^2: zero when the base is level (gravity along -z of the base)."""
     return (q.gravity[:2] ** 2).sum()
 
 
-def base_height(q: Quantities, cfg: RewardParameters):
+def base_height(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """(h - target)^2, m^2, with h the base height over the ground."""
     return (q.base_height - cfg.base_height_target_m) ** 2
 
 
-def torques(q: Quantities, cfg: RewardParameters):
+def torques(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """sum tau^2, (N m)^2."""
     return (q.torques ** 2).sum()
 
 
-def joint_acc(q: Quantities, cfg: RewardParameters):
+def joint_acc(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """sum of squared joint-velocity changes over one policy step, (rad/s)^2: how the paper's
     baseline computes its "joint accelerations" term (the change, not divided by the step)."""
     return ((q.joint_vel - q.last_joint_vel) ** 2).sum()
 
 
-def action_rate(q: Quantities, cfg: RewardParameters):
+def action_rate(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """sum (a - a_prev)^2."""
     return ((q.action - q.last_action) ** 2).sum()
 
 
-def hip(q: Quantities, cfg: RewardParameters):
+def hip(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """sum |q_HAA - default|, rad."""
     return abs(q.haa_offset).sum()
 
 
-def feet_air_time(q: Quantities, cfg: RewardParameters):
+def feet_air_time(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """sum over the feet touching down of (air time - feet_air_time_target_s), s, while the planar
     command is above 0.1 m/s (legged_gym's feet_air_time: steps of at least the target length
     pay, shorter ones cost; no reward for stepping in place under a zero command)."""

@@ -8,7 +8,11 @@ this module imports neither, so that no import circle joins them.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import TYPE_CHECKING, Any, Callable, Protocol
+
+if TYPE_CHECKING:
+    import jax
+    from mujoco import mjx
 
 
 NOT_SAVED = {"saved": False}
@@ -42,7 +46,7 @@ class ObservationTerm:
     """One observation group: its reading function, width and readers (declared in code), and
     its scale and noise (configurable)."""
 
-    read: Callable = field(default=None, metadata=NOT_SAVED)
+    read: ObservationReader = field(default=None, metadata=NOT_SAVED)
     """(env, data, info) -> the group's value in its unit (envs.observations, whose docstrings
     give what each holds)."""
     width: int | str = field(default=0, metadata=NOT_SAVED)
@@ -55,3 +59,23 @@ class ObservationTerm:
     noise: float = 0.0
     """Half-width of the uniform noise added before scaling, in the group's unit (where
     ObservationConfig.noise)."""
+
+
+class ObservedEnv(Protocol):
+    """What an observation group's reading function reads of its environment
+    (footforge.envs.locomotion.LocomotionEnv)."""
+
+    robot: Any
+    """footforge.envs.anymal.Robot: the index tables (actuated_qpos, actuated_dof, passive_qpos, ...)."""
+    default_q: jax.Array
+    """The actuated joints' default angles, rad."""
+
+    def base_state(self, data: mjx.Data) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """(linear velocity m/s, angular velocity rad/s, unit gravity), base frame."""
+
+    def height_scan(self, data: mjx.Data) -> jax.Array:
+        """The clipped terrain heights under the scan points, m."""
+
+
+ObservationReader = Callable[["ObservedEnv", "mjx.Data", dict], "jax.Array"]
+"""An observation group's reading function: (environment, MJX data, the step's info) -> its value."""

@@ -36,10 +36,10 @@ class PPOConfig:
     """Desired KL of the adaptive learning-rate schedule (legged_gym's 0.01; the baseline's 0.008);
     0 keeps the rate fixed."""
     entropy_cost: float = 0.01
-    """legged_gym's (the baseline's 0.001 let the policy's std fall only from 1.0 to 0.94 in 3 M
-    CPU steps). These three and policy_output_init_scale 0.01 were chosen by the H100 ablations of
-    2026-11-26 (benchmarks/log/2026-11-21_to_26.md): with position actions under the full commands the forward
-    error of the training episodes fell to 0.14 m/s in 4 M steps against 0.34 with the baseline's."""
+    """Weight of the entropy bonus in PPO's loss: legged_gym's 0.01 (the paper's rl_games baseline
+    uses 0.001). Chosen, with learning_rate, adaptive_kl and policy_output_init_scale, by an ablation
+    in which legged_gym's settings tracked the full commands in about half the steps of the
+    baseline's (benchmarks/RESULTS.md#why-the-defaults)."""
     discounting: float = 0.99
     gae_lambda: float = 0.95
     clipping_epsilon: float = 0.2

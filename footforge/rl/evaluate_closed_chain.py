@@ -311,7 +311,8 @@ class Controller:
         import jax
         import jax.numpy as jp
 
-        from footforge.envs.locomotion import foot_contacts, ground_contacts, reset_keys
+        from footforge.envs.contacts import foot_contacts, ground_contacts
+        from footforge.envs.locomotion import reset_keys
 
         env = copy.copy(env)
         env.robot = robot  # ANYmal's joints (defaults, ranges) are the same on every feet

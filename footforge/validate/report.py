@@ -13,6 +13,7 @@ import numpy as np
 from footforge.atomic import atomic_directory
 from footforge.provenance import json_default
 from footforge.validate import fidelity as fidelity_lib
+from footforge.validate.results import FidelitySummary, ValidationReport
 from footforge.tables import markdown_table
 
 METRICS = ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm", "slip_mm")
@@ -30,52 +31,52 @@ def format_value(value, digits=3) -> str:
     return str(value)
 
 
-def failing_metrics(summary: dict) -> list[str]:
+def failing_metrics(summary: FidelitySummary) -> list[str]:
     """'name mean > threshold' for each metric whose mean exceeds its threshold, and the runs
     that failed, in words a user can act on."""
-    out = [f"{name} {format_value(m['mean'])} > {format_value(m['threshold'])}"
-           for name, m in summary["metrics"].items() if m["passed"] is False]
-    if summary["failed_runs"]:
-        out.append("runs failed: " + ", ".join(summary["failed_runs"]))
+    out = [f"{name} {format_value(m.mean)} > {format_value(m.threshold)}"
+           for name, m in summary.metrics.items() if m.passed is False]
+    if summary.failed_runs:
+        out.append("runs failed: " + ", ".join(summary.failed_runs))
     return out
 
 
-def document_items(report: dict, command: str) -> list[tuple]:
+def document_items(report: ValidationReport, command: str) -> list[tuple]:
     """The report as a document both report.md and report.html render: a list of ("h", level, text),
     ("p", text), ("table", header, rows) and ("img", path, alt) items."""
     out: list[tuple] = [("h", 1, "footforge validate"), ("p", f"Command: `{command}`"),
-                        ("p", f"footforge {report['footforge']}, mujoco {report['versions'].get('mujoco')}, "
-                              f"machine {report['machine']}, seed {report['seed']}, {report['jobs']} worker(s); "
-                              f"parameters {report['params']}."),
-                        ("p", "Verdict: " + ("PASS" if report["passed"] else "FAIL") + ". A pass needs a trustworthy "
+                        ("p", f"footforge {report.footforge}, mujoco {report.versions.get('mujoco')}, "
+                              f"machine {report.machine}, seed {report.seed}, {report.jobs} worker(s); "
+                              f"parameters {report.params}."),
+                        ("p", "Verdict: " + ("PASS" if report.passed else "FAIL") + ". A pass needs a trustworthy "
                               "reference and every variant's mean errors within the thresholds.")]
-    ref = report["reference"]
+    ref = report.reference
     out += [("h", 2, "The closed-chain reference"),
-            ("p", f"Largest closure opening {format_value(ref['max_closure_gap_mm'])} mm (limit {ref['closure_limit_mm']} mm); "
-                  f"largest energy gain over the initial energy {format_value(ref['max_energy_gain_j'])} J "
-                  f"(tolerance {ref['energy_gain_tolerance_j']} J): {format_value(ref['passed'])}."),
+            ("p", f"Largest closure opening {format_value(ref.max_closure_gap_mm)} mm (limit {ref.closure_limit_mm} mm); "
+                  f"largest energy gain over the initial energy {format_value(ref.max_energy_gain_j)} J "
+                  f"(tolerance {ref.energy_gain_tolerance_j} J): {format_value(ref.passed)}."),
             ("table", ["scenario", "max closure gap (mm)", "energy gain (J)", "failure"],
              [[n, format_value(p["max_closure_gap_mm"]), format_value(p["energy_gain_j"]), p["failed"] or ""]
-              for n, p in ref["per_scenario"].items()])]
+              for n, p in ref.per_scenario.items()])]
     out += [("h", 2, "Fidelity summary (mean over scenarios, against the closed chain)"),
             ("table", ["variant", *METRICS, "speed vs full", "verdict"],
-             [[v, *[f"{format_value(f['summary']['metrics'][m]['mean'])} (max {format_value(f['summary']['metrics'][m]['max'])})"
-                    for m in METRICS], f"{report['speed'][v]['vs_full']:.1f}x", format_value(f["summary"]["passed"])]
-              for v, f in report["fidelity"].items()]),
-            ("p", "Thresholds (mean): " + ", ".join(f"{k} {v:g}" for k, v in report["thresholds"].items())
+             [[v, *[f"{format_value(f.summary.metrics[m].mean)} (max {format_value(f.summary.metrics[m].max)})"
+                    for m in METRICS], f"{report.speed[v].vs_full:.1f}x", format_value(f.summary.passed)]
+              for v, f in report.fidelity.items()]),
+            ("p", "Thresholds (mean): " + ", ".join(f"{k} {v:g}" for k, v in report.thresholds.items())
                   + ". Speed: simulated seconds per wall-clock second over the same scenarios, "
-                  f"full = {report['speed']['full']['realtime_factor']:.2f}.")]
-    for v, f in report["fidelity"].items():
-        failing = failing_metrics(f["summary"])
+                  f"full = {report.speed['full'].realtime_factor:.2f}.")]
+    for v, f in report.fidelity.items():
+        failing = failing_metrics(f.summary)
         if failing:
             out.append(("p", f"{v} fails on: " + "; ".join(failing) + "."))
-        missed = f["summary"].get("missed_obstacle", [])
+        missed = f.summary.missed_obstacle
         if missed:
             out.append(("p", f"{v}: the obstacle carried under {fidelity_lib.OBSTACLE_SHARE_MIN:.0%} of the ground "
                              f"impulse in {', '.join(missed)} (it landed beside it); excluded from the means."))
-    if "calibration" in report:
+    if report.calibration is not None:
         out.append(("h", 2, "Calibration"))
-        for v, cal in report["calibration"].items():
+        for v, cal in report.calibration.items():
             rows = []
             for key in ("force", "height_mm", "orientation_deg", "objective"):
                 rows.append([key] + [format_value(cal[f"series_errors_{when}"][split].get(key))
@@ -88,20 +89,20 @@ def document_items(report: dict, command: str) -> list[tuple]:
                                "after (held out)"], rows),
                     ("table", ["parameter", "before", "after"], _param_rows(cal))]
     out.append(("h", 2, "Per scenario"))
-    for v, f in report["fidelity"].items():
+    for v, f in report.fidelity.items():
         out += [("h", 3, v), ("table", ["scenario", *METRICS],
                               [[n, "run failed"] if e.get("failed") else
                                [n, "obstacle missed (excluded)"] if e.get("missed_obstacle") else
                                [n, *[format_value(e.get(m)) for m in METRICS]]
-                               for n, e in f["per_scenario"].items()])]
+                               for n, e in f.per_scenario.items()])]
     out.append(("h", 2, "Scalars per run"))
     keys = ("peak_force_n", "impulse_ns", "settling_time_s", "final_height_m", "final_pitch_deg", "final_roll_deg",
             "contacts", "cop_x_mm", "cop_y_mm", "spread_mm", "rebound_mm", "slip_mm", "max_penetration_mm")
-    for v, runs in report["runs"].items():
+    for v, runs in report.runs.items():
         out += [("h", 3, v), ("table", ["scenario", *keys],
                               [[n, *[format_value(r["scalars"].get(k)) for k in keys]] for n, r in runs.items()])]
     out.append(("h", 2, "Plots"))
-    for s in report["scenarios"]:
+    for s in report.scenarios:
         out.append(("img", f"plots/{s['name']}.png", s["name"]))
     return out
 
@@ -161,7 +162,7 @@ def to_html(items: list[tuple]) -> str:
            f"</head><body>{''.join(body)}</body></html>\n"
 
 
-def plot_scenario(report: dict, scenario: str, path: Path) -> None:
+def plot_scenario(report: ValidationReport, scenario: str, path: Path) -> None:
     """Vertical force of each variant over the reference, sole pitch and roll, final footprint."""
     from matplotlib.figure import Figure  # no pyplot: a library leaves the backend to its user
 
@@ -170,7 +171,7 @@ def plot_scenario(report: dict, scenario: str, path: Path) -> None:
     # The main force axis shows the settling (up to 4x the weight); the inset shows the whole
     # range, impact peaks included, on a log scale.
     peaks = axes[0].inset_axes([0.5, 0.5, 0.47, 0.45])
-    for v, runs in report["runs"].items():
+    for v, runs in report.runs.items():
         r = runs[scenario]
         s, c = r["series"], COLOURS.get(v, None)
         width = 2.0 if v == "full" else 1.0
@@ -184,7 +185,7 @@ def plot_scenario(report: dict, scenario: str, path: Path) -> None:
             axes[2].scatter(fp[:, 0] * 1e3, fp[:, 1] * 1e3, s=10 + 60 * np.clip(fp[:, 2], 0, None) / max(fp[:, 2].max(), 1e-9),
                             color=c, alpha=0.6, label=v)
     axes[0].set(xlabel="time (s)", ylabel="vertical ground force (N)", title=f"{scenario}: force",
-                ylim=(0, 4 * max(r[scenario]["supported_weight_n"] for r in report["runs"].values())))
+                ylim=(0, 4 * max(r[scenario]["supported_weight_n"] for r in report.runs.values())))
     peaks.set_yscale("log")
     peaks.set_title("peak force per interval (N, log)", fontsize=7)
     peaks.tick_params(labelsize=6)
@@ -197,24 +198,15 @@ def plot_scenario(report: dict, scenario: str, path: Path) -> None:
     fig.savefig(path, dpi=80)
 
 
-def _json_ready(report: dict) -> dict:
-    """The report without the time series (they go to series.npz)."""
-    out = {k: v for k, v in report.items() if k != "runs"}
-    out["runs"] = {v: {n: {k: r[k] for k in ("scalars", "failed", "wall_s", "steps", "timestep_s", "supported_weight_n",
-                                             "hanging_mass_kg") if k in r}
-                       for n, r in runs.items()} for v, runs in report["runs"].items()}
-    return out
-
-
-def write(report: dict, out_dir: Path, command: str, *, force: bool = False) -> None:
+def write(report: ValidationReport, out_dir: Path, command: str, *, force: bool = False) -> None:
     """Writes the report folder as a whole; `force` replaces a folder footforge did not write."""
     with atomic_directory(out_dir, force=force, command=command) as tmp:
         (tmp / "plots").mkdir()
-        for s in report["scenarios"]:
+        for s in report.scenarios:
             plot_scenario(report, s["name"], tmp / "plots" / f"{s['name']}.png")
         items = document_items(report, command)
         (tmp / "report.md").write_text(to_markdown(items))
         (tmp / "report.html").write_text(to_html(items))
-        (tmp / "report.json").write_text(json.dumps(_json_ready(report), indent=1, default=json_default) + "\n")
-        np.savez_compressed(tmp / "series.npz", **{f"{v}/{n}/{k}": a for v, runs in report["runs"].items()
+        (tmp / "report.json").write_text(json.dumps(report.to_json(), indent=1, default=json_default) + "\n")
+        np.savez_compressed(tmp / "series.npz", **{f"{v}/{n}/{k}": a for v, runs in report.runs.items()
                                                    for n, r in runs.items() for k, a in r["series"].items()})

@@ -21,6 +21,8 @@ from footforge.provenance import versions
 from footforge.timing import StageTimer
 from footforge.validate import calibrate as calibration
 from footforge.validate import fidelity, rigs, simulate
+from footforge.validate.results import (Fidelity, FidelitySummary, MetricSummary, ReferenceChecks, Speed,
+                                        ValidationReport, to_plain)
 from footforge.validate.scenarios import Scenario, select
 
 CLOSURE_LIMIT_MM = 0.5
@@ -110,7 +112,7 @@ class ValidationModels:
                               self.source.sidecar.friction) for s in scenarios]
 
 
-def reference_checks(runs: dict[str, dict]) -> dict:
+def reference_checks(runs: dict[str, dict]) -> ReferenceChecks:
     """The closed chain's own trustworthiness over the scenarios run."""
     per = {}
     for name, r in runs.items():
@@ -121,8 +123,8 @@ def reference_checks(runs: dict[str, dict]) -> dict:
     worst_gap = max((p["max_closure_gap_mm"] for p in ok), default=float("nan"))
     worst_gain = max((p["energy_gain_j"] for p in ok), default=float("nan"))
     passed = len(ok) == len(per) and worst_gap <= CLOSURE_LIMIT_MM and worst_gain <= ENERGY_GAIN_TOL_J
-    return {"per_scenario": per, "max_closure_gap_mm": worst_gap, "closure_limit_mm": CLOSURE_LIMIT_MM,
-            "max_energy_gain_j": worst_gain, "energy_gain_tolerance_j": ENERGY_GAIN_TOL_J, "passed": passed}
+    return ReferenceChecks(per_scenario=per, max_closure_gap_mm=worst_gap, closure_limit_mm=CLOSURE_LIMIT_MM,
+                           max_energy_gain_j=worst_gain, energy_gain_tolerance_j=ENERGY_GAIN_TOL_J, passed=passed)
 
 
 def speed(runs: dict[str, dict]) -> dict:
@@ -132,12 +134,16 @@ def speed(runs: dict[str, dict]) -> dict:
     return {"simulated_s": simulated, "wall_s": wall, "realtime_factor": simulated / wall if wall else float("nan")}
 
 
-def compare(variant_runs: dict[str, dict], full_runs: dict[str, dict], thresholds: fidelity.Thresholds) -> dict:
+def compare(variant_runs: dict[str, dict], full_runs: dict[str, dict], thresholds: fidelity.Thresholds) -> Fidelity:
+    """A variant's errors against the closed chain per scenario, and their summary."""
     per = {name: fidelity.errors(run, full_runs[name]) for name, run in variant_runs.items()}
-    return {"per_scenario": per, "summary": fidelity.summarise(per, thresholds)}
+    summary = fidelity.summarise(per, thresholds)
+    return Fidelity(per_scenario=per, summary=FidelitySummary(
+        metrics={k: MetricSummary(**m) for k, m in summary["metrics"].items()}, passed=bool(summary["passed"]),
+        failed_runs=summary["failed_runs"], missed_obstacle=summary["missed_obstacle"]))
 
 
-def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callable[[], None]] | None = None) -> dict:
+def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callable[[], None]] | None = None) -> ValidationReport:
     """Runs the validation; returns the report (figures, series, definitions) without writing it.
 
     `progress(description, total)` returns a callback to advance by one finished run.
@@ -154,28 +160,27 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
         runs = {v: {} for v in variants}
         for r in results:
             runs[r["variant"]][r["scenario"]] = r
-        report = {
-            "footforge": __version__, "versions": versions(), "machine": platform.platform(),
-            "seed": options.seed, "jobs": options.jobs, "thresholds": options.thresholds.as_dict(),
-            "params": str(models.source.params.source), "inputs": models.inputs.get("inputs", {}),
-            "scenarios": [s.describe() for s in scenarios], "sole_extent_m": asdict(models.sole),
-            "reference": reference_checks(runs["full"]), "runs": runs,
-            "speed": {v: speed(runs[v]) for v in variants},
-            "fidelity": {v: compare(runs[v], runs["full"], options.thresholds) for v in options.variants},
-        }
-        base = report["speed"]["full"]["realtime_factor"]
-        for v in variants:
-            report["speed"][v]["vs_full"] = report["speed"][v]["realtime_factor"] / base
+        base = speed(runs["full"])["realtime_factor"]
+
+        def timed(v: str) -> Speed:
+            return Speed(**speed(runs[v]), vs_full=speed(runs[v])["realtime_factor"] / base)
+
+        fidelity_of = {v: compare(runs[v], runs["full"], options.thresholds) for v in options.variants}
+        calibrated = None
         if options.calibrate:
-            report["calibration"] = calibration.calibrate(models, pool, scenarios, runs, options, advance)
-            for v, cal in report["calibration"].items():
-                cal["fidelity_summary_before"] = report["fidelity"][v]["summary"]
+            calibrated = calibration.calibrate(models, pool, scenarios, runs, options, advance)
+            for v, cal in calibrated.items():
+                cal["fidelity_summary_before"] = to_plain(fidelity_of[v].summary)
                 runs[v] = cal.pop("runs")
-                report["speed"][v] = speed(runs[v]) | {"vs_full": speed(runs[v])["realtime_factor"] / base}
-                report["fidelity"][v] = compare(runs[v], runs["full"], options.thresholds)
+                fidelity_of[v] = compare(runs[v], runs["full"], options.thresholds)
     finally:
         pool.close()
-    report["passed"] = bool(report["reference"]["passed"]
-                            and all(f["summary"]["passed"] for f in report["fidelity"].values()))
-    return report
+    reference = reference_checks(runs["full"])
+    return ValidationReport(
+        footforge=__version__, versions=versions(), machine=platform.platform(), seed=options.seed, jobs=options.jobs,
+        thresholds=options.thresholds.as_dict(), params=str(models.source.params.source),
+        inputs=models.inputs.get("inputs", {}), scenarios=[s.describe() for s in scenarios],
+        sole_extent_m=asdict(models.sole), reference=reference, speed={v: timed(v) for v in variants},
+        fidelity=fidelity_of, calibration=calibrated, runs=runs,
+        passed=bool(reference.passed and all(f.summary.passed for f in fidelity_of.values())))
 
