@@ -26,7 +26,7 @@ MARKER = ".footforge-output"
 
 TRAINING_RUN = "training run"
 """The marker's `kind` in a training run folder: written into over many calls (checkpoints,
---resume), so it is never replaced as a whole unless forced (footforge.rl.train.prepare_run_dir)."""
+--resume), so it is never replaced as a whole unless forced (footforge.rl.run_folder.prepare_run_dir)."""
 
 
 def write_marker(folder: Path, command: str | None = None, *, kind: str | None = None) -> None:

@@ -1,6 +1,6 @@
 """A trained policy as an ONNX file for deployment: `footforge export POLICY_DIR`.
 
-The graph computes what `footforge.rl.train.load_policy(policy_dir, deterministic=True)` computes,
+The graph computes what `footforge.rl.policy_files.load_policy(policy_dir, deterministic=True)` computes,
 operation for operation, so that onnxruntime and JAX agree to float32 rounding:
 
     obs (float32 [batch, obs_size], the environment's observation, already clipped to
@@ -8,7 +8,7 @@ operation for operation, so that onnxruntime and JAX agree to float32 rounding:
       -> (obs - mean) / std            Brax's running_statistics.normalize, no clip (PPO passes
                                        no max_abs_value); left out if the policy was trained
                                        without normalize_observations
-      -> [MatMul, Add, activation] per hidden layer (footforge.rl.train.network_factory: ELU)
+      -> [MatMul, Add, activation] per hidden layer (footforge.rl.networks.network_factory: ELU)
       -> MatMul, Add                   the Gaussian's mean
     actions (float32 [batch, 12])
 
@@ -129,7 +129,7 @@ def build_model(policy_dir: Path):
 
 
 def _check_supported(policy_dir: Path, kwargs: dict) -> None:
-    """The network shapes footforge.rl.train.network_factory makes; anything else is refused rather
+    """The network shapes footforge.rl.networks.network_factory makes; anything else is refused rather
     than exported wrongly."""
     problems = []
     if kwargs.get("distribution_type") != "normal":
