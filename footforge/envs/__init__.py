@@ -19,13 +19,13 @@ from footforge.variants import FEET, HAPTIC, TASKS
 FLAT_FEET_AIR_TIME = 1.0
 """The flat task's scale of RewardConfig.feet_air_time, a term the paper does not list: legged_gym's
 1.0. Without it a ball policy under a straight command tracked it on three legs; with it, on all four
-(benchmarks/RESULTS.md#why-the-defaults). The rough task keeps the paper's ten terms."""
+(docs/defaults.md). The rough task keeps the paper's ten terms."""
 FLAT_TUNED_REWARDS = {"lin_vel_xy": 2.0, "yaw_rate": 1.0, "base_height": -2.0}
 """The flat task's reward scales that the paper leaves unpublished ("opportunely tuned"), tuned:
 tracking weighed twice the baseline's 1.0 and 0.5 against the same penalties (MuJoCo Playground's
 Go1 weighs tracking 3 and 1.5) and base height -2 where -10 was a guess. Chosen by an ablation in
 which the tuning kept more robots up through 20 s, with either PPO settings
-(benchmarks/RESULTS.md#why-the-defaults)."""
+(docs/defaults.md)."""
 
 
 def default_config(task: str, feet: str, policy: str, contact_model: str | None = None) -> EnvConfig:
@@ -78,7 +78,7 @@ def physics(feet: str, contact_model: str) -> dict:
     step at which they hold a stance (anymal.STANCE_CONTACT_MAX_SIM_DT). The adaptive feet take
     5 ms under 'fast' too, half the physics of 2.5 ms: with the parameter file's passive-joint
     armature (1e-3 kg m^2) none diverges there under a policy's actions, where AOF did with the
-    earlier 1e-5 (benchmarks/RESULTS.md#why-the-defaults). Iterations: 'fast' 4 Newton / 8 line search (MuJoCo
+    earlier 1e-5 (docs/defaults.md). Iterations: 'fast' 4 Newton / 8 line search (MuJoCo
     Playground trains at 1-4), 'stance' and 'build' anymal.min_solver_iterations.
 
     Raises:

@@ -36,7 +36,7 @@ FAST_CONTACT_SOLIMP = (0.9, 0.95, 0.001)
 BUILD_CONTACT_MIN_ITERATIONS = (16, 50)
 """Newton and line-search iterations the build's stiff contact needs: with fewer, an unconverged
 solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo (at 5 ms; at
-2.5 ms 4/8 diverged too: benchmarks/RESULTS.md#why-the-defaults)."""
+2.5 ms 4/8 diverged too: docs/defaults.md)."""
 STANCE_CONTACT_SOLIMP = (0.99, 0.999, 0.001)
 """Contact impedance of EnvConfig.contact_model 'stance' (the build's): 99-99.9% of the constraint
 force is kept, so the friction's regularisation, and with it the creep speed, is about 1/20 of
@@ -47,7 +47,7 @@ stiff friction rows on light links float32 solves less exactly, and for every fe
 where MJX keeps a contact only while a geom penetrates and float32 resolves the depth too coarsely
 for a foot resting micrometres deep at the stiffer impedance: it flickers out of contact and the
 robot is thrown. Stiffer is solved less exactly, softer creeps by its regularisation; 0.97/0.995
-was the best compromise measured (benchmarks/RESULTS.md#why-the-defaults). Ball feet on a plane,
+was the best compromise measured (docs/defaults.md). Ball feet on a plane,
 where the depth is exact, and float64_physics on every feet keep the stiffer STANCE_CONTACT_SOLIMP."""
 STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE = (-10000.0, -400.0)
 """'stance' contact solref of the adaptive feet in float32 MJX (stance_contact_solref says where),
@@ -58,22 +58,22 @@ every step the 4 points it keeps under a sole box, and each jump throws a load t
 not hold exactly; a softer normal lets the sole settle deeper, where fewer points come and go, and
 the creep, which goes with the damping, does not grow. It halved AOF's slip on rough level 0. Ball
 feet keep the build's solref: their single sphere per foot slid far more with this one
-(benchmarks/RESULTS.md#why-the-defaults)."""
+(docs/defaults.md)."""
 STANCE_CONTACT_IMPRATIO = 10.0
 """Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
 STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (8, 16)}
 """Newton and line-search iterations 'stance' needs per feet (2.5 ms), float32 physics (the
 default); check_contact_model refuses fewer. Below them an unconverged solve of its stiff friction
 diverges under a policy's actions or lets a standing robot creep (ball at 6 Newton iterations, AFF
-at 8/16), and the solve's cost grows with them (benchmarks/RESULTS.md#why-the-defaults)."""
+at 8/16), and the solve's cost grows with them (docs/defaults.md)."""
 STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = {"ball": (8, 16), "aff": (16, 16), "aof": (16, 16)}
 """The same under float64_physics, whose adaptive feet keep the stiffer impedance (0.99/0.999)
 and the build's solref: at 8/16 some AFF and AOF robots diverged under random actions, none at
-16/16 (benchmarks/RESULTS.md#why-the-defaults)."""
+16/16 (docs/defaults.md)."""
 STANCE_CONTACT_MAX_SIM_DT = 0.0025
 """Largest physics step of 'stance', s: at 5 ms (its friction's time constant then 10 ms) an
 unconverged step lets a ball foot chatter and walk, even at 16/50 iterations
-(benchmarks/RESULTS.md#why-the-defaults)."""
+(docs/defaults.md)."""
 
 
 @dataclass(frozen=True)
@@ -290,7 +290,7 @@ def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[f
     """Contact impedance (solimp's first three) of contact_model 'stance' for config's feet and
     precision: the stiff STANCE_CONTACT_SOLIMP where MJX solves it exactly enough (float64; ball
     feet on a plane), else STANCE_CONTACT_SOLIMP_FLOAT32 (its measurements:
-    benchmarks/RESULTS.md#why-the-defaults)."""
+    docs/defaults.md)."""
     if config.float64_physics or (config.feet == "ball" and not on_heightfield):
         return STANCE_CONTACT_SOLIMP
     return STANCE_CONTACT_SOLIMP_FLOAT32
@@ -299,7 +299,7 @@ def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[f
 def stance_contact_solref(config: EnvConfig) -> tuple[float, float] | None:
     """Contact solref of contact_model 'stance' for config's feet and precision:
     STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE for the adaptive feet in float32 (its measurements:
-    benchmarks/RESULTS.md#why-the-defaults), else None: the build's (0.004, 1), clamped by MuJoCo
+    docs/defaults.md), else None: the build's (0.004, 1), clamped by MuJoCo
     to the 5 ms of two steps."""
     if config.feet != "ball" and not config.float64_physics:
         return STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE

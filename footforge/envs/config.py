@@ -70,7 +70,7 @@ class RewardConfig:
     """sum over touchdowns of (air time - feet_air_time_target_s), s, under a moving command: it
     pays for steps long enough to lift every foot. Not among the paper's terms, so off (0) here and
     on the rough task; the flat task sets legged_gym's 1.0 (envs.FLAT_FEET_AIR_TIME; Playground's
-    Go1 uses 0.8): without it a flat policy walked on three legs (benchmarks/RESULTS.md#why-the-defaults)."""
+    Go1 uses 0.8): without it a flat policy walked on three legs (docs/defaults.md)."""
     feet_air_time_target_s: float = 0.5
     """Air time a step must last to pay, s (legged_gym's 0.5)."""
     tracking_sigma: float = 0.25
@@ -132,7 +132,7 @@ class ObservationConfig:
     policy without it is partly blind to its own torques (OmniIsaacGymEnvs' flat Anymal needs no
     such input: its far stiffer drive holds q at the target). Position actions observe the target
     already (default + scale x last action). With it a CPU run learned to survive its episodes
-    sooner (benchmarks/RESULTS.md#why-the-defaults)."""
+    sooner (docs/defaults.md)."""
     noise: bool = True
     """Add the uniform noise (off for evaluation of the noiseless state)."""
     clip: float = 5.0
@@ -168,7 +168,7 @@ class RandomizationConfig:
     geoms' by their maximum; the models' ground is 1.0, the robot's 0.8); and MuJoCo's pyramidal
     cone (contact_model 'stance', 'fast') bounds a diagonal sideways force to mu / sqrt(2) of the
     normal force, against the 0.49 that ANYmal C's default stance needs (EnvConfig.contact_model):
-    below mu of about 0.7 a robot holding still slides (benchmarks/RESULTS.md#why-the-defaults)."""
+    below mu of about 0.7 a robot holding still slides (docs/defaults.md)."""
     payload_mass_kg_range: tuple[float, float] | None = None
     """Mass added to the base at its centre of mass, kg; legged_gym's added_mass_range is (-1, 1),
     off by default there. The base's inertia scales with its mass."""
@@ -244,7 +244,7 @@ class EnvConfig:
     """Generalised velocity (m/s for the base's translation, rad/s otherwise) above which a
     robot's physics counts as diverged, as a NaN does: its episode ends as a fall with zero
     metrics. Far above anything a walking or falling ANYmal does; it catches diverged states that
-    stay finite, which a NaN check alone lets through (benchmarks/RESULTS.md#why-the-defaults)."""
+    stay finite, which a NaN check alone lets through (docs/defaults.md)."""
     action: Literal["velocity", "position"] = "position"
     """How the 12 policy outputs a (clipped to +-action_clip) become the PD targets (rad), kept
     within the joint ranges. Both tasks use position actions (envs.default_config). The flat
@@ -334,7 +334,7 @@ class EnvConfig:
     OmniIsaacGymEnvs, where the whole robot collides. False: feet only (with the geometric base
     and knee probes that end episodes), as MuJoCo Playground's Go1. On MJX the shanks cost about
     half the ball robot's rough-terrain throughput and nothing measurable on AOF
-    (benchmarks/RESULTS.md#why-the-defaults)."""
+    (docs/defaults.md)."""
     terminate_on_knees: int = 2
     """A step with at least this many thigh (knee) contacts ends the episode; any base contact does."""
 

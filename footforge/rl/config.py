@@ -39,7 +39,7 @@ class PPOConfig:
     """Weight of the entropy bonus in PPO's loss: legged_gym's 0.01 (the paper's rl_games baseline
     uses 0.001). Chosen, with learning_rate, adaptive_kl and policy_output_init_scale, by an ablation
     in which legged_gym's settings tracked the full commands in about half the steps of the
-    baseline's (benchmarks/RESULTS.md#why-the-defaults)."""
+    baseline's (docs/defaults.md)."""
     discounting: float = 0.99
     gae_lambda: float = 0.95
     clipping_epsilon: float = 0.2
