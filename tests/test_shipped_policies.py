@@ -1,0 +1,35 @@
+"""The policies committed under policies/ load with today's code (configs upgraded, checkpoints
+intact by their manifests) and are what policies/README.md says: each was evaluated on its own
+feet and walks there by the verdict its evaluation recorded."""
+
+import json
+
+import pytest
+from conftest import REPO
+
+from footforge.rl.checkpoints import checkpoint_problem
+from footforge.rl.policy_files import load_policy_parameters
+
+SHIPPED = sorted(p.name for p in (REPO / "policies").iterdir() if (p / "policy").is_dir())
+
+
+def test_the_shipped_policies_are_listed():
+    readme = (REPO / "policies/README.md").read_text()
+    assert SHIPPED and all(f"`{name}`" in readme for name in SHIPPED), SHIPPED
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_a_shipped_policy_loads_and_walks_on_its_own_feet(name):
+    folder = REPO / "policies" / name
+    saved = load_policy_parameters(folder / "policy")
+    progress = json.loads((folder / "progress.json").read_text())
+    assert saved.global_step == progress["global_step"] > 0
+    (step, checkpoint), = [(int(p.name), p) for p in (folder / "checkpoints").iterdir()]
+    assert checkpoint_problem(checkpoint) is None and step == saved.global_step
+    assert saved.env.feet in name and saved.env.task in name and saved.env.policy in name.split("_")
+    evaluated = json.loads((folder / "evaluation/metrics.json").read_text())
+    (own,) = [r for r in evaluated if r["feet"] == saved.env.feet]
+    assert own["walking"]["verdict"] == "walks" and own["num_envs"] >= 32 and own["seconds"] >= 20
+    text = (folder / "evaluation/policy_card.md").read_text()
+    line = next(l for l in text.splitlines() if l.startswith(f"- on {saved.env.feet} feet:"))
+    assert "walks:" in line, line
