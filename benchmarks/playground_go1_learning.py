@@ -49,7 +49,6 @@ def rollout_forward_error(env, make_policy, params, robots: int, steps: int, see
     act = jax.jit(jax.vmap(lambda obs, key: policy(obs, key)[0]))
     linvel = jax.jit(jax.vmap(env.get_local_linvel))
     state = reset(jax.random.split(jax.random.PRNGKey(seed), robots))
-    up = jp.ones(robots, bool)
     error = standing = counted = 0.0
     fell = jp.zeros(robots, bool)
     keys = jax.random.split(jax.random.PRNGKey(seed + 1), steps)
@@ -87,8 +86,7 @@ def main(argv=None) -> int:
 
     jax_compat.install()  # Brax 0.14.2's PPO on newer JAX, as footforge trains
     name = playground_go1.ENV_NAMES["flat"]
-    env, meshes = playground_go1.make_env("flat")
-    eval_env, _ = playground_go1.make_env("flat")
+    env, meshes = playground_go1.make_env("flat")  # Brax wraps it for training and leaves it as it is
     params = locomotion_params.brax_ppo_config(name, impl="jax")
     share = params.num_envs // params.batch_size  # Playground's minibatches: 8192 robots / 256 = 32
     settings = params.to_dict()
@@ -115,8 +113,8 @@ def main(argv=None) -> int:
         wrap_env_fn=wrapper.wrap_for_brax_training, randomization_fn=registry.get_domain_randomizer(name),
         **settings)
     wall_s = time.time() - t0
-    verdict = rollout_forward_error(eval_env, make_policy, trained, args.eval_robots,
-                                    int(round(args.eval_seconds / eval_env.dt)), args.seed + 7)
+    verdict = rollout_forward_error(env, make_policy, trained, args.eval_robots,
+                                    int(round(args.eval_seconds / env.dt)), args.seed + 7)
     print(json.dumps({
         "benchmark": "playground_go1_learning", "env": name, "meshes": meshes, "steps": int(args.timesteps),
         "num_envs": args.num_envs, "batch_size": settings["batch_size"], "num_minibatches": share,

@@ -136,7 +136,7 @@ class ValidationReport:
     def from_json(cls, data: dict) -> ValidationReport:
         """A report from report.json (also those written before reports were typed; keys they
         lack, inputs and sole_extent_m, come back empty)."""
-        return _build(cls, {"inputs": {}, "sole_extent_m": {}} | data)
+        return from_plain(cls, {"inputs": {}, "sole_extent_m": {}} | data)
 
 
 RUN_KEYS = ("scalars", "failed", "wall_s", "steps", "timestep_s", "supported_weight_n", "hanging_mass_kg")
@@ -154,19 +154,20 @@ def to_plain(value):
     return value
 
 
-def _build(tp, value):
-    """`value` (JSON) as type `tp` (a dataclass of this module, a dict/list of them, or plain)."""
+def from_plain(tp, value):
+    """`value` (plain JSON values) as type `tp`: a dataclass of this module, a dict or list of
+    them, or a plain type (returned as it is); the inverse of to_plain."""
     hints = typing.get_type_hints(tp) if dataclasses.is_dataclass(tp) else None
     if hints is not None:
-        return tp(**{f.name: _build(hints[f.name], value[f.name]) for f in fields(tp) if f.name in value})
+        return tp(**{f.name: from_plain(hints[f.name], value[f.name]) for f in fields(tp) if f.name in value})
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin is dict and value is not None:
-        return {k: _build(args[1], v) for k, v in value.items()}
+        return {k: from_plain(args[1], v) for k, v in value.items()}
     if origin is list and value is not None:
-        return [_build(args[0], v) for v in value]
+        return [from_plain(args[0], v) for v in value]
     if origin in (typing.Union, types.UnionType):
         inner = [a for a in args if a is not type(None)]
-        return None if value is None else _build(inner[0], value)
+        return None if value is None else from_plain(inner[0], value)
     return value
 
 

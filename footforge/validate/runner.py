@@ -21,8 +21,8 @@ from footforge.provenance import versions
 from footforge.timing import StageTimer
 from footforge.validate import calibrate as calibration
 from footforge.validate import fidelity, rigs, simulate
-from footforge.validate.results import (Fidelity, FidelitySummary, MetricSummary, ReferenceChecks, Speed,
-                                        ValidationReport, to_plain)
+from footforge.validate.results import (Fidelity, FidelitySummary, ReferenceChecks, Speed, ValidationReport,
+                                        from_plain, to_plain)
 from footforge.validate.scenarios import Scenario, select
 
 CLOSURE_LIMIT_MM = 0.5
@@ -127,20 +127,20 @@ def reference_checks(runs: dict[str, dict]) -> ReferenceChecks:
                            max_energy_gain_j=worst_gain, energy_gain_tolerance_j=ENERGY_GAIN_TOL_J, passed=passed)
 
 
-def speed(runs: dict[str, dict]) -> dict:
-    """Simulated seconds per wall-clock second, summed over the scenarios."""
+def speed(runs: dict[str, dict], full_realtime_factor: float | None = None) -> Speed:
+    """Simulated seconds per wall-clock second, summed over the scenarios, and over the closed
+    chain's (`full_realtime_factor`; None: these are the closed chain's runs)."""
     simulated = sum(r["steps"] * r["timestep_s"] for r in runs.values())
     wall = sum(r["wall_s"] for r in runs.values())
-    return {"simulated_s": simulated, "wall_s": wall, "realtime_factor": simulated / wall if wall else float("nan")}
+    factor = simulated / wall if wall else float("nan")
+    return Speed(simulated_s=simulated, wall_s=wall, realtime_factor=factor,
+                 vs_full=factor / (factor if full_realtime_factor is None else full_realtime_factor))
 
 
 def compare(variant_runs: dict[str, dict], full_runs: dict[str, dict], thresholds: fidelity.Thresholds) -> Fidelity:
     """A variant's errors against the closed chain per scenario, and their summary."""
     per = {name: fidelity.errors(run, full_runs[name]) for name, run in variant_runs.items()}
-    summary = fidelity.summarise(per, thresholds)
-    return Fidelity(per_scenario=per, summary=FidelitySummary(
-        metrics={k: MetricSummary(**m) for k, m in summary["metrics"].items()}, passed=bool(summary["passed"]),
-        failed_runs=summary["failed_runs"], missed_obstacle=summary["missed_obstacle"]))
+    return Fidelity(per_scenario=per, summary=from_plain(FidelitySummary, fidelity.summarise(per, thresholds)))
 
 
 def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callable[[], None]] | None = None) -> ValidationReport:
@@ -160,11 +160,6 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
         runs = {v: {} for v in variants}
         for r in results:
             runs[r["variant"]][r["scenario"]] = r
-        base = speed(runs["full"])["realtime_factor"]
-
-        def timed(v: str) -> Speed:
-            return Speed(**speed(runs[v]), vs_full=speed(runs[v])["realtime_factor"] / base)
-
         fidelity_of = {v: compare(runs[v], runs["full"], options.thresholds) for v in options.variants}
         calibrated = None
         if options.calibrate:
@@ -176,11 +171,12 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
     finally:
         pool.close()
     reference = reference_checks(runs["full"])
+    full = speed(runs["full"])
     return ValidationReport(
         footforge=__version__, versions=versions(), machine=platform.platform(), seed=options.seed, jobs=options.jobs,
         thresholds=options.thresholds.as_dict(), params=str(models.source.params.source),
         inputs=models.inputs.get("inputs", {}), scenarios=[s.describe() for s in scenarios],
-        sole_extent_m=asdict(models.sole), reference=reference, speed={v: timed(v) for v in variants},
+        sole_extent_m=asdict(models.sole), reference=reference, speed={v: speed(runs[v], full.realtime_factor) for v in variants},
         fidelity=fidelity_of, calibration=calibrated, runs=runs,
         passed=bool(reference.passed and all(f.summary.passed for f in fidelity_of.values())))
 
