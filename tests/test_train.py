@@ -409,6 +409,20 @@ def test_several_processes_are_refused_before_any_work(task, tmp_path, capsys):
     assert not out.exists() and jax.process_count() == 1
 
 
+@pytest.mark.parametrize("flags, flag", [(["--timesteps", "-5"], "--timesteps"), (["--num-envs", "0"], "--num-envs"),
+                                         (["--num-envs", "96"], "--num-envs")])
+def test_bad_ppo_settings_are_refused_in_the_flags_words_before_anything_is_announced(flags, flag, tmp_path, capsys):
+    """A PPO setting Brax would reject exits 2 naming the flag (not PPOConfig's field), before the
+    run is announced, any build is made or any folder written."""
+    from footforge.cli.train import main
+
+    out = tmp_path / "run"
+    assert main("flat", "", ["--feet", "ball", "--out", str(out), *TINY, *flags]) == 2
+    captured = capsys.readouterr()
+    assert flag in captured.err and "num_envs" not in captured.err and "num_timesteps" not in captured.err
+    assert "steps 0" not in captured.out + captured.err and not out.exists()
+
+
 def test_init_from_hands_the_source_s_newest_parameters_to_brax(written_run, tmp_path, monkeypatch):
     """A new run initialised from another: Brax's PPO receives the source's newest checkpoint (step
     64, parameters of seed 64) as restore_params, under the new run's own settings; the run records

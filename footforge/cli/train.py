@@ -124,6 +124,9 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
                 raise InputError("--init-from starts a new run from another run's parameters; --resume continues "
                                  "the run in --out", fix="pass one of them")
             env_config, ppo = _resumed_configs(task, args) if args.resume else _new_configs(task, args)
+            # Before anything is announced, built or compiled, in the flags' own words.
+            ppo.check({field: flag for flag, _, (section, field) in _SETTINGS if section == "ppo"}
+                      | {"num_timesteps": "--timesteps"})
             # The run folder now, before JAX compiles (train() checks again, and writes).
             train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
             from footforge.cli.builds import build_defaults_if_missing

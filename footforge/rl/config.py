@@ -65,16 +65,21 @@ class PPOConfig:
     num_eval_envs: int = 128
     seed: int = 0
 
-    def check(self) -> None:
-        """Raises InputError on values Brax would reject later with a cryptic assertion."""
+    def check(self, names: dict[str, str] | None = None) -> None:
+        """Raises InputError on values Brax would reject later with a cryptic assertion; each
+        field is named as `names` spells it for the user (a command's flags), else by itself."""
+        def name(f: str) -> str:
+            return (names or {}).get(f, f)
+
         for f in ("num_timesteps", "num_envs", "unroll_length", "num_minibatches", "batch_size",
                   "num_updates_per_batch", "checkpoint_every_steps", "num_eval_envs"):
             if getattr(self, f) < 1:
-                raise InputError(f"{f} must be positive, got {getattr(self, f)}", fix=f"give a positive {f}")
+                raise InputError(f"{name(f)} must be positive, got {getattr(self, f)}", fix=f"give a positive {name(f)}")
         if (self.batch_size * self.num_minibatches) % self.num_envs:
-            raise InputError(f"batch_size x num_minibatches ({self.batch_size} x {self.num_minibatches}) is not a "
-                             f"multiple of num_envs ({self.num_envs})",
-                             fix="e.g. num_envs = batch_size x num_minibatches (the defaults: 2048 = 512 x 4)")
+            raise InputError(f"{name('batch_size')} x {name('num_minibatches')} ({self.batch_size} x "
+                             f"{self.num_minibatches}) is not a multiple of {name('num_envs')} ({self.num_envs})",
+                             fix=f"e.g. {name('num_envs')} = {name('batch_size')} x {name('num_minibatches')} "
+                                 "(the defaults: 2048 = 512 x 4)")
 
 
 def steps_per_iteration(ppo: PPOConfig) -> int:
