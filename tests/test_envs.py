@@ -576,7 +576,48 @@ def test_evaluation_reports_robots_whose_simulation_diverged(built, monkeypatch)
     zero = int(sum(int(jax.random.split(k)[0][-1] % 2 == 0) for k in keys))
     result = evaluation.evaluate("policy", num_envs=4, seed=0)
     assert 0 < zero < 4 and result["diverged"] == zero and result["falls"] >= zero
-    assert f"({zero} diverged)" in evaluation.comparison_markdown([result])
+    assert f"({zero} diverged" in evaluation.comparison_markdown([result])
+    # Each fallen robot's fall time: the diverged ones at the end of their third step.
+    assert len(result["fall_times_s"]) == result["falls"]
+    assert result["fall_times_s"][:zero] == pytest.approx([3 * config.policy_dt] * zero)
+
+
+def test_falls_are_timed_and_attributed_to_the_pushes_and_new_commands_before_them():
+    """evaluate's fall times (the end of the first step a robot is down) and the events they follow:
+    pushes and command changes at every multiple of their interval, a fall counted for an event
+    when it comes within AFTER_EVENT_S of it."""
+    from footforge.rl.evaluate import AFTER_EVENT_S, event_times, fall_times, falls_after, falls_cell
+
+    alive = np.ones((4, 10), bool)
+    alive[1, 3:] = False  # down after step 4
+    alive[3, 7:] = False  # down after step 8
+    assert fall_times(alive, 0.5) == [2.0, 4.0]
+    assert event_times(1.5, 0.5, 10) == [1.5, 3.0, 4.5]  # steps 3, 6 and 9
+    assert event_times(10.0, 0.02, 1000) == pytest.approx([10.0, 20.0])
+    assert falls_after([2.0, 4.0], [1.5, 3.0, 4.5], window_s=0.5) == [2.0]
+    assert falls_after([2.0, 4.0], [1.5, 3.0, 4.5], window_s=1.0) == [2.0, 4.0]
+    assert falls_after([1.0], [1.5]) == []  # before the event: not its fall
+    assert AFTER_EVENT_S == pytest.approx(2.0)
+    result = {"falls": 2, "num_envs": 4, "fall_times_s": [2.0, 4.0], "push_times_s": [1.5], "falls_after_push": 1,
+              "command_times_s": [3.0], "falls_after_command": 1}
+    assert falls_cell(result) == "2/4 (within 2 s of: 1 a push, 1 a new command)"
+    assert falls_cell({"falls": 2, "num_envs": 4}) == "2/4"  # an evaluation written before fall times
+    assert falls_cell(result | {"falls": 0, "fall_times_s": []}) == "0/4"
+
+
+def test_the_forward_error_trace_averages_the_robots_still_up_and_is_silent_when_none_is():
+    """evaluate's per-step trace of the forward error: the mean over the robots still up (fallen
+    ones are NaN), NaN once all have fallen, without numpy's 'Mean of empty slice' warning (a
+    zero-shot evaluation on feet the policy falls on printed it)."""
+    import warnings
+
+    from footforge.rl.evaluate import _mean_over_standing
+
+    errors = np.array([[0.1, 0.3, np.nan], [0.5, np.nan, np.nan]])  # 2 robots x 3 steps
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        trace = _mean_over_standing(errors)
+    assert trace[:2] == pytest.approx([0.3, 0.3]) and np.isnan(trace[2])
 
 
 def test_adaptive_feet_train_at_a_physics_step_that_survives_a_policy_s_actions(built, coacd_cache, tmp_path):

@@ -129,10 +129,15 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     slippage = float(np.where(alive, rows["slip"], 0.0).sum() / travel) if travel > 0 else float("nan")
     vx_error = np.where(alive, rows["base_vx_error"], np.nan)
     walking = judge(rows["contacts"], alive, rows["base_height"], rows["command_vx"], rows["vx"], rows["command_speed"])
+    falls = fall_times(alive, env_config.policy_dt)
+    pushes = event_times(config.pushes.interval_s, config.policy_dt, steps) if config.pushes.enabled else []
+    commands = event_times(config.commands.resample_s, config.policy_dt, steps)
     return {"policy": str(policy_dir), "trained_on": env_config.feet, "feet": feet, "policy_type": env_config.policy,
             "num_envs": num_envs, "seconds": seconds, "seed": seed, "policy_dt_s": env_config.policy_dt,
             "push_interval_s": env_config.pushes.interval_s,
             "task": config.task, "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
+            "fall_times_s": falls, "push_times_s": pushes, "falls_after_push": len(falls_after(falls, pushes)),
+            "command_times_s": commands, "falls_after_command": len(falls_after(falls, commands)),
             "diverged": int(rows["diverged"].any(axis=1).sum()),
             "walking": walking.to_dict() | {"line": walking.line()},
             "clipped_fraction": float(rows["clipped"][alive].mean()) if alive.any() else float("nan"),
@@ -140,7 +145,43 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
                 "kinds_covered": sorted(set(np.array(env.terrain.column_kinds)[columns])),
                 "kinds_not_covered": sorted(set(env.terrain.column_kinds) - set(np.array(env.terrain.column_kinds)[columns]))}
                if rough else {}),
-            "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": np.nanmean(vx_error, axis=0)}}
+            "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": _mean_over_standing(vx_error)}}
+
+
+AFTER_EVENT_S = 2.0
+"""A fall this long after a push or a new command, or less, counts as that event's
+(falls_after_push, falls_after_command), s: a base set moving at up to 1 m/s
+(PushConfig.max_speed), or a new velocity and heading, is caught or not within a few strides."""
+
+
+def fall_times(alive: np.ndarray, policy_dt: float) -> list[float]:
+    """When each fallen robot fell, s from the start, sorted: the end of the first policy step after
+    which it was down (`alive`: robots x policy steps, True while up)."""
+    fell = ~alive[:, -1]
+    first_down = np.argmin(alive[fell], axis=1)
+    return sorted(round(float((i + 1) * policy_dt), 3) for i in first_down)
+
+
+def event_times(every_s: float, policy_dt: float, steps: int) -> list[float]:
+    """When an event every `every_s` seconds happens in a rollout of `steps` policy steps, s: policy
+    step k has it when k is a multiple of the interval in steps (LocomotionEnv.push and
+    next_command; every robot at the same steps, counted from its reset)."""
+    every = max(1, round(every_s / policy_dt))
+    return [round(k * policy_dt, 3) for k in range(every, steps + 1, every)]
+
+
+def falls_after(falls: list[float], events: list[float], window_s: float = AFTER_EVENT_S) -> list[float]:
+    """The fall times that come at most window_s after one of the events (its own step included)."""
+    return [t for t in falls if any(0.0 <= t - e <= window_s + 1e-9 for e in events)]
+
+
+def _mean_over_standing(values: np.ndarray) -> np.ndarray:
+    """Per time step, the mean over the robots still up (NaN where every robot has fallen: no
+    warning, as numpy's nanmean would print when the policy is zero-shot on feet it falls on)."""
+    up = np.isfinite(values)
+    count = up.sum(axis=0)
+    total = np.where(up, values, 0.0).sum(axis=0)
+    return np.divide(total, count, out=np.full(total.shape, np.nan), where=count > 0)
 
 
 def spawn_tiles(num_robots: int, column_kinds, num_levels: int) -> tuple[np.ndarray, np.ndarray]:
@@ -239,11 +280,22 @@ def comparison_markdown(results: list[dict]) -> str:
     for r in results:
         cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
         cells += [f"{r['indices'][k]['mean']:.3f} ± {r['indices'][k]['std']:.3f}" for k in INDICES]
-        diverged = f" ({r['diverged']} diverged)" if r.get("diverged") else ""
-        cells += [f"{r['slippage']:.3f}", f"{r['falls']}/{r['num_envs']}{diverged}",
+        cells += [f"{r['slippage']:.3f}", falls_cell(r),
                   r["walking"]["line"] if "walking" in r else "not judged"]
         rows.append(cells)
     return "\n".join(markdown_table(head, rows)) + "\n"
+
+
+def falls_cell(r: dict) -> str:
+    """'fallen/robots', with how many diverged and how many fell within AFTER_EVENT_S of a push or
+    of a new command (results written before fall times were recorded have only the count)."""
+    notes = [f"{r['diverged']} diverged"] if r.get("diverged") else []
+    if r.get("falls") and "fall_times_s" in r:
+        after = [f"{r['falls_after_push']} a push"] if r.get("push_times_s") else []
+        after += [f"{r['falls_after_command']} a new command"] if r.get("command_times_s") else []
+        if after:
+            notes.append(f"within {AFTER_EVENT_S:g} s of: " + ", ".join(after))
+    return f"{r['falls']}/{r['num_envs']}" + (f" ({', '.join(notes)})" if notes else "")
 
 
 def plot(results: list[dict], out_dir: Path) -> list[str]:

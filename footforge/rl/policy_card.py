@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from footforge.rl.evaluate import INDEX_UNITS, INDICES
+from footforge.rl.evaluate import INDEX_UNITS, INDICES, falls_cell
 from footforge.tables import markdown_table
 
 
@@ -52,7 +52,7 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
     rows = [[f"{index} ({INDEX_UNITS[index]})"] + [f"{r['indices'][index]['mean']:.4g} ± {r['indices'][index]['std']:.4g}"
                                                    for _, r in evaluations] for index in INDICES]
     rows.append(["slippage (-)"] + [f"{r['slippage']:.4g}" for _, r in evaluations])
-    rows.append(["falls"] + [f"{r['falls']}/{r['num_envs']}" for _, r in evaluations])
+    rows.append(["falls"] + [falls_cell(r) for _, r in evaluations])
     rows.append(["verdict"] + [r["walking"]["line"] if "walking" in r else "not judged" for _, r in evaluations])
     lines += [""] + markdown_table(["index"] + [f"on {r['feet']}" for _, r in evaluations], rows)
     lines += ["", "Mean ± standard deviation over every policy step of every robot still standing "
