@@ -82,3 +82,78 @@ def test_shim_matches_on_two_devices():
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2", JAX_PLATFORMS="cpu")
     done = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0 and done.stdout.strip().endswith("ok"), done.stderr[-3000:]
+
+
+def _backend_compiles(fn) -> int:
+    """How many programs XLA compiled while fn ran (JAX's monitoring events)."""
+    events = []
+
+    def listener(name, _seconds, **_):
+        events.append(name)
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        fn()
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    return events.count("/jax/core/compile/backend_compile_duration")
+
+
+def test_state_replicated_on_the_pmap_axis_spares_the_second_compilation():
+    """Brax's PPO replicates its training state with jax.device_put_replicated and feeds each
+    epoch's pmap the previous epoch's outputs. Laid out on JAX 0.9's own axis, the second call
+    compiles the epoch again; on the pmap's axis 'i' (replicated_on_pmap_axis) it does not."""
+    devices = jax.local_devices()[:1]
+    tree = {"w": jp.arange(3.0), "n": jp.zeros((), jp.int32)}
+
+    def second_call_compiles(state) -> int:
+        epoch = jax.pmap(lambda s: {"w": jp.sin(s["w"]) + 1.0, "n": s["n"] + 1}, axis_name=jax_compat.BRAX_PMAP_AXIS)
+        out = epoch(state)
+        return _backend_compiles(lambda: jax.block_until_ready(epoch(out)))
+
+    assert second_call_compiles(jax_compat.device_put_replicated(tree, devices)) == 1  # JAX 0.9's layout
+    with jax_compat.replicated_on_pmap_axis():
+        state = jax.device_put_replicated(tree, devices)  # what Brax calls
+    assert second_call_compiles(state) == 0
+
+
+def test_replicated_on_pmap_axis_puts_back_what_jax_had(monkeypatch):
+    def own():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return getattr(jax, "device_put_replicated", None), "device_put_replicated" in vars(jax)
+
+    before = own()
+    with jax_compat.replicated_on_pmap_axis():
+        placed = jax.device_put_replicated(jp.zeros(2), jax.local_devices()[:1])
+        assert placed.sharding.mesh.axis_names == (jax_compat.BRAX_PMAP_AXIS,)
+    assert own() == before
+    # A JAX without the function (0.10 and later, before install()) is left without it.
+    monkeypatch.delitem(vars(jax), "device_put_replicated", raising=False)
+
+    def no_such_name(name):
+        raise AttributeError(name)
+
+    monkeypatch.setattr(jax, "__getattr__", no_such_name, raising=False)
+    assert not hasattr(jax, "device_put_replicated")
+    with jax_compat.replicated_on_pmap_axis():
+        assert callable(jax.device_put_replicated)
+    assert not hasattr(jax, "device_put_replicated")
+
+
+def test_ppo_training_runs_with_the_state_on_the_pmap_axis(monkeypatch):
+    """footforge.rl.train hands Brax a jax.device_put_replicated that lays the state on 'i'."""
+    from footforge.rl import train
+
+    seen = {}
+
+    class FakePPO:
+        @staticmethod
+        def train(**kwargs):
+            seen["axes"] = jax.device_put_replicated(jp.zeros(1), jax.local_devices()[:1]).sharding.mesh.axis_names
+
+    monkeypatch.setattr(train, "network_factory", lambda *a: None)
+    ppo = train.PPOConfig()
+    env_config = type("C", (), {"episode_steps": 10, "privileged_critic": False})()
+    train._run_ppo(FakePPO, None, env_config, ppo, 10, 1, None, 0, None, None, None, lambda env: None)
+    assert seen["axes"] == (jax_compat.BRAX_PMAP_AXIS,)

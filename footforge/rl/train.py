@@ -317,6 +317,15 @@ def machine() -> dict:
 
 def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
              resumes: int, log, save, wrap_for_training, randomizer, evaluate: bool = True) -> None:
+    from footforge.rl import jax_compat
+
+    with jax_compat.replicated_on_pmap_axis():  # one compilation of the training epoch, not two
+        _call_ppo(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save,
+                  wrap_for_training, randomizer, evaluate)
+
+
+def _call_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
+              resumes: int, log, save, wrap_for_training, randomizer, evaluate: bool) -> None:
     ppo_train.train(
         environment=env, num_timesteps=remaining, episode_length=env_config.episode_steps,
         num_envs=ppo.num_envs, unroll_length=ppo.unroll_length, batch_size=ppo.batch_size,
