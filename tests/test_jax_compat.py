@@ -142,7 +142,8 @@ def test_replicated_on_pmap_axis_puts_back_what_jax_had(monkeypatch):
 
 
 def test_ppo_training_runs_with_the_state_on_the_pmap_axis(monkeypatch):
-    """footforge.rl.train hands Brax a jax.device_put_replicated that lays the state on 'i'."""
+    """footforge.rl.train hands Brax a jax.device_put_replicated that lays the state on 'i' and an
+    Evaluator whose first state is committed."""
     from footforge.rl import train
 
     seen = {}
@@ -150,10 +151,43 @@ def test_ppo_training_runs_with_the_state_on_the_pmap_axis(monkeypatch):
     class FakePPO:
         @staticmethod
         def train(**kwargs):
+            from brax.training import acting
+
             seen["axes"] = jax.device_put_replicated(jp.zeros(1), jax.local_devices()[:1]).sharding.mesh.axis_names
+            seen["evaluator"] = acting.Evaluator.__name__
 
     monkeypatch.setattr(train, "network_factory", lambda *a: None)
     ppo = train.PPOConfig()
     env_config = type("C", (), {"episode_steps": 10, "privileged_critic": False})()
     train._run_ppo(FakePPO, None, env_config, ppo, 10, 1, None, 0, None, None, None, lambda env: None)
-    assert seen["axes"] == (jax_compat.BRAX_PMAP_AXIS,)
+    assert seen == {"axes": (jax_compat.BRAX_PMAP_AXIS,), "evaluator": "CommittedEvaluator"}
+
+
+def test_evaluator_with_a_committed_first_state_compiles_its_unroll_once():
+    """Brax's Evaluator donates its evaluation state from one evaluation to the next; the first
+    state, from a jitted reset of uncommitted keys, is laid out differently from the later ones,
+    and the second evaluation compiles the unroll again, unless evaluator_state_committed."""
+    from brax import envs
+    from brax.training import acting
+
+    from footforge.envs.wrappers import PolicySideWrapper
+
+    # Brax's toy environment, its states strongly typed as footforge's environments return them
+    # (a weak type that flips between reset and step would recompile for another reason).
+    env = PolicySideWrapper(envs.training.wrap(envs.get_environment("fast"), episode_length=5))
+
+    def policy_factory(params):
+        return lambda obs, key: (jp.zeros(obs.shape[:-1] + (1,)) + params, {})
+
+    def second_evaluation_compiles() -> int:
+        evaluator = acting.Evaluator(env, policy_factory, num_eval_envs=2, episode_length=5, action_repeat=1,
+                                     key=jax.random.PRNGKey(0))
+        # Parameters committed to the device, as Brax's PPO hands them over (unpmapped).
+        params = jax.device_put(jp.float32(0.0), jax.local_devices()[0])
+        evaluator.run_evaluation(params, {})
+        return _backend_compiles(lambda: evaluator.run_evaluation(params, {}))
+
+    assert second_evaluation_compiles() >= 1  # Brax as released
+    with jax_compat.evaluator_state_committed():
+        assert second_evaluation_compiles() == 0
+    assert acting.Evaluator.__name__ == "Evaluator"  # put back

@@ -12,6 +12,12 @@ whole training epoch again (measured on this project's 2-core CPU: 22 s for flat
 for rough AOF; minutes on a GPU machine). `replicated_on_pmap_axis()` lays the state on 'i' from
 the start, for the duration of one training call (google/brax pull request 674 makes the same
 change inside Brax, unreleased).
+
+Brax's evaluator has the same trouble with its donated evaluation state: the first one comes from
+a jitted reset of uncommitted keys (no device fixed), every later one from the previous
+evaluation's outputs (committed to the device), so the second evaluation compiles the whole
+evaluation unroll again. `evaluator_state_committed()` commits the first state to the device the
+later ones live on. `brax_compiles_once()` applies both.
 """
 
 from __future__ import annotations
@@ -68,6 +74,17 @@ def install() -> list[str]:
     return added
 
 
+def _replicated_strongly_typed(x: Any, devices: Sequence, axis: str) -> Any:
+    """device_put_replicated of `x` with its weak types made strong, as Brax's epochs return
+    them (its _strip_weak_type): a weakly typed scalar in the initial parameters would make the
+    first evaluation's program differ from the later ones'."""
+    import jax
+    import jax.numpy as jp
+
+    strong = jax.tree_util.tree_map(lambda leaf: jp.asarray(leaf).astype(jp.asarray(leaf).dtype), x)
+    return device_put_replicated(strong, devices, axis=axis)
+
+
 @contextmanager
 def replicated_on_pmap_axis(axis: str = BRAX_PMAP_AXIS) -> Iterator[None]:
     """While active, `jax.device_put_replicated` lays its copies on the mesh axis `axis`, the
@@ -79,7 +96,7 @@ def replicated_on_pmap_axis(axis: str = BRAX_PMAP_AXIS) -> Iterator[None]:
     # from the module's namespace: only what the namespace held is put back.
     namespace = vars(jax)
     before = namespace.get("device_put_replicated")
-    jax.device_put_replicated = functools.partial(device_put_replicated, axis=axis)
+    jax.device_put_replicated = functools.partial(_replicated_strongly_typed, axis=axis)
     try:
         yield
     finally:
@@ -87,3 +104,33 @@ def replicated_on_pmap_axis(axis: str = BRAX_PMAP_AXIS) -> Iterator[None]:
             del jax.device_put_replicated
         else:
             jax.device_put_replicated = before
+
+
+@contextmanager
+def evaluator_state_committed() -> Iterator[None]:
+    """While active, Brax's acting.Evaluator (as Brax's PPO creates it) starts from a donated
+    evaluation state committed to the first local device, as the states its evaluations return
+    are: its evaluation unroll compiles once instead of twice."""
+    import jax
+    from brax.training import acting
+
+    original = acting.Evaluator
+
+    class CommittedEvaluator(original):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self._eval_state_to_donate = jax.device_put(self._eval_state_to_donate, jax.local_devices()[0])
+
+    acting.Evaluator = CommittedEvaluator
+    try:
+        yield
+    finally:
+        acting.Evaluator = original
+
+
+@contextmanager
+def brax_compiles_once(axis: str = BRAX_PMAP_AXIS) -> Iterator[None]:
+    """replicated_on_pmap_axis and evaluator_state_committed together: Brax's PPO then compiles its
+    training epoch and its evaluation unroll once each."""
+    with replicated_on_pmap_axis(axis), evaluator_state_committed():
+        yield

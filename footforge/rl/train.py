@@ -319,7 +319,7 @@ def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: i
              resumes: int, log, save, wrap_for_training, randomizer, evaluate: bool = True) -> None:
     from footforge.rl import jax_compat
 
-    with jax_compat.replicated_on_pmap_axis():  # one compilation of the training epoch, not two
+    with jax_compat.brax_compiles_once():  # the training epoch and the evaluation compiled once each, not twice
         _call_ppo(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save,
                   wrap_for_training, randomizer, evaluate)
 
