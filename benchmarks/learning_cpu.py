@@ -31,6 +31,8 @@ ablations of 2026-11-26 ran before the defaults changed: their `position+fast` i
 - entropy=X: PPO's entropy cost alone (e.g. entropy=0.001).
 - height=X: the base-height penalty's weight alone (height=10: scale -10, the paper's guess; the
             tuned flat task's is 2).
+- resample=X: a new command every X seconds (CommandConfig.resample_s; legged_gym's and the
+            default's 10 s give one change per 20 s training episode).
 
 Prints one line per training-episode log (steps, wall s, episode length, forward error, base height),
 then one JSON line: steps, wall_s, and the final policy's walking verdict (deterministic, 32 robots x
@@ -57,7 +59,7 @@ from footforge.variants import FEET
 
 PRESETS = ("forward", "full")
 TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards", "paper_rewards", "noclip",
-          "airtime", "airtime=X", "stance", "fast", "entropy=X", "height=X")
+          "airtime", "airtime=X", "stance", "fast", "entropy=X", "height=X", "resample=X")
 
 
 def _valued_token(token: str) -> bool:
@@ -107,6 +109,8 @@ def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
             cfg = replace(cfg, rewards=cfg.rewards.with_scales(feet_air_time=float(token.split("=", 1)[1])))
         elif token.startswith("height="):  # the base-height penalty's weight: height=10 is scale -10
             cfg = replace(cfg, rewards=cfg.rewards.with_scales(base_height=-float(token.split("=", 1)[1])))
+        elif token.startswith("resample="):  # seconds between commands, e.g. resample=5
+            cfg = replace(cfg, commands=replace(cfg.commands, resample_s=float(token.split("=", 1)[1])))
         elif token.startswith("entropy="):  # PPO's entropy cost alone, e.g. entropy=0.001
             ppo = replace(ppo, entropy_cost=float(token.split("=", 1)[1]))
         elif token in ("stance", "fast"):
