@@ -298,6 +298,9 @@ def falls_cell(r: dict) -> str:
     return f"{r['falls']}/{r['num_envs']}" + (f" ({', '.join(notes)})" if notes else "")
 
 
+FEET_COLOURS = {"ball": "tab:gray", "aff": "tab:blue", "aof": "tab:orange"}
+
+
 def plot(results: list[dict], out_dir: Path) -> list[str]:
     """comparison.png (indices per policy and feet), contacts_<i>.png (robot 0's feet contact
     schedule over the first 4 s), push_response_<i>.png (mean forward velocity error over time;
@@ -305,14 +308,21 @@ def plot(results: list[dict], out_dir: Path) -> list[str]:
     from matplotlib.figure import Figure  # no pyplot: a library leaves the backend to its user
 
     files = []
-    fig = Figure(figsize=(3 * len(INDICES), 3.5))
-    axes = fig.subplots(1, len(INDICES))
+    # One panel per index; with many (policy, feet) rows the panels widen and wrap (4 a row).
+    cols = len(INDICES) if len(results) <= 4 else 4
+    rows = -(-len(INDICES) // cols)
+    panel_width = max(3.0, 0.3 * len(results) + 1.0)
+    fig = Figure(figsize=(panel_width * cols, 3.6 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
     labels = [f"{Path(r['policy']).parent.name}\non {r['feet']}" for r in results]
     for ax, name in zip(axes, INDICES):
-        ax.bar(range(len(results)), [r["indices"][name]["mean"] for r in results],
-               yerr=[r["indices"][name]["std"] for r in results], capsize=3)
-        ax.set_title(name, fontsize=9)
-        ax.set_xticks(range(len(results)), labels, fontsize=6, rotation=45)
+        for k, r in enumerate(results):  # coloured by the feet walked on; hatched when zero-shot
+            ax.bar(k, r["indices"][name]["mean"], yerr=r["indices"][name]["std"], capsize=2,
+                   color=FEET_COLOURS.get(r["feet"], "tab:blue"), hatch="//" if r["feet"] != r["trained_on"] else None)
+        ax.set_title(f"{name} ({INDEX_UNITS[name]})", fontsize=9)
+        ax.set_xticks(range(len(results)), labels, fontsize=6, rotation=90)
+    for ax in axes[len(INDICES):]:
+        ax.set_visible(False)
     fig.tight_layout()
     fig.savefig(out_dir / "comparison.png", dpi=90)
     files.append("comparison.png")
