@@ -53,12 +53,7 @@ def main() -> None:
                "mujoco": mujoco.__version__, "batch": args.batch}
     for task in args.tasks:
         for feet in args.feet:
-            policies = []
-            for policy in args.policies:
-                if feet == "ball":  # no passive joints to read: the blind or perceptive type
-                    policy = policy.replace("H", "")
-                if policy in envs.TASKS[task] and policy not in policies:
-                    policies.append(policy)
+            policies = envs.policy_types(task, feet, args.policies)
             shanks = args.shank_collisions if task == "rough" else ["on"]
             for policy in policies:
                 for contact in args.contact_models:

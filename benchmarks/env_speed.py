@@ -101,12 +101,7 @@ def main() -> None:
         figures["playground"] = go1.version()
     for task in args.tasks:
         for feet in args.feet:
-            policies = []
-            for policy in args.policies:
-                if feet == "ball":  # no passive joints to read: the blind or perceptive type
-                    policy = policy.replace("H", "")
-                if policy in envs.TASKS[task] and policy not in policies:
-                    policies.append(policy)
+            policies = envs.policy_types(task, feet, args.policies)
             shanks = args.shank_collisions if task == "rough" else ["on"]
             for policy, contact, shank, (label, root) in ((kind, model, on, r) for kind in policies
                                                           for model in args.contact_models for on in shanks

@@ -700,3 +700,9 @@ def test_the_warp_backend_is_refused_where_it_cannot_run(built, tmp_path, capsys
                              "--mjx-impl", "warp", "--timesteps", "100"])
     assert code == 2 and "mjx_impl 'warp'" in " ".join(capsys.readouterr().err.split())
     assert not run.exists()
+
+
+def test_policy_types_swept_by_the_benchmarks():
+    assert envs.policy_types("rough", "ball", ["B", "PH", "P"]) == ["B", "P"]  # PH stands for P on ball feet
+    assert envs.policy_types("rough", "aof", ["B", "PH"]) == ["B", "PH"]
+    assert envs.policy_types("flat", "aof", ["B", "PH"]) == ["B"]  # the flat task has blind policies only

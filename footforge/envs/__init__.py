@@ -173,3 +173,16 @@ def registry() -> list[tuple[str, str, str]]:
     """Every valid (task, feet, policy) combination."""
     return [(t, f, p) for t, policies in TASKS.items() for f in FEET for p in policies
             if not (p in HAPTIC and f == "ball")]  # check_feet_and_policy's rule
+
+
+def policy_types(task: str, feet: str, requested) -> list[str]:
+    """The policy types among `requested` that `task` has on `feet`, in order and without repeats; on
+    ball feet a haptic type stands for its non-haptic one (PH -> P): ball feet have no passive
+    joints to sense. For benchmarks that sweep tasks, feet and policy types."""
+    kept = []
+    for policy in requested:
+        if feet == "ball" and policy in HAPTIC:
+            policy = policy.replace("H", "")
+        if policy in TASKS[task] and policy not in kept:
+            kept.append(policy)
+    return kept
