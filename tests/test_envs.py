@@ -678,6 +678,15 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)
     evaluation._policy_and_env("policy", "aof", 1.0, None)
     assert (built_configs[0].feet, built_configs[0].sim_dt, built_configs[0].decimation) == ("aof", 0.005, 4)
+    # Trained with a new command every 5 s (the flat default), evaluated on the common 10-s schedule.
+    assert ball.commands.resample_s == pytest.approx(envs.FLAT_COMMAND_RESAMPLE_S) == pytest.approx(5.0)
+    assert built_configs[0].commands.resample_s == pytest.approx(evaluation.EVALUATION_COMMAND_EVERY_S) == 10.0
+    assert built_configs[0].commands.lin_vel_x_range == ball.commands.lin_vel_x_range  # its own ranges
+
+
+def test_the_flat_task_changes_commands_every_5_s_and_the_rough_task_every_10_s():
+    assert envs.default_config("flat", "aof", "B").commands.resample_s == pytest.approx(5.0)
+    assert envs.default_config("rough", "aof", "PH").commands.resample_s == pytest.approx(10.0)  # legged_gym's
 
 
 def test_the_warp_backend_is_refused_where_it_cannot_run(built, tmp_path, capsys, monkeypatch):

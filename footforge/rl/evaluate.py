@@ -33,6 +33,13 @@ SECONDS = {"flat": 60.0, "rough": 17.5}
 """The paper's evaluation length per task, s."""
 
 
+EVALUATION_COMMAND_EVERY_S = 10.0
+"""Evaluations draw a new command every 10 s (legged_gym's resampling, the schedule of every policy
+trained before 2026-11-27), whatever schedule the policy trained with (the flat task's default is
+5 s: footforge.envs.FLAT_COMMAND_RESAMPLE_S), so that falls and errors compare across policies.
+Command ranges, pushes and physics stay the policy's own."""
+
+
 def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, build_dir: str | None):
     """(policy, its training EnvConfig, feet, seconds, an environment of `feet` whose episodes
     outlast `seconds`). `feet` defaults to the training feet (a haptic policy runs on those only),
@@ -49,7 +56,10 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
     feet = feet or env_config.feet
     check_policy_on_feet(env_config, feet, str(policy_dir))
     seconds = seconds or SECONDS[env_config.task]
-    env = from_config(replace(on_feet(env_config, feet), build_dir=build_dir, episode_length_s=seconds + 1.0))
+    config = on_feet(env_config, feet)
+    # One schedule of new commands for every policy, whatever it trained with (EVALUATION_COMMAND_EVERY_S).
+    config = replace(config, commands=replace(config.commands, resample_s=EVALUATION_COMMAND_EVERY_S))
+    env = from_config(replace(config, build_dir=build_dir, episode_length_s=seconds + 1.0))
     return policy, env_config, feet, seconds, env
 
 
