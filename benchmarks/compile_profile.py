@@ -13,9 +13,9 @@ Usage: python benchmarks/compile_profile.py [--tasks flat rough] [--feet ball af
 
 Tracing and lowering run on the host's Python on every machine; the XLA compile is the device's
 (the GPU machine compiles on its CPU cores for its GPU). The figures of one run compare with each
-other (ratios); on a shared machine the seconds are upper bounds. The persistent compilation cache
-is off (a cold compile is what a new machine pays). --repeat-step also times a second lowering of
-the step (the cost of tracing again, as each new process and each of Brax's jitted functions do).
+other (ratios); on a shared machine the seconds are upper bounds. JAX's persistent compilation
+cache is switched off (a cold compile is what a new machine pays). --repeat-step also times a
+second lowering of the step (the cost of tracing again, as each new process pays).
 """
 
 import argparse
@@ -49,6 +49,8 @@ def main() -> None:
     args = p.parse_args()
     if args.batch < 1:
         p.error(f"--batch must be at least 1 (got {args.batch})")
+    # Cold compilation, whatever the environment sets (the GPU kit's run.sh sets JAX_COMPILATION_CACHE_DIR).
+    jax.config.update("jax_enable_compilation_cache", False)
     figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,
                "mujoco": mujoco.__version__, "batch": args.batch}
     for task in args.tasks:
