@@ -30,10 +30,10 @@ which the tuning kept more robots up through 20 s, with either PPO settings
 FLAT_COMMAND_RESAMPLE_S = 5.0
 """The flat task's CommandConfig.resample_s, s: a new command every 5 s, three changes per 20-s
 training episode where legged_gym's 10 s gives one. New commands are what walking policies fail
-on (most falls over a 60-s evaluation come within 2 s of one); a ball policy fine-tuned 2.6 M steps
-with commands every 5 s fell 5 and 9 times of 32 in 60 s (two evaluation seeds) where the same
-fine-tune at 10 s fell 18 and 19 times (docs/defaults.md; one training seed). Evaluations keep
-the 10-s schedule for every policy (footforge.rl.evaluate.EVALUATION_COMMAND_EVERY_S)."""
+on (most falls over a 60-s evaluation come within 2 s of one); fine-tunes of the shipped policies
+with commands every 5 s fell less over 60 s on every feet (ball 26 -> 14 of 64, AFF 29 -> 20, AOF
+35 -> 28; ball's same fine-tune at 10 s: 37; docs/defaults.md, one training seed each). Evaluations
+keep the 10-s schedule for every policy (footforge.rl.evaluate.EVALUATION_COMMAND_EVERY_S)."""
 
 
 def default_config(task: str, feet: str, policy: str, contact_model: str | None = None) -> EnvConfig:
