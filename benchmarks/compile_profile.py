@@ -4,7 +4,7 @@ randomisation included) are traced and lowered to StableHLO, then compiled by XL
 device is present. One JSON line: per environment and per function (reset, step) the seconds to
 trace and lower, the seconds XLA took to compile, and the size of the lowered program (operations
 in its StableHLO text; the compile time of a backend grows with it), plus the model's sizes
-(bodies, DOFs, geoms, collision pairs) and MJX's collision groups, so that what makes a program
+(bodies, DOFs, geoms, collision pairs, and those pairs by geom types), so that what makes a program
 large can be told from one run.
 
 Usage: python benchmarks/compile_profile.py [--tasks flat rough] [--feet ball aff aof]
@@ -71,31 +71,14 @@ def main() -> None:
 def model_sizes(env) -> dict:
     """The model's sizes that the compiled program's size follows."""
     m = env.robot.model
-    sizes = {"nbody": m.nbody, "nv": m.nv, "ngeom": m.ngeom, "nhfield": m.nhfield,
-             "collision_pairs": _collision_pair_count(m)}
-    sizes["collision_groups"] = _collision_groups(env)
-    return sizes
+    groups = _collision_groups(m)
+    return {"nbody": m.nbody, "nv": m.nv, "ngeom": m.ngeom, "nhfield": m.nhfield,
+            "collision_pairs": sum(groups.values()), "collision_groups": groups}
 
 
-def _collision_pair_count(m: mujoco.MjModel) -> int:
-    """Geom pairs that may collide by contype/conaffinity (different bodies, not parent-child
-    excluded), the ones a collision pass considers."""
-    count = 0
-    for i in range(m.ngeom):
-        for j in range(i + 1, m.ngeom):
-            bi, bj = m.geom_bodyid[i], m.geom_bodyid[j]
-            if bi == bj:
-                continue
-            if (m.geom_contype[i] & m.geom_conaffinity[j]) or (m.geom_contype[j] & m.geom_conaffinity[i]):
-                count += 1
-    return count
-
-
-def _collision_groups(env) -> dict[str, int]:
-    """MJX's collision work by geom type pair: how many geom pairs of each (type, type) the model
-    collides (each distinct pair type is a collision function of its own in the compiled step)."""
-    m = env.robot.model
-    names = {int(t): mujoco.mjtGeom(t).name.removeprefix("mjGEOM_").lower() for t in range(8)}
+def _collision_groups(m: mujoco.MjModel) -> dict[str, int]:
+    """The geom pairs that may collide (on different bodies, contype/conaffinity bits matching) by
+    their (type, type): MJX compiles a collision function per distinct pair of types."""
     groups: dict[str, int] = {}
     for i in range(m.ngeom):
         for j in range(i + 1, m.ngeom):
@@ -103,9 +86,8 @@ def _collision_groups(env) -> dict[str, int]:
                 continue
             if not ((m.geom_contype[i] & m.geom_conaffinity[j]) or (m.geom_contype[j] & m.geom_conaffinity[i])):
                 continue
-            pair = sorted((names.get(int(m.geom_type[i]), str(m.geom_type[i])),
-                           names.get(int(m.geom_type[j]), str(m.geom_type[j]))))
-            key = "-".join(pair)
+            key = "-".join(sorted(mujoco.mjtGeom(int(m.geom_type[g])).name.removeprefix("mjGEOM_").lower()
+                                  for g in (i, j)))
             groups[key] = groups.get(key, 0) + 1
     return groups
 
