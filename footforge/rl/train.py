@@ -319,29 +319,24 @@ def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: i
              resumes: int, log, save, wrap_for_training, randomizer, evaluate: bool = True) -> None:
     from footforge.rl import jax_compat
 
-    with jax_compat.brax_compiles_once():  # the training epoch and the evaluation compiled once each, not twice
-        _call_ppo(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save,
-                  wrap_for_training, randomizer, evaluate)
-
-
-def _call_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
-              resumes: int, log, save, wrap_for_training, randomizer, evaluate: bool) -> None:
-    ppo_train.train(
-        environment=env, num_timesteps=remaining, episode_length=env_config.episode_steps,
-        num_envs=ppo.num_envs, unroll_length=ppo.unroll_length, batch_size=ppo.batch_size,
-        num_minibatches=ppo.num_minibatches, num_updates_per_batch=ppo.num_updates_per_batch,
-        learning_rate=ppo.learning_rate, entropy_cost=ppo.entropy_cost, discounting=ppo.discounting,
-        gae_lambda=ppo.gae_lambda, clipping_epsilon=ppo.clipping_epsilon, vf_loss_coefficient=ppo.vf_loss_coefficient,
-        max_grad_norm=ppo.max_grad_norm, reward_scaling=ppo.reward_scaling,
-        normalize_observations=ppo.normalize_observations, bootstrap_on_timeout=True,
-        learning_rate_schedule="ADAPTIVE_KL" if ppo.adaptive_kl else None, desired_kl=ppo.adaptive_kl or 0.01,
-        network_factory=network_factory(ppo, env_config.privileged_critic), seed=ppo.seed + 1000 * resumes,
-        num_evals=epochs + 1, run_evals=evaluate,
-        num_eval_envs=ppo.num_eval_envs, progress_fn=log, policy_params_fn=save,
-        restore_params=tuple(restore) if restore is not None else None, wrap_env_fn=wrap_for_training,
-        randomization_fn=randomizer(env),  # EnvConfig.randomization: one draw per robot for the run
-        # Evaluations (the learning curve) run the policy's mean, as a deployed policy runs.
-        deterministic_eval=True,
-        # Training episodes' metrics (episode/...: the terrain levels the curriculum reached, reward
-        # terms, tracking errors), logged between evaluations.
-        log_training_metrics=True, training_metrics_steps=max(ppo.checkpoint_every_steps // 4, 1))
+    with jax_compat.brax_compiles_once():  # its training epoch and evaluation compiled once each, not twice
+        ppo_train.train(
+            environment=env, num_timesteps=remaining, episode_length=env_config.episode_steps,
+            num_envs=ppo.num_envs, unroll_length=ppo.unroll_length, batch_size=ppo.batch_size,
+            num_minibatches=ppo.num_minibatches, num_updates_per_batch=ppo.num_updates_per_batch,
+            learning_rate=ppo.learning_rate, entropy_cost=ppo.entropy_cost, discounting=ppo.discounting,
+            gae_lambda=ppo.gae_lambda, clipping_epsilon=ppo.clipping_epsilon,
+            vf_loss_coefficient=ppo.vf_loss_coefficient,
+            max_grad_norm=ppo.max_grad_norm, reward_scaling=ppo.reward_scaling,
+            normalize_observations=ppo.normalize_observations, bootstrap_on_timeout=True,
+            learning_rate_schedule="ADAPTIVE_KL" if ppo.adaptive_kl else None, desired_kl=ppo.adaptive_kl or 0.01,
+            network_factory=network_factory(ppo, env_config.privileged_critic), seed=ppo.seed + 1000 * resumes,
+            num_evals=epochs + 1, run_evals=evaluate,
+            num_eval_envs=ppo.num_eval_envs, progress_fn=log, policy_params_fn=save,
+            restore_params=tuple(restore) if restore is not None else None, wrap_env_fn=wrap_for_training,
+            randomization_fn=randomizer(env),  # EnvConfig.randomization: one draw per robot for the run
+            # Evaluations (the learning curve) run the policy's mean, as a deployed policy runs.
+            deterministic_eval=True,
+            # Training episodes' metrics (episode/...: the terrain levels the curriculum reached, reward
+            # terms, tracking errors), logged between evaluations.
+            log_training_metrics=True, training_metrics_steps=max(ppo.checkpoint_every_steps // 4, 1))
