@@ -81,8 +81,11 @@ def _replicated_strongly_typed(x: Any, devices: Sequence, axis: str) -> Any:
     import jax
     import jax.numpy as jp
 
-    strong = jax.tree_util.tree_map(lambda leaf: jp.asarray(leaf).astype(jp.asarray(leaf).dtype), x)
-    return device_put_replicated(strong, devices, axis=axis)
+    def strong(leaf):
+        leaf = jp.asarray(leaf)
+        return leaf.astype(leaf.dtype)  # astype to its own dtype drops the weak type
+
+    return device_put_replicated(jax.tree_util.tree_map(strong, x), devices, axis=axis)
 
 
 @contextmanager
