@@ -31,8 +31,8 @@ ablations of 2026-11-26 ran before the defaults changed: their `position+fast` i
 - entropy=X: PPO's entropy cost alone (e.g. entropy=0.001).
 - height=X: the base-height penalty's weight alone (height=10: scale -10, the paper's guess; the
             tuned flat task's is 2).
-- resample=X: a new command every X seconds (CommandConfig.resample_s; legged_gym's and the
-            default's 10 s give one change per 20 s training episode).
+- resample=X: a new command every X > 0 seconds (CommandConfig.resample_s; the flat task's default
+            is 5 s since 2026-11-27, legged_gym's 10 s before: runs from before trained at 10).
 
 Prints one line per training-episode log (steps, wall s, episode length, forward error, base height),
 then one JSON line: steps, wall_s, and the final policy's walking verdict (deterministic, 32 robots x
@@ -63,10 +63,10 @@ TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards
 
 
 def _valued_token(token: str) -> bool:
-    """A NAME=X token (airtime=X, entropy=X) with a number for X."""
+    """A NAME=X token (airtime=X, entropy=X, ...) with a number for X: X >= 0, and X > 0 for resample."""
     name, _, value = token.partition("=")
     try:
-        return f"{name}=X" in TOKENS and float(value) >= 0
+        return f"{name}=X" in TOKENS and (float(value) > 0 if name == "resample" else float(value) >= 0)
     except ValueError:
         return False
 
