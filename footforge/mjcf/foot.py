@@ -85,10 +85,20 @@ def _root_body(source: FootSource, root: mjcf.RootElement, assets: MeshAssets, h
 def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     parsed, sidecar = source.parsed, source.sidecar
     root = _new_root(name, sidecar, source.params.contact_solref_for("full"))
+    full = source.params.full
     for fam in FAMILIES:
         d = sidecar.joint_dynamics[fam]
+        # The joints' ranges are the foot's mechanical stops, as stiff as the pins that close its
+        # loops (closure_solref). MuJoCo scales a limit's stiffness by the joint's effective
+        # inertia, which for these 8-26 g links is 1e-6 to 1e-5 kg m^2: at MuJoCo's default 20 ms
+        # time constant a stop gave way to about 0.01 N m/rad, and under a walking ANYmal the arches
+        # passed their +-30 deg stops by up to 100 deg and chain pins their +-45 deg by up to 300
+        # deg (links folding through each other), until a loop snapped through and the simulation
+        # diverged (flat_aof_B: 2 of 4 robots in 10 s). The drop tests barely reach them: stiff
+        # stops moved the means of `footforge validate --scenarios all` by 0.4 mm and 0.2 deg at most.
         root.default.add("default", dclass=fam).joint.set_attributes(
-            damping=d.damping, frictionloss=d.frictionloss, armature=d.armature)
+            damping=d.damping, frictionloss=d.frictionloss, armature=d.armature,
+            solreflimit=list(full.closure_solref))
     assets = MeshAssets(root)
     hull_geoms = _hull_geoms(source, assets)
     families = source.families
@@ -99,7 +109,6 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     bodies = add_body_tree(parsed, _root_body(source, root, assets, hull_geoms), assets,
                            joint_class=lambda j: families[j] if families[j] in FAMILIES else None,
                            collision_geoms=hull_geoms, reference=reference)
-    full = source.params.full
     for c in sidecar.closures:
         sites = []
         for link, point, tag in ((c.link, c.point, "a"), (c.to_link, c.to_point, "b")):
