@@ -143,6 +143,22 @@ def test_folder_footforge_wrote_is_replaced(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no temporary or set-aside folder
 
 
+
+def test_a_linked_output_folder_is_written_through_its_link(tmp_path):
+    """`--out build/aof` where build/aof links to a folder footforge wrote elsewhere: the link
+    stays a link and its target gets the new output (the link used to be renamed aside, left
+    behind as .aof.old-PID, and replaced by a plain folder)."""
+    target, links = tmp_path / "kit" / "aof", tmp_path / "build"
+    with atomic_directory(target, command="first") as tmp:
+        (tmp / "old.txt").write_text("1")
+    links.mkdir()
+    (links / "aof").symlink_to(target)
+    with atomic_directory(links / "aof", command="second") as tmp:
+        (tmp / "new.txt").write_text("2")
+    assert (links / "aof").is_symlink() and (links / "aof").resolve() == target.resolve()
+    assert sorted(p.name for p in target.iterdir()) == sorted([MARKER, "new.txt"])
+    assert [p.name for p in links.iterdir()] == ["aof"] and [p.name for p in target.parent.iterdir()] == ["aof"]
+
 def test_build_replaces_its_own_output_folder(capsys, tmp_path):
     out = tmp_path / "out"
     for _ in range(2):
