@@ -90,8 +90,8 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
         d = sidecar.joint_dynamics[fam]
         # The joints' ranges are the foot's mechanical stops, as stiff as the pins that close its
         # loops (closure_solref). MuJoCo scales a limit's stiffness by the joint's effective
-        # inertia, which for these 8-26 g links is 1e-6 to 1e-5 kg m^2: at MuJoCo's default 20 ms
-        # time constant a stop gave way to about 0.01 N m/rad, and under a walking ANYmal the arches
+        # inertia (k ~ I / timeconst^2), which for these 8-26 g links is about 1e-6 to 5e-5 kg m^2:
+        # at MuJoCo's default 20 ms a stop was 0.005-0.1 N m/rad stiff, and under a walking ANYmal the arches
         # passed their +-30 deg stops by up to 100 deg and chain pins their +-45 deg by up to 300
         # deg (links folding through each other), until a loop snapped through and the simulation
         # diverged (flat_aof_B: 2 of 4 robots in 10 s). The drop tests barely reach them: stiff
