@@ -43,7 +43,15 @@ def step(name: str, cmd: list[str], **kw) -> subprocess.CompletedProcess:
     return done
 
 
+ROUGH_TINY = ["--no-evaluations", "--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
+              "--checkpoint-every", "32"]
+"""The prepared rough call's jobs (docs/training.md: AOF P and PH side by side, no evaluations,
+frequent checkpoints), at a size the CPU compiles and runs in minutes."""
+
+
 def main(argv: list[str]) -> int:
+    rough = "--rough" in argv
+    argv = [a for a in argv if a != "--rough"]
     work = Path(argv[0]).resolve() if argv else Path(tempfile.mkdtemp(prefix="footforge-dryrun-"))
     work.mkdir(parents=True, exist_ok=True)
     times: dict[str, float] = {}
@@ -88,6 +96,10 @@ def main(argv: list[str]) -> int:
         for r in results:
             shutil.rmtree(r, ignore_errors=True)
 
+        if rough:
+            summary |= rough_campaign(work, repo, env)
+            return 0
+
         t = time.time()
         step("train", [run_sh, *MINUTES, "--results", results[0], "train-flat", "ball", "--", *TINY, "--timesteps", "64"],
              cwd=repo, env=env)
@@ -125,7 +137,40 @@ def main(argv: list[str]) -> int:
         print(json.dumps(summary))
 
 
-def check(results: Path, job: str, min_step: int) -> dict:
+def rough_campaign(work: Path, repo: Path, env: dict) -> dict:
+    """The prepared rough GPU call through campaign.sh, tiny: AOF P and PH trained side by side to
+    64 steps, then (a fresh runs/, as on a new machine) both resumed from their tarballs to 128
+    with the compilation cache the first call left. Returns the figures for the summary line."""
+    campaign = repo / "scripts/device/campaign.sh"
+    figures = {}
+    for call, steps in ((1, 64), (2, 128)):
+        t = time.time()
+        specs = []
+        for policy in ("P", "PH"):
+            resume = f"--resume {work / 'campaign1' / f'train-rough_aof_{policy}' / f'rough_aof_{policy}.tar.gz'} " if call == 2 else ""
+            specs.append(f"{resume}train-rough aof {policy} -- {' '.join(ROUGH_TINY)} --timesteps {steps}")
+        out = work / f"rough_results{call}"
+        shutil.rmtree(out, ignore_errors=True)
+        shutil.rmtree(repo / "runs", ignore_errors=True)  # a fresh machine: only the tarballs come back
+        step(f"rough campaign {call}", [campaign, "--results", out, *MINUTES, *specs], cwd=repo, env=env)
+        unpacked = work / f"campaign{call}"
+        shutil.rmtree(unpacked, ignore_errors=True)
+        with tarfile.open(out / "campaign.tar.gz") as tar:
+            tar.extractall(unpacked, filter="data")
+        for policy in ("P", "PH"):
+            run = f"rough_aof_{policy}"
+            s = check(unpacked / f"train-rough_aof_{policy}", f"train-rough aof {policy}", min_step=steps, run=run)
+            if call == 2:
+                progress = json.loads(extract(unpacked / f"train-rough_aof_{policy}" / f"{run}.tar.gz", f"{run}/progress.json"))
+                if progress.get("resumes") != 1:
+                    raise Failed(f"{run} did not resume from the first call's checkpoint: {progress}")
+            figures[f"{run}_call{call}_step"] = s["global_step"]
+        figures[f"rough_call{call}_s"] = round(time.time() - t)
+        figures[f"rough_call{call}_cache"] = (out / "jax_cache.tar.gz").is_file()
+    return figures | {"dryrun": "ok", "jax": s.get("jax", {}).get("version")}
+
+
+def check(results: Path, job: str, min_step: int, run: str = "flat_ball_B") -> dict:
     summary_file = results / "summary.json"
     if not summary_file.is_file():
         raise Failed(f"{job}: no summary.json in {results}")
@@ -141,7 +186,7 @@ def check(results: Path, job: str, min_step: int) -> dict:
         raise Failed(f"{job}: no results tarball under 16 MiB: {tarball}")
     names = tar_names(tarball)
     for needed in ("progress.json", "config.json", "metrics.jsonl", "policy/footforge.json"):
-        if f"flat_ball_B/{needed}" not in names:
+        if f"{run}/{needed}" not in names:
             raise Failed(f"{job}: {needed} missing from {tarball.name}")
     if len(list(results.iterdir())) > 8:
         raise Failed(f"{job}: more than 8 result files")

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # CPU dry run of the offline GPU kit: mimics the GPU machine and runs a short train-flat job end to end.
 #
-#   scripts/device/dryrun.sh [WORKDIR]      # default: a new folder under /tmp
+#   scripts/device/dryrun.sh [WORKDIR] [--rough]      # WORKDIR default: a new folder under /tmp
 #
 # 1. a fresh Python 3.12 venv in WORKDIR/venv holding only JAX 0.11.2 (CPU) and the packages the
 #    GPU machine has (flax, optax, orbax-checkpoint, numpy, scipy, matplotlib, tensorboard, onnx,
@@ -13,12 +13,22 @@
 #    train-flat ball (tiny: 8 robots, 64 steps, checkpoints every 32), then a fresh runs/ resumed
 #    from the results tarball to 128 steps, then evaluate; checks each summary, the tarballs and
 #    that no build-time package (dm_control, pinocchio, coacd, pxr, xacro) was imported.
+#    With --rough, instead: the prepared rough call (docs/training.md) through campaign.sh, tiny:
+#    train-rough aof P and PH side by side to 64 steps, then both resumed on a fresh runs/ to 128.
 # Environment: PYTHON312 (default: python3.12 on PATH, else pyenv's 3.12), KIT, PREPARE_PYTHON.
 # Exit codes: 0 all worked, 1 a step failed, 2 usage error. The last line is a JSON summary.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-if [[ $# -gt 1 || "${1:-}" == -* ]]; then
-    echo "usage: $0 [WORKDIR]" >&2
+args=()
+for a in "$@"; do
+    case "$a" in
+        --rough) ;;
+        -*) echo "usage: $0 [WORKDIR] [--rough]" >&2; exit 2 ;;
+        *) args+=("$a") ;;
+    esac
+done
+if [[ ${#args[@]} -gt 1 ]]; then
+    echo "usage: $0 [WORKDIR] [--rough]" >&2
     exit 2
 fi
 py=""
