@@ -14,7 +14,8 @@ from mujoco import mjx
 from footforge import constants as C
 from footforge import envs
 from footforge.rl import train
-from footforge.rl.evaluate_closed_chain import Controller, comparison_markdown, evaluate_closed_chain
+from footforge.rl.evaluate_closed_chain import (TERRAIN_TILES, Controller, comparison_markdown, cpu_robot,
+                                                evaluate_closed_chain, place_at_start)
 from footforge.envs import observation_layout
 from footforge.envs import terrain as terrain_lib
 from footforge.envs.config import ObservationConfig
@@ -117,6 +118,22 @@ def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
     table = comparison_markdown([result])
     assert "ball (trained)" in table and "full (zero-shot)" in table
 
+
+
+@pytest.mark.parametrize("feet", ["aof", "full"])
+def test_every_robot_spawns_clear_of_the_terrain_tiles(built, feet):
+    """`--terrain` starts robot i on the centre of tile i of the hardest level: its whole stance
+    (feet up to 0.55 m from the base) on the flat platform, no collision geom more than 1 mm into
+    the ground. With a 1 m platform the front feet stood 15-19 mm into the smooth slope, and the
+    closed chain diverged within 0.04 s."""
+    config = replace(envs.default_config("flat", "aof", "B"), build_dir=str(built["aof"][0]))
+    terrain = terrain_lib.generate(TERRAIN_TILES)
+    robot = cpu_robot(config, feet, built["full"][0].parent, terrain, own_physics=feet == "full")
+    data = mujoco.MjData(robot.model)
+    for i in range(TERRAIN_TILES.num_columns):
+        place_at_start(robot, data, terrain, i)
+        deepest = min((data.contact[k].dist for k in range(data.ncon)), default=0.0)
+        assert data.ncon > 0 and deepest > -1e-3, (terrain.column_kinds[i], deepest)
 
 def test_a_haptic_policy_runs_on_the_closed_chain_through_the_foot_imus(built, untrained, monkeypatch):
     """A BH policy trained on AOF reads its 16 passive joints on the closed chain from the feet's
