@@ -64,17 +64,14 @@ def atomic_directory(out_dir: Path, *, force: bool = False, command: str | None 
     replacement, since the folder may have changed meanwhile). The new folder gets the marker,
     naming `command` (default: this process's command line).
 
-    A symbolic link `out_dir` stays: the folder it points to is the one written or replaced
-    (renaming the link aside would leave it behind, since a link is never deleted here, and put a
-    plain folder where the user had a link).
+    A symbolic link `out_dir` stays: the folder it points to is the one checked and written or
+    replaced (check_output_folder; renaming the link aside would leave it behind, since a link is
+    never deleted here, and put a plain folder where the user had a link).
 
     Raises:
       InputError: `out_dir` may not be written or replaced.
     """
-    out_dir = Path(out_dir)
-    if out_dir.is_symlink():
-        out_dir = out_dir.resolve()
-    check_output_folder(out_dir, force=force)
+    out_dir = check_output_folder(Path(out_dir), force=force)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out_dir)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-{os.getpid()}-", dir=out_dir.parent))

@@ -77,7 +77,9 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
     """Checks that `path` can be written as an output folder that replaces what is there.
 
     Call it before any long work. `flag` and `force_flag` name the command's options in the
-    message. Returns the absolute path.
+    message. Returns the absolute path: for a link, the folder it points to, which is what is
+    checked and what gets written (the link stays; with `force` a linked user's folder is
+    replaced like any other).
 
     Refused always: the current folder or one above it (it cannot be replaced by a rename), an
     existing file (footforge writes folders; a file is the user's), a path under a file, and a
@@ -96,6 +98,11 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
                          f"as a whole; give a new or footforge-written folder, e.g. {flag} build/out")
     if target.is_symlink() and not target.exists():
         raise InputError(f"{flag} {given}: is a broken link; remove it or give another {flag} folder")
+    if target.is_symlink():
+        target = target.resolve()
+        if target == cwd or target in cwd.parents:
+            raise InputError(f"{flag} {given}: links to the current folder or one above it, which footforge "
+                             f"would replace as a whole; give a new or footforge-written folder, e.g. {flag} build/out")
     if target.exists() and not target.is_dir():
         raise InputError(f"{flag} {given}: is a file, not a folder; footforge does not replace files: "
                          f"give another {flag} folder")

@@ -92,7 +92,6 @@ def test_closed_chain_closes_at_reference_and_while_standing(built):
     assert worst < 2e-4
 
 
-
 def test_closed_chain_stops_hold_while_standing(built):
     """Each foot joint's range is a mechanical stop. Standing, ANYmal's 130 N per foot presses the
     arches onto their +-30 deg stops; with MuJoCo's default limit softness (20 ms, scaled by these
@@ -112,6 +111,7 @@ def test_closed_chain_stops_hold_while_standing(built):
         q = data.qpos[adr]
         past = max(past, float(np.max(np.maximum(q - hi, lo - q))))
     assert np.degrees(past) < 1.0
+
 
 def _foot_centroidal(model, data, root_body):
     root = model.body(root_body).id

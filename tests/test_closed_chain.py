@@ -121,7 +121,6 @@ def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
     assert "ball (trained)" in table and "full (zero-shot)" in table
 
 
-
 @pytest.mark.parametrize("feet", ["aof", "full"])
 def test_every_robot_spawns_clear_of_the_terrain_tiles(built, feet):
     """`--terrain` starts robot i on the centre of tile i of the hardest level: its whole stance
@@ -136,6 +135,7 @@ def test_every_robot_spawns_clear_of_the_terrain_tiles(built, feet):
         place_at_start(robot, data, terrain, i)
         deepest = min((data.contact[k].dist for k in range(data.ncon)), default=0.0)
         assert data.ncon > 0 and deepest > -1e-3, (terrain.column_kinds[i], deepest)
+
 
 def test_a_haptic_policy_runs_on_the_closed_chain_through_the_foot_imus(built, untrained, monkeypatch):
     """A BH policy trained on AOF reads its 16 passive joints on the closed chain from the feet's

@@ -47,6 +47,7 @@ def load_pipeline(name):
 
 # --- a folder with the user's files is refused, before the work, and left intact ---
 
+
 def test_build_refuses_folder_with_user_files(capsys, monkeypatch, user_folder):
     monkeypatch.setattr("footforge.build.pipeline.load_foot_source", never)
     monkeypatch.setattr("footforge.build.pipeline.load_params", never)
@@ -84,6 +85,7 @@ def test_closed_chain_pipeline_refuses_folder_with_user_files(capsys, monkeypatc
 
 
 # --- bad paths: refused first, exit 2, one line naming the path ---
+
 
 def test_build_refuses_existing_file(capsys, monkeypatch, tmp_path):
     monkeypatch.setattr("footforge.build.pipeline.load_params", never)
@@ -132,6 +134,7 @@ def test_build_refuses_unwritable_parent(capsys, monkeypatch, tmp_path):
 
 # --- what may be replaced ---
 
+
 def test_folder_footforge_wrote_is_replaced(tmp_path):
     out = tmp_path / "out"
     with atomic_directory(out, command="first") as tmp:
@@ -141,7 +144,6 @@ def test_folder_footforge_wrote_is_replaced(tmp_path):
         (tmp / "new.txt").write_text("2")
     assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, "new.txt"])
     assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no temporary or set-aside folder
-
 
 
 def test_a_linked_output_folder_is_written_through_its_link(tmp_path):
@@ -158,6 +160,22 @@ def test_a_linked_output_folder_is_written_through_its_link(tmp_path):
     assert (links / "aof").is_symlink() and (links / "aof").resolve() == target.resolve()
     assert sorted(p.name for p in target.iterdir()) == sorted([MARKER, "new.txt"])
     assert [p.name for p in links.iterdir()] == ["aof"] and [p.name for p in target.parent.iterdir()] == ["aof"]
+
+
+def test_a_link_is_checked_as_the_folder_it_points_to(tmp_path, user_folder, monkeypatch):
+    """Before any work: a broken link, a link to a user's folder (unless --force) and a link to
+    the current folder are refused, each naming the path as given."""
+    (tmp_path / "broken").symlink_to(tmp_path / "nowhere")
+    (tmp_path / "linked").symlink_to(user_folder)
+    (tmp_path / "here").symlink_to(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    for name, message in (("broken", "broken link"), ("linked", "--force"), ("here", "links to the current folder")):
+        with pytest.raises(InputError, match=message) as refused:
+            with atomic_directory(Path(name)):
+                pytest.fail(f"the body ran although {name} was refused")
+        assert str(refused.value).startswith(f"--out {name}:")
+    assert not (tmp_path / "nowhere").exists() and (user_folder / "thesis.tex").is_file()
+
 
 def test_build_replaces_its_own_output_folder(capsys, tmp_path):
     out = tmp_path / "out"
@@ -207,6 +225,7 @@ def test_check_output_folder_is_reusable(tmp_path):
 
 
 # --- killed runs ---
+
 
 def dead_pid() -> int:
     proc = subprocess.Popen([sys.executable, "-c", "pass"])
@@ -286,8 +305,10 @@ FAKE_COACD = """
 def set_log_level(level):
     pass
 
+
 def Mesh(vertices, faces):
     return None
+
 
 def run_coacd(mesh, **kwargs):
     return sum(range(10 ** 13))  # minutes in C code that holds the GIL, as CoACD does
@@ -318,6 +339,7 @@ def test_coacd_worker_exits_when_build_is_killed(tmp_path):
 
 
 # --- SIGTERM is handled like Ctrl-C ---
+
 
 def test_sigterm_during_build_cleans_up_like_ctrl_c(capsys, monkeypatch, tmp_path):
     def terminated(*args, **kwargs):
