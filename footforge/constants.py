@@ -32,7 +32,12 @@ DEFAULT_JOINT_ANGLES_RAD = {
 BALL_FOOT_RADIUS_M = 0.03
 """ANYmal C's ball foot (the description's ball_radius); its centre is the foot mount."""
 
-BUILD_FORMAT = 2
+BUILD_FORMAT = 3
 """Version of what a build folder holds (build_report.json's "format"), raised whenever a newer
 footforge's environments rely on something older builds lack. 2: robot scenes carry the
-parameter file's `contact` settings and the `stand` keyframe."""
+parameter file's `contact` settings and the `stand` keyframe. 3: the closed chain's joint stops
+are as stiff as its loop closures (with MuJoCo's default stops it diverged under walking
+policies; a build from a user's own sidecar would otherwise keep them)."""
+
+BUILD_FORMAT_NEEDS = "the closed chain's stiff joint stops, the `stand` keyframe and the parameter file's contacts"
+"""What builds older than BUILD_FORMAT lack, in the words of the refusal."""

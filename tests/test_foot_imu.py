@@ -83,14 +83,15 @@ def test_rates_are_the_time_derivatives_of_the_angles(full):
     assert rates[1] == pytest.approx(differences[1], rel=0.05)
 
 
-def test_a_standing_closed_chain_reads_like_a_standing_aof(built, full):
+def test_a_standing_closed_chain_reads_its_stance_like_a_standing_aof(built, full):
     """Both robots settle 0.5 s at `stand` on flat ground: the closed chain's estimates against
-    AOF's own passive joints. Flat soles read as flat: hinge angles within 2 degrees of zero (the
+    AOF's own passive joints. The stance pitches the feet's mounts past the arches' pitch stop:
+    the closed chain's pitch estimate sits at its stop (within 1 degree; the stops hold), AOF's
+    ankle, whose stop keeps MuJoCo's default softness, at or past its own. AOF's sole lies flat,
+    so its ankle pitch is the mount's pitch over the ground; the part of it the closed chain's
+    stop refuses bends the chain's sole halves instead, and they read flat within 2 degrees (the
     chain's inner and outer links zigzag by up to 7 degrees on the ground; the three-link chords
-    average that out), or, on the closed chain, bent by no more than the pitch its stop refuses.
-    The stance pitches both feet against their +-30 degree pitch stop: the closed chain's stops
-    hold (its estimate within 1 degree of 30), AOF's keep MuJoCo's default softness and read at
-    or past it (32.7 degrees on 2026-11-27)."""
+    average that out) plus that refused pitch."""
     model, _ = full
     names = [f"{leg}_foot/{j}" for leg in ("LF", "RF", "LH", "RH") for j in ESTIMATED]
     imu = FootImuEstimator(model, names)
@@ -104,13 +105,12 @@ def test_a_standing_closed_chain_reads_like_a_standing_aof(built, full):
         readings[feet] = (imu(data)[0] if feet == "full"
                           else np.array([data.qpos[m.joint(n).qposadr[0]] for n in names])).reshape(4, 4)
     full_angles, aof_angles = readings["full"], readings["aof"]
-    stop = math.radians(30.0)
-    np.testing.assert_allclose(np.abs(full_angles[:, 0]), stop, atol=math.radians(1.0))
+    arch_stop = model.jnt_range[model.joint("LF_foot/front_arch").id, 1]
+    ankle_stop = aof.jnt_range[aof.joint("LF_foot/ankle_pitch").id, 1]
+    np.testing.assert_allclose(np.abs(full_angles[:, 0]), arch_stop, atol=math.radians(1.0))
     np.testing.assert_array_equal(np.sign(full_angles[:, 0]), np.sign(aof_angles[:, 0]))
-    assert np.abs(aof_angles[:, 0]).min() > stop - math.radians(0.5)
-    # The pitch the stance asks beyond the closed chain's stop (AOF's reading past 30 degrees)
-    # bends its sole halves instead.
-    refused = np.abs(aof_angles[:, 0]) - stop
+    assert np.abs(aof_angles[:, 0]).min() > ankle_stop - math.radians(0.5)
+    refused = np.abs(aof_angles[:, 0]) - arch_stop
     assert np.all(np.abs(full_angles[:, 2:]).max(axis=1) < math.radians(2.0) + refused)
     assert np.abs(aof_angles[:, 2:]).max() < math.radians(2.0)
 

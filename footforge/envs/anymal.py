@@ -152,7 +152,7 @@ def build_problem(folder: Path, feet: str) -> str | None:
         return f"it holds the '{report.get('variant')}' variant, not '{feet}'"
     if report.get("format") != C.BUILD_FORMAT:
         return (f"it was built by an older footforge (build format {report.get('format')}, this one needs "
-                f"{C.BUILD_FORMAT}: robot scenes with the `stand` keyframe and the parameter file's contacts)")
+                f"{C.BUILD_FORMAT}: {C.BUILD_FORMAT_NEEDS})")
     for name, entry in report.get("inputs", {}).items():
         path = Path(entry.get("path", ""))
         if entry.get("sha256") and path.is_file() and _sha256(path) != entry["sha256"]:

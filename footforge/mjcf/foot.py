@@ -88,14 +88,11 @@ def build_full(source: FootSource, *, name: str = "foot") -> FootModel:
     full = source.params.full
     for fam in FAMILIES:
         d = sidecar.joint_dynamics[fam]
-        # The joints' ranges are the foot's mechanical stops, as stiff as the pins that close its
-        # loops (closure_solref). MuJoCo scales a limit's stiffness by the joint's effective
-        # inertia (k ~ I / timeconst^2), which for these 8-26 g links is about 1e-6 to 5e-5 kg m^2:
-        # at MuJoCo's default 20 ms a stop was 0.005-0.1 N m/rad stiff, and under a walking ANYmal the arches
-        # passed their +-30 deg stops by up to 100 deg and chain pins their +-45 deg by up to 300
-        # deg (links folding through each other), until a loop snapped through and the simulation
-        # diverged (flat_aof_B: 2 of 4 robots in 10 s). The drop tests barely reach them: stiff
-        # stops moved the means of `footforge validate --scenarios all` by 0.4 mm and 0.2 deg at most.
+        # The ranges are the foot's mechanical stops, as stiff as the pins that close its loops.
+        # MuJoCo scales a limit's stiffness by the joint's effective inertia (k ~ I / timeconst^2):
+        # for these 8-26 g links its default stops were so soft that a walking robot's arches passed
+        # them by up to 100 deg and the simulation diverged (benchmarks/RESULTS.md, "The shipped
+        # policies on the 34-joint closed chain"). The drop tests barely reach them.
         root.default.add("default", dclass=fam).joint.set_attributes(
             damping=d.damping, frictionloss=d.frictionloss, armature=d.armature,
             solreflimit=list(full.closure_solref))

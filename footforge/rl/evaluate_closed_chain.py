@@ -49,10 +49,9 @@ TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, plat
                               proportions=(1.0, 1.0, 0.0, 1.0, 1.0, 0.0))
 """"A few terrain tiles": smooth slope, rough slope, stairs down, obstacles at difficulty 0 and 0.5;
 robot i spawns on the centre of a tile of the hardest level (one kind after the other). The 20 m
-border keeps a robot walking 10 s at the fastest command on the heightfield. The 2 m platform (the
-training terrain's default) holds the whole stance: its feet reach 0.55 m from the base, and on a
-1 m platform the closed chain's front feet spawned 15-19 mm into the smooth slope and diverged
-within 0.04 s."""
+border keeps a robot walking 10 s at the fastest command on the heightfield. The 2 m platform
+holds the whole stance: its feet reach 0.55 m from the base, and on a 1 m platform the closed
+chain's front feet spawned 15-19 mm into the smooth slope and diverged within 0.04 s."""
 
 
 class _State(NamedTuple):
