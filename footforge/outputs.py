@@ -92,17 +92,16 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
     """
     given = Path(path)
     target = Path(os.path.abspath(given))
+    linked = target.is_symlink()
+    if linked and not target.exists():
+        raise InputError(f"{flag} {given}: is a broken link; remove it or give another {flag} folder")
+    if linked:
+        target = target.resolve()
     cwd = Path.cwd()
     if target == cwd or target in cwd.parents:
-        raise InputError(f"{flag} {given}: is the current folder or one above it, which footforge would replace "
-                         f"as a whole; give a new or footforge-written folder, e.g. {flag} build/out")
-    if target.is_symlink() and not target.exists():
-        raise InputError(f"{flag} {given}: is a broken link; remove it or give another {flag} folder")
-    if target.is_symlink():
-        target = target.resolve()
-        if target == cwd or target in cwd.parents:
-            raise InputError(f"{flag} {given}: links to the current folder or one above it, which footforge "
-                             f"would replace as a whole; give a new or footforge-written folder, e.g. {flag} build/out")
+        raise InputError(f"{flag} {given}: {'links to' if linked else 'is'} the current folder or one above it, "
+                         f"which footforge would replace as a whole; give a new or footforge-written folder, "
+                         f"e.g. {flag} build/out")
     if target.exists() and not target.is_dir():
         raise InputError(f"{flag} {given}: is a file, not a folder; footforge does not replace files: "
                          f"give another {flag} folder")
