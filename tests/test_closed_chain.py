@@ -22,6 +22,7 @@ from footforge.envs import observation_layout
 from footforge.envs import terrain as terrain_lib
 from footforge.envs.config import ObservationConfig
 from footforge.errors import InputError
+from footforge.rl.verdict import VERDICTS
 
 NOISELESS = ObservationConfig(noise=False)
 TILE = terrain_lib.TerrainConfig(num_levels=1, num_columns=1, tile_size_m=2.0, border_m=1.0, platform_m=0.5,
@@ -104,6 +105,7 @@ def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
         figures += [column["simulated_s"], column["wall_s"], column["real_time_factor"]]
         assert len(figures) == 17 and np.isfinite(figures).all()
         assert column["traces"]["vx_m_s"].shape == (1, 10)
+        assert column["walking"]["verdict"] in VERDICTS and column["walking"]["uptime"] == 1.0
     closure = result["feet"]["full"]["closure"]
     assert result["feet"]["ball"]["closure"] is None
     assert closure["num_closures"] == 12 and closure["num_couplings"] == 4
@@ -119,6 +121,7 @@ def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
     assert closure["coupling_max_rad"] < math.radians(1.0)  # the roll coupling, same constraint softness
     table = comparison_markdown([result])
     assert "ball (trained)" in table and "full (zero-shot)" in table
+    assert result["feet"]["full"]["walking"]["line"] in table
 
 
 @pytest.mark.parametrize("feet", ["aof", "full"])

@@ -13,7 +13,9 @@ functions (LocomotionEnv's, RoughEnv's on terrain tiles) evaluated on the CPU st
 Reported per feet (indices as in footforge.rl.evaluate, over the policy steps of every standing
 robot): forward, lateral and yaw-rate tracking errors, action rate, joint velocity rate, torques
 and base height (mean, std); falls (base contact, `terminate_on_knees` thigh contacts, or a
-diverged simulation) and when they happened; the simulated and wall-clock time. For the closed
+diverged simulation) and when they happened; the walking verdict (footforge.rl.verdict, as
+footforge evaluate judges a policy: forward error, time up, base height, each foot's stance); the
+simulated and wall-clock time. For the closed
 chain also its closure drift: MuJoCo's residual of every equality constraint at every physics
 step (the loop closures: distance between the two anchors, m; the roll coupling back = -front:
 rad), as the mean over time of the worst constraint and its maximum.
@@ -42,6 +44,7 @@ from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
 from footforge.rl.evaluate import INDICES
 from footforge.rl.foot_imu import IMU_BODIES, FootImuEstimator
+from footforge.rl.verdict import judge
 from footforge.tables import markdown_table
 
 FULL = "full"
@@ -73,7 +76,8 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
     progress(feet, policy steps done, total) is called after every policy step.
 
     Returns {"policy", "policy_type", "trained_on", ..., "feet": {trained feet: column, "full":
-    column}} with per column "indices" {name: {"mean", "std"}}, "falls", "fall_times_s", "finite",
+    column}} with per column "indices" {name: {"mean", "std"}}, "falls", "fall_times_s", "walking"
+    (the verdict's fields and its "line"), "finite",
     "closure" (None without equality constraints), "wall_s" (the column's wall-clock time, JAX
     compilation included), "real_time_factor" (simulated robot-seconds per second spent stepping
     MuJoCo) and "traces" (robot-by-step arrays for plots, NaN once a robot fell).
@@ -165,8 +169,9 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     alive, ok = np.ones(num_robots, bool), np.ones(num_robots, bool)
     fall_step = np.full(num_robots, -1)
     # (robots, steps) records; a robot's row stays NaN (not alive) from its fall on.
-    rows = {k: np.full((num_robots, steps), np.nan) for k in (*INDICES, "vx", "vx_command")}
+    rows = {k: np.full((num_robots, steps), np.nan) for k in (*INDICES, "vx", "vx_command", "vy_command")}
     live = np.zeros((num_robots, steps), bool)
+    feet_down = np.zeros((num_robots, steps, 4), bool)  # each foot on the ground after the step
     worst = {k: np.full((num_robots, steps), np.nan) for k in ("closure_gap_m", "coupling_rad")}
     totals = {k: np.zeros(2) for k in worst}  # (sum over physics steps of the worst constraint, steps)
     physics_wall = 0.0
@@ -189,7 +194,9 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
                         worst[k][i, t] = np.fmax(worst[k][i, t], value)
                         totals[k] += (value, 1)
             ok[i] = not diverged(d, config.diverged_speed)
-        fallen = control.touching(*padded_contacts(datas)) | ~ok
+        contacts = padded_contacts(datas)
+        fallen = control.touching(*contacts) | ~ok
+        feet_down[:, t] = control.feet_on_ground(*contacts)
         info, obs, row = control.settle(*observed_states(datas, imu), info, keys, action,
                                         _stack(datas, "actuator_force"))
         fall_step[alive & fallen] = t
@@ -205,6 +212,8 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     indices = {name: {"mean": float(rows[name][live].mean()) if live.any() else float("nan"),
                       "std": float(rows[name][live].std()) if live.any() else float("nan")} for name in INDICES}
     simulated = float(np.where(fall_step >= 0, fall_step + 1, steps).sum() * config.policy_dt)
+    walking = judge(feet_down, live, rows["base_height"], rows["vx_command"], rows["vx"],
+                    np.hypot(rows["vx_command"], rows["vy_command"]))
     traces = {"vx_m_s": rows["vx"], "vx_command_m_s": rows["vx_command"]}
     closure = None
     if equality is not None:
@@ -219,6 +228,7 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
             "falls": int((fall_step >= 0).sum()),
             "fall_times_s": [float((s + 1) * config.policy_dt) if s >= 0 else None for s in fall_step],
             "diverged": int((~ok).sum()), "finite": bool(ok.all()),
+            "walking": walking.to_dict() | {"line": walking.line()},
             "simulated_s": simulated, "wall_s": wall, "physics_wall_s": physics_wall,
             "real_time_factor": simulated / physics_wall if physics_wall > 0 else float("nan"),
             "closure": closure, "traces": traces}
@@ -344,7 +354,7 @@ class Controller:
                    "action_rate": jp.linalg.norm(action - info["last_action"]),
                    "joint_vel_rate": jp.linalg.norm(qd - info["last_joint_vel"]),
                    "torques": jp.linalg.norm(actuator_force), "base_height": env.base_height(state),
-                   "vx": lin[0], "vx_command": command[0], "vy": lin[1], "yaw_rate": ang[2]}
+                   "vx": lin[0], "vx_command": command[0], "vy_command": command[1], "vy": lin[1], "yaw_rate": ang[2]}
             info, obs = env.policy_observe(state, info, keys, action)
             return info, obs, row
 
@@ -393,8 +403,8 @@ def _commands(command: np.ndarray | None, robots: int) -> np.ndarray:
 def comparison_markdown(results: list[dict]) -> str:
     """One row per (policy, feet): the policy on its training feet, then on the closed chain."""
     head = ["policy", "type", "trained on", "feet", "vx error (m/s)", "vy error (m/s)", "yaw-rate error (rad/s)",
-            "base height (m)", "falls", "closure gap mean / max (mm)", "roll coupling max (mrad)", "finite",
-            "real-time factor"]
+            "base height (m)", "falls", "verdict", "closure gap mean / max (mm)", "roll coupling max (mrad)",
+            "finite", "real-time factor"]
     rows = []
     for r in results:
         for feet, c in r["feet"].items():
@@ -405,6 +415,7 @@ def comparison_markdown(results: list[dict]) -> str:
                       for k in ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "base_height")]
             falls = [f"{t:.2f}" for t in c["fall_times_s"] if t is not None]
             cells.append(f"{c['falls']}/{r['num_robots']}" + (f" (at {', '.join(falls)} s)" if falls else ""))
+            cells.append(c["walking"]["line"])
             eq = c["closure"]
             cells += [f"{eq['closure_gap_mean_m'] * 1e3:.4f} / {eq['closure_gap_max_m'] * 1e3:.4f}" if eq else "-",
                       f"{eq['coupling_max_rad'] * 1e3:.3f}" if eq else "-",
