@@ -104,6 +104,9 @@ class Robot:
     foot_sites: np.ndarray
     """Touchdown site of each leg's foot (LF, RF, LH, RH)."""
     floor_geom: int
+    engine_model: mujoco.MjModel | None = None
+    """Under EnvConfig.physics 'mujoco': `model` with the sensors the C engine reads
+    (footforge.envs.engine_mujoco.add_sensors), which MJX cannot load; the same physics."""
 
 
 DEFAULT_BUILD_ROOT = Path("build")
@@ -197,34 +200,8 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     if terrain is None:
         model = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
     else:
-        from footforge.envs.terrain import add_to_spec
-
-        spec = mujoco.MjSpec.from_file(str(folder / "scene.xml"))
-        spec.delete(spec.geom(FLOOR_GEOM))
-        add_to_spec(spec, terrain, name=FLOOR_GEOM)
-        if for_mjx and config.shank_collisions:
-            _shank_tubes_as_capsules(spec)
-        model = spec.compile()
-    model.opt.timestep = config.sim_dt
-    model.opt.iterations = config.solver_iterations
-    model.opt.ls_iterations = config.solver_ls_iterations
-    if config.contact_model == "fast":  # EnvConfig.contact_model
-        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        model.opt.impratio = 1.0
-        model.geom_solimp[:, :3] = FAST_CONTACT_SOLIMP
-    elif config.contact_model == "stance":
-        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        model.opt.impratio = STANCE_CONTACT_IMPRATIO
-        model.geom_solimp[:, :3] = stance_contact_solimp(config, on_heightfield=terrain is not None)
-        solref = stance_contact_solref(config)
-        if solref is not None:  # every geom alike, so MuJoCo's mixing of two geoms' solref changes nothing
-            model.geom_solref[:] = solref
-        # Semi-implicit Euler (joint damping still implicit: eulerdamp stays on), as MuJoCo
-        # Playground's quadrupeds. implicitfast adds the actuators' velocity derivative (kv) to the
-        # mass matrix after the constraint solve, so the contact forces, solved for the plain
-        # mass matrix, no longer produce the accelerations they were solved for; with friction
-        # this stiff that mismatch threw ball robots metres up within 7 steps.
-        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+        model = _scene_spec(folder, config, terrain, for_mjx).compile()
+    _set_physics_options(model, config, on_heightfield=terrain is not None)
     category = np.zeros(model.ngeom, np.int32)
     body_names = [model.body(b).name for b in range(model.nbody)]
     for g in range(model.ngeom):
@@ -245,6 +222,8 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         # thighs are checked geometrically (module docstring).
         if category[g] == GEOM_NONE or (for_mjx and category[g] < GEOM_FOOT):
             model.geom_contype[g] = model.geom_conaffinity[g] = 0
+    engine_model = (_with_engine_sensors(model, folder, config, terrain, category)
+                    if config.physics == "mujoco" and for_mjx else None)
     joints = [model.joint(n) for n in C.ACTUATED_JOINTS]
     actuators = np.array([model.actuator(n).id for n in C.ACTUATED_JOINTS])
     passive = [model.joint(j).name for j in range(model.njnt)
@@ -260,7 +239,61 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         passive_qpos=np.array([model.joint(n).qposadr[0] for n in passive], int),
         passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int), passive_names=tuple(passive),
         geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id,
-        foot_sites=np.array(foot_sites(model)))
+        foot_sites=np.array(foot_sites(model)), engine_model=engine_model)
+
+
+def _scene_spec(folder: Path, config: EnvConfig, terrain, for_mjx: bool) -> mujoco.MjSpec:
+    """The build's scene as a spec; with a terrain, its heightfield in place of the floor plane."""
+    spec = mujoco.MjSpec.from_file(str(folder / "scene.xml"))
+    if terrain is not None:
+        from footforge.envs.terrain import add_to_spec
+
+        spec.delete(spec.geom(FLOOR_GEOM))
+        add_to_spec(spec, terrain, name=FLOOR_GEOM)
+        if for_mjx and config.shank_collisions:
+            _shank_tubes_as_capsules(spec)
+    return spec
+
+
+def _set_physics_options(model: mujoco.MjModel, config: EnvConfig, *, on_heightfield: bool) -> None:
+    """The step, solver iterations and contact model of `config` (EnvConfig.contact_model), in place."""
+    model.opt.timestep = config.sim_dt
+    model.opt.iterations = config.solver_iterations
+    model.opt.ls_iterations = config.solver_ls_iterations
+    if config.contact_model == "fast":  # EnvConfig.contact_model
+        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+        model.opt.impratio = 1.0
+        model.geom_solimp[:, :3] = FAST_CONTACT_SOLIMP
+    elif config.contact_model == "stance":
+        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+        model.opt.impratio = STANCE_CONTACT_IMPRATIO
+        model.geom_solimp[:, :3] = stance_contact_solimp(config, on_heightfield=on_heightfield)
+        solref = stance_contact_solref(config)
+        if solref is not None:  # every geom alike, so MuJoCo's mixing of two geoms' solref changes nothing
+            model.geom_solref[:] = solref
+        # Semi-implicit Euler (joint damping still implicit: eulerdamp stays on), as MuJoCo
+        # Playground's quadrupeds. implicitfast adds the actuators' velocity derivative (kv) to the
+        # mass matrix after the constraint solve, so the contact forces, solved for the plain
+        # mass matrix, no longer produce the accelerations they were solved for; with friction
+        # this stiff that mismatch threw ball robots metres up within 7 steps.
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+
+
+def _with_engine_sensors(model: mujoco.MjModel, folder: Path, config: EnvConfig, terrain,
+                         category: np.ndarray) -> mujoco.MjModel:
+    """`model` compiled again with the sensors the C engine reads (engine_mujoco.add_sensors), its
+    physics settings and colliders as in `model`. Sensors change no other index or quantity."""
+    from footforge.envs.engine_mujoco import add_sensors
+
+    spec = _scene_spec(folder, config, terrain, for_mjx=True)
+    probed = (category == GEOM_BASE) | ((category >= GEOM_THIGH) & (category < GEOM_THIGH + 4))
+    add_sensors(spec, model, category, model.geom(FLOOR_GEOM).id,
+                probe_bodies=np.unique(model.geom_bodyid[probed]), foot_sites=foot_sites(model))
+    engine_model = spec.compile()
+    _set_physics_options(engine_model, config, on_heightfield=terrain is not None)
+    engine_model.geom_contype[:] = model.geom_contype
+    engine_model.geom_conaffinity[:] = model.geom_conaffinity
+    return engine_model
 
 
 def fit_heightfield_subgrids(mjx_model, model: mujoco.MjModel):

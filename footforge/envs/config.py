@@ -314,6 +314,13 @@ class EnvConfig:
     every MJX figure in benchmarks/RESULTS.md uses it); "warp", MuJoCo Warp's kernels, NVIDIA GPUs
     only, with mujoco-mjx's `warp` extra installed (warp-lang, mujoco_warp). Refused with a clear error
     where it cannot run (envs.anymal.check_mjx_impl); not yet measured on a GPU."""
+    physics: Literal["mjx", "mujoco"] = "mjx"
+    """The engine that steps the robots (footforge.envs.engine): "mjx", MuJoCo MJX in JAX (a GPU's
+    engine; the library default, and what every run saved before 2026-11-28 used), or "mujoco",
+    MuJoCo's C engine in float64, threaded, reached from the jitted step by a host callback: 3-28x
+    MJX's speed on a CPU. The same model, settings and task code either way; `--physics auto` (the
+    commands' default) takes mujoco on a CPU and mjx elsewhere. A run's checkpoints resume and its
+    policies evaluate under either engine."""
     commands: CommandConfig = field(default_factory=CommandConfig)
     rewards: RewardConfig = field(default_factory=RewardConfig)
     observations: ObservationConfig = field(default_factory=ObservationConfig)

@@ -22,7 +22,7 @@ from brax.envs.base import Env, State
 from mujoco import mjx
 
 from footforge import constants as C
-from footforge.envs import contacts, mjx_private, observation_layout, rewards
+from footforge.envs import contacts, engine, observation_layout, rewards
 from footforge.envs.anymal import (GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
                                    load_robot)
 from footforge.envs.config import EnvConfig, check_feet_and_policy
@@ -94,10 +94,11 @@ class LocomotionEnv(Env):
         # force over the robot's weight (4), the noiseless height scan (points), ground friction (1).
         self._privileged_size = 3 + 4 + config.height_scan.num_points + 1
         self._weight_n = float(r.model.body_subtreemass[0] * -r.model.opt.gravity[2])
-        self._geom_category = jp.asarray(r.geom_category)
         geoms, local, category = contacts.surface_points(r.model, r.geom_category)
-        self._probe_geom, self._probe_local, self._probe_category = (jp.asarray(geoms), jp.asarray(local),
-                                                                     jp.asarray(category))
+        self._probe_category = jp.asarray(category)
+        self.physics = engine.make(config, r, geoms, local)
+        """The engine that steps the robots (EnvConfig.physics; footforge.envs.engine): the only
+        part of the environment that knows which one runs."""
         self._stand = jp.asarray(r.stand_qpos)
         self._ctrl_order = jp.asarray(r.actuator_ids)
         self.default_q = jp.asarray(r.default_q)
@@ -133,10 +134,10 @@ class LocomotionEnv(Env):
 
     def reset(self, rng: jax.Array) -> State:
         keys = reset_keys(rng)
-        data = mjx.make_data(self.mjx_model)
         info = {"episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(()), **self._no_steps()} | \
             self._first_spawn_info(keys.spawn)
-        data = mjx.forward(self.mjx_model, self._place(data, *self._start_state(info, keys.joints)))
+        qpos, qvel, target = self._start_state(info, keys.joints)
+        data = self.physics.start(self.mjx_model, qpos, qvel, self._ctrl(target))
         info, obs = self.policy_start(data, info, keys, data.ctrl[self._ctrl_order])
         metrics = {f"reward/{t}": jp.zeros(()) for t in (*rewards.terms(self.config.rewards), "fall")}
         metrics |= {k: jp.zeros(()) for k in ("error/lin_vel_x_per_step", "error/lin_vel_y_per_step",
@@ -147,9 +148,11 @@ class LocomotionEnv(Env):
     def _place(self, data, qpos, qvel, target, where=True):
         """The robot at (qpos, qvel) with PD targets `target` (only where `where`: the fields a
         restart sets, not the whole state, are selected)."""
-        fields = {"qpos": qpos, "qvel": qvel, "qacc_warmstart": jp.zeros(self.mjx_model.nv),
-                  "ctrl": jp.zeros(self.mjx_model.nu).at[self._ctrl_order].set(target)}
-        return data.replace(**{k: jp.where(where, v, getattr(data, k)) for k, v in fields.items()})
+        return self.physics.place(data, qpos, qvel, self._ctrl(target), where)
+
+    def _ctrl(self, target):
+        """Every actuator's control (model order) from the 12 PD targets (actuated-joint order)."""
+        return jp.zeros(self.mjx_model.nu, target.dtype).at[self._ctrl_order].set(target)
 
     def _start_state(self, info, key):
         """(qpos, qvel, PD targets) an episode starts from, after OmniIsaacGymEnvs' reset_idx:
@@ -269,13 +272,9 @@ class LocomotionEnv(Env):
         cfg = self.config
         data, info = state.pipeline_state, dict(state.info)
         action, target, push_now, push, info, keys = self.policy_act(info, action)
-        data = data.replace(ctrl=data.ctrl.at[self._ctrl_order].set(target))
         # The push sets the base's planar velocity, then the physics runs.
-        data = data.replace(qvel=jp.where(push_now, data.qvel.at[:2].set(push), data.qvel))
-
-        def physics(d, _):
-            return mjx.step(self.mjx_model, d), None
-        data, _ = jax.lax.scan(physics, data, None, length=cfg.decimation)
+        qvel = jp.where(push_now, data.qvel.at[:2].set(push.astype(data.qvel.dtype)), data.qvel)
+        data = self.physics.step(self.mjx_model, data, data.ctrl.at[self._ctrl_order].set(target), qvel)
         info, fresh = self.policy_command(info, data, keys)
 
         steps = self._feet_steps(data, info)
@@ -370,9 +369,7 @@ class LocomotionEnv(Env):
 
     def foot_forces(self, data):
         """Per leg (LF, RF, LH, RH): the normal force of its foot's contacts with the ground, N."""
-        normal, index = mjx_private.contact_normal_forces(self.mjx_model, data)
-        geoms, dist = mjx_private.contacts(data)
-        return contacts.foot_normal_forces(self._geom_category, self.robot.floor_geom, geoms[index], dist[index], normal)
+        return self.physics.foot_forces(self.mjx_model, data)
 
     def observe(self, data, info, key):
         """The policy's observation: each group this policy type reads (envs.observations), with
@@ -448,8 +445,7 @@ class LocomotionEnv(Env):
         in MJX (footforge.envs.anymal), since their contact only ends episodes. Sample points
         (contacts.surface_points): box corners, 8 points around each rim of a cylinder, the corners of the
         bounding box of anything else."""
-        world = data.geom_xpos[self._probe_geom] + jp.einsum(
-            "pij,pj->pi", data.geom_xmat[self._probe_geom], self._probe_local)
+        world = self.physics.probe_points(data)
         below = world[:, 2] < self.terrain_height(world[:, :2])
         base = jp.any(below & (self._probe_category == GEOM_BASE))
         knees = sum(jp.any(below & (self._probe_category == GEOM_THIGH + i)).astype(jp.int32) for i in range(4))
@@ -457,7 +453,11 @@ class LocomotionEnv(Env):
 
     def foot_contacts(self, data):
         """Per leg (LF, RF, LH, RH): does its foot touch the ground."""
-        return contacts.foot_contacts(self._geom_category, self.robot.floor_geom, *mjx_private.contacts(data))
+        return self.physics.foot_contacts(self.mjx_model, data)
+
+    def foot_positions(self, data):
+        """Per leg (LF, RF, LH, RH): its foot's touchdown site in the world, m."""
+        return self.physics.foot_positions(data)
 
     def _terminated(self, data):
         """Base contact, or the configured number of thigh (knee) contacts (a boolean)."""

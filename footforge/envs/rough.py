@@ -20,7 +20,6 @@ from __future__ import annotations
 import jax
 import jax.numpy as jp
 from brax import math as brax_math
-from mujoco import mjx
 
 from footforge.envs import curriculum
 from footforge.envs.anymal import load_robot
@@ -59,8 +58,8 @@ class RoughEnv(LocomotionEnv):
         info = state.info | {"level": level, "column": column, "spawn_xy": xy, "spawn_yaw": yaw}
         if forward_mps is not None:
             info |= {"command": jp.array([forward_mps, 0.0, 0.0]), "heading_target": yaw}
-        data = mjx.forward(self.mjx_model, self._place(state.pipeline_state,
-                                                       *self._start_state(info, jax.random.fold_in(rng, 2))))
+        data = self.physics.forward(self.mjx_model, self._place(state.pipeline_state,
+                                                                *self._start_state(info, jax.random.fold_in(rng, 2))))
         info |= {"target": data.ctrl[self._ctrl_order], "command": self.heading_command(info, data)}
         return policy_side(state.replace(pipeline_state=data, obs=self.observation(data, info, key), info=info))
 

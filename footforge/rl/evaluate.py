@@ -104,7 +104,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
         d, m = state.pipeline_state, state.metrics
         qd = d.qvel[robot.actuated_dof]
         touching = env.foot_contacts(d)
-        xy, new_base_xy = d.site_xpos[robot.foot_sites][:, :2], d.qpos[:2]
+        xy, new_base_xy = env.foot_positions(d)[:, :2], d.qpos[:2]
         diverged = alive & (m["diverged"] > 0)  # the step that ends a standing robot's walk, if it diverged
         alive = alive & (state.done == 0)
         lin, _, _ = env.base_state(d)
@@ -125,7 +125,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
         k_reset, k_run = jax.random.split(key)
         state = env.reset_on_tile(k_reset, level, column) if rough else env.reset(k_reset)
         d = state.pipeline_state
-        carry = (state, d.qvel[robot.actuated_dof], jp.array(True), d.site_xpos[robot.foot_sites][:, :2],
+        carry = (state, d.qvel[robot.actuated_dof], jp.array(True), env.foot_positions(d)[:, :2],
                  d.qpos[:2], env.foot_contacts(d))
         _, rows = jax.lax.scan(one_step, carry, jax.random.split(k_run, steps))
         return rows

@@ -168,7 +168,6 @@ def env_stance(env, state, *, seconds: float, settle_s: float = 0.5, step=None) 
     if policy_steps <= settle:
         raise ValueError(f"seconds ({seconds}) must exceed settle_s ({settle_s})")
     step = step or jax.jit(env.step)
-    sites = env.robot.foot_sites
     heights, feet_xy, fell = [], [], False
     for _ in range(policy_steps):
         state = step(state, jp.zeros(env.action_size))
@@ -176,7 +175,7 @@ def env_stance(env, state, *, seconds: float, settle_s: float = 0.5, step=None) 
             fell = True
             break
         heights.append(float(env.base_height(state.pipeline_state)))
-        feet_xy.append(np.asarray(state.pipeline_state.site_xpos[sites, :2]))
+        feet_xy.append(np.asarray(env.foot_positions(state.pipeline_state)[:, :2]))
     if fell:
         return EnvStance(float("nan"), float("nan"), min(heights, default=float("nan")), True)
     settled, xy = np.array(heights[settle:]), np.array(feet_xy[settle:])
