@@ -38,6 +38,8 @@ def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
     p.add_argument("--num-envs", type=int, default=1024, help="robots evaluated at once, each for --seconds")
     p.add_argument("--seconds", type=float, help="simulated time (default 60 s flat, 17.5 s rough)")
     p.add_argument("--seed", type=int, default=0, help="seed of the commands, pushes, noise and spawn points")
+    p.add_argument("--physics", choices=["auto", "mjx", "mujoco"], default="auto",
+                   help="the engine (EnvConfig.physics): auto is MuJoCo's C engine on a CPU, MJX on a GPU")
     p.add_argument("--build-root", type=Path,
                    help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
     p.add_argument("--video", type=float, metavar="SECONDS",
@@ -92,7 +94,7 @@ def _run(args) -> int:
             feet = feet or load_policy_config(policy).feet
             build_dir = str(args.build_root / feet) if args.build_root else None
             results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
-                                    seed=args.seed, build_dir=build_dir))
+                                    seed=args.seed, build_dir=build_dir, physics=args.physics))
             if results[-1].get("kinds_not_covered"):
                 covered, missed = results[-1]["kinds_covered"], results[-1]["kinds_not_covered"]
                 print(f"evaluate: warning: {args.num_envs} robots cover {len(covered)} of {len(covered) + len(missed)} "
@@ -107,7 +109,8 @@ def _run(args) -> int:
                 for kind in kinds:
                     suffix = f"{i}_{kind}" if kind else f"{i}"
                     recordings.append((suffix, results[i]["policy_dt_s"], *record(
-                        policy, feet=feet, seconds=args.video, seed=args.seed, build_dir=build_dir, kind=kind)))
+                        policy, feet=feet, seconds=args.video, seed=args.seed, build_dir=build_dir, kind=kind,
+                        physics=args.physics)))
     with atomic_directory(args.out, force=args.force) as tmp:
         files = plot(results, tmp)
         for suffix, policy_dt_s, model, qpos in recordings:

@@ -16,8 +16,8 @@ from footforge.errors import EXIT_INPUT_ERROR, InputError
 
 
 DESCRIPTIONS = {
-    "flat": "Train an ANYmal C flat-ground policy with Brax PPO on MuJoCo MJX (the paper's flat task).",
-    "rough": "Train an ANYmal C rough-terrain policy with Brax PPO on MuJoCo MJX, up a terrain curriculum "
+    "flat": "Train an ANYmal C flat-ground policy with Brax PPO on MuJoCo (MJX on a GPU, its C engine on a CPU; the paper's flat task).",
+    "rough": "Train an ANYmal C rough-terrain policy with Brax PPO on MuJoCo (MJX or its C engine), up a terrain curriculum "
              "(the paper's rough task).",
 }
 """Each task's one-line description, the help's first line."""
@@ -66,6 +66,10 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
                    help="the MJX contact model (EnvConfig.contact_model) with the step and solver iterations it "
                         "needs: stance (default) holds a standing robot (2.5 ms step); fast is 2-3x cheaper on the "
                         "CPU but a robot at rest sinks and slides 150-180 mm in 10 s (5 ms step)")
+    p.add_argument("--physics", choices=["auto", "mjx", "mujoco"],
+                   help="the engine that steps the robots (EnvConfig.physics): mujoco, MuJoCo's C engine "
+                        "(threaded, float64; several times faster on a CPU), or mjx, MuJoCo MJX in JAX (a GPU's); "
+                        "default auto: mujoco where JAX runs on the CPU, else mjx. A --resume may change it")
     p.add_argument("--mjx-impl", choices=["jax", "warp"],
                    help="MJX's backend (EnvConfig.mjx_impl; default jax): warp needs MuJoCo Warp and an NVIDIA GPU")
     p.add_argument("--float64-physics", action="store_const", const=True,
@@ -220,6 +224,10 @@ def _announce(console, name: str, env_config, ppo, done: int, total: int) -> Non
         line += (f" (--timesteps {ppo.num_timesteps:,} rounded up to whole PPO iterations of {iteration:,} steps: "
                  f"{ppo.batch_size} x {ppo.num_minibatches} trajectories of {ppo.unroll_length} steps)")
     console.print(line, markup=False, highlight=False, soft_wrap=True)
+    from footforge.envs import engine
+
+    console.print(f"{name}: physics {engine.describe(env_config.physics)}", markup=False, highlight=False,
+                  soft_wrap=True)
     if backend == "cpu" and ppo.num_envs > CPU_ROBOTS:
         minutes = iteration / CPU_STEPS_PER_S / 60
         console.print(f"{name}: warning: {ppo.num_envs:,} robots on a CPU: one iteration of {iteration:,} steps takes "
@@ -243,6 +251,7 @@ _SETTINGS = (("--feet", "feet", ("env", "feet")), ("--policy", "policy", ("env",
 
 def _new_configs(task: str, args):
     from footforge import envs
+    from footforge.envs import engine
     from footforge.rl import train
 
     env_config = envs.default_config(task, args.feet or "aof", args.policy or "B", args.contact_model)
@@ -254,6 +263,7 @@ def _new_configs(task: str, args):
         env_config = envs.with_float64_physics(env_config)
     if args.mjx_impl:
         env_config = replace(env_config, mjx_impl=args.mjx_impl)
+    env_config = replace(env_config, physics=engine.resolve(args.physics or "auto"))
     overrides = {field: getattr(args, attr) for _, attr, (section, field) in _SETTINGS
                  if section == "ppo" and getattr(args, attr) is not None}
     if args.timesteps is not None:
@@ -305,7 +315,9 @@ def _resumed_configs(task: str, args):
                                  fix="leave out --terrain to continue the run with its own terrain")
     if args.timesteps is not None:
         ppo = replace(ppo, num_timesteps=args.timesteps)
-    return env_config, ppo
+    from footforge.envs import engine
+
+    return replace(env_config, physics=engine.resolve(args.physics or "auto")), ppo
 
 
 class _Reporter:

@@ -40,10 +40,12 @@ trained before 2026-11-27), whatever schedule the policy trained with (the flat 
 Command ranges, pushes and physics stay the policy's own."""
 
 
-def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, build_dir: str | None):
+def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, build_dir: str | None,
+                    physics: str = "auto"):
     """(policy, its training EnvConfig, feet, seconds, an environment of `feet` whose episodes
     outlast `seconds`). `feet` defaults to the training feet (a haptic policy runs on those only),
-    `seconds` to SECONDS of the policy's task.
+    `seconds` to SECONDS of the policy's task, `physics` (footforge.envs.engine: auto, mjx or
+    mujoco) to the CPU's C engine or a GPU's MJX, whichever engine the policy trained on.
 
     Raises:
       InputError: a haptic policy on other feet (or no policy in the folder).
@@ -59,12 +61,15 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
     config = on_feet(env_config, feet)
     # One schedule of new commands for every policy, whatever it trained with (EVALUATION_COMMAND_EVERY_S).
     config = replace(config, commands=replace(config.commands, resample_s=EVALUATION_COMMAND_EVERY_S))
-    env = from_config(replace(config, build_dir=build_dir, episode_length_s=seconds + 1.0))
+    from footforge.envs import engine
+
+    env = from_config(replace(config, build_dir=build_dir, episode_length_s=seconds + 1.0,
+                              physics=engine.resolve(physics)))
     return policy, env_config, feet, seconds, env
 
 
 def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024, seconds: float | None = None,
-             seed: int = 0, build_dir: str | None = None) -> dict:
+             seed: int = 0, build_dir: str | None = None, physics: str = "auto") -> dict:
     """Runs `policy_dir`'s policy on `feet` (default: the feet it was trained on) for `seconds`
     (default: SECONDS of its task).
 
@@ -82,7 +87,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     import jax
     import jax.numpy as jp
 
-    policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir)
+    policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir, physics)
     config, robot = env.config, env.robot
     steps = int(round(seconds / env_config.policy_dt))
     rough = config.task == "rough"
@@ -143,6 +148,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     pushes = event_times(config.pushes.interval_s, config.policy_dt, steps) if config.pushes.enabled else []
     commands = event_times(config.commands.resample_s, config.policy_dt, steps)
     return {"policy": str(policy_dir), "trained_on": env_config.feet, "feet": feet, "policy_type": env_config.policy,
+            "physics": config.physics,
             "num_envs": num_envs, "seconds": seconds, "seed": seed, "policy_dt_s": env_config.policy_dt,
             "push_interval_s": env_config.pushes.interval_s,
             "task": config.task, "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
@@ -246,7 +252,7 @@ def terrain_markdown(results: list[dict]) -> str:
 
 def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, seed: int = 0,
            build_dir: str | None = None, kind: str | None = None,
-           forward_mps: float = 0.6) -> tuple[mujoco.MjModel, np.ndarray]:
+           forward_mps: float = 0.6, physics: str = "auto") -> tuple[mujoco.MjModel, np.ndarray]:
     """One robot walking `seconds` under the policy (random commands and pushes; after a fall the
     environment restarts it), for footforge.rl.render: (the environment's CPU MjModel, qpos after
     every policy step (T, nq)). A rough-terrain policy with a terrain `kind` instead starts on the
@@ -257,7 +263,7 @@ def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, s
     """
     import jax
 
-    policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir)
+    policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir, physics)
     steps = int(round(seconds / env_config.policy_dt))
     if kind is not None and (env_config.task != "rough" or kind not in env.terrain.column_kinds):
         raise InputError(f"the policy's terrain has no '{kind}' tiles",

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from footforge.envs import engine
 from footforge.rl.evaluate import INDEX_UNITS, INDICES, falls_cell
 from footforge.tables import markdown_table
 
@@ -47,7 +48,8 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
     lines += ["", "## Evaluation", ""]
     for _, r in evaluations:
         lines.append(f"- on {r['feet']} feet{' (zero-shot)' if r['feet'] != r['trained_on'] else ''}: "
-                     f"{r['num_envs']} robots, {r['seconds']:g} s, seed {r['seed']}, {r['falls']} fell"
+                     f"{r['num_envs']} robots, {r['seconds']:g} s, seed {r['seed']}, "
+                     f"physics {r.get('physics', 'mjx')}, {r['falls']} fell"
                      + (f"; {r['walking']['line']}" if "walking" in r else ""))
     rows = [[f"{index} ({INDEX_UNITS[index]})"] + [f"{r['indices'][index]['mean']:.4g} ± {r['indices'][index]['std']:.4g}"
                                                    for _, r in evaluations] for index in INDICES]
@@ -102,7 +104,8 @@ def _training_rows(meta: dict, progress: dict) -> list[tuple[str, str]]:
                                 + (f"every {env['pushes']['interval_s']:g} s" if env["pushes"]["enabled"] else "off")
                                 + f"; randomised: {', '.join(randomised) or 'nothing'}; observation noise "
                                 + ("on" if env["observations"]["noise"] else "off")
-                                + f"; {env['contact_model']} contact model"))
+                                + f"; {env['contact_model']} contact model; trained on "
+                                + engine.describe(env.get("physics", "mjx"))))
     return rows
 
 

@@ -138,8 +138,12 @@ def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, 
     """(steps done, the checkpoint to restore, the number of this resume, training seconds so far)
     of the run in run_dir, refused where it was started with other settings."""
     saved_env, saved_ppo = load_run_config(run_dir)
-    saved = json.loads(json.dumps({"env": to_dict(saved_env), "ppo": to_dict(saved_ppo) | {"num_timesteps": 0}}))
-    now = json.loads(json.dumps({"env": to_dict(env_config), "ppo": to_dict(ppo) | {"num_timesteps": 0}}))
+    # The engine (EnvConfig.physics) may change between calls: both step the same model, so a run
+    # started on a GPU (mjx) resumes on a CPU (mujoco) and back.
+    saved = json.loads(json.dumps({"env": to_dict(saved_env) | {"physics": None},
+                                   "ppo": to_dict(saved_ppo) | {"num_timesteps": 0}}))
+    now = json.loads(json.dumps({"env": to_dict(env_config) | {"physics": None},
+                                 "ppo": to_dict(ppo) | {"num_timesteps": 0}}))
     differences = config_differences(saved, now)  # tuples as lists: compared as JSON
     if differences:
         raise InputError(f"the run was started with other settings: {'; '.join(differences)}",
@@ -247,7 +251,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                         env_config.privileged_critic)
         write_json(state_file, {"global_step": global_step, "resumes": resumes, "metrics": last,
                                  "wall_s": time.time() - t0, "wall_s_total": wall_s_before + time.time() - t0,
-                                 "num_timesteps": ppo.num_timesteps, "machine": this_machine})
+                                 "num_timesteps": ppo.num_timesteps, "machine": this_machine,
+                                 "physics": env_config.physics})
 
     def log(step: int, metrics: dict) -> None:
         if not primary:
