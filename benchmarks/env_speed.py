@@ -1,4 +1,4 @@
-"""MJX environment throughput per task, foot variant, policy type, contact model and batch size:
+"""Environment throughput per task, foot variant, policy type, contact model, physics engine and batch size:
 compile time and policy steps per second (and physics steps per second: a policy step is 4 physics
 steps of 5 ms under contact_model 'fast', 8 of 2.5 ms under 'stance'), on whatever JAX
 device is present; one JSON line. Rough terrain uses the default 10 x 20 tile heightfield; the
@@ -7,11 +7,16 @@ figures of one run are comparable with each other (ratios), not with another mac
 Usage: python benchmarks/env_speed.py [--batches 16 64 256] [--steps 20] [--feet ball aff aof]
            [--tasks flat rough] [--policies B P BH PH] [--contact-models fast stance]
            [--float64-physics] [--shank-collisions on off] [--playground] [--mjx-impl jax|warp]
-           [--build-roots [LABEL=]DIR ...]
+           [--build-roots [LABEL=]DIR ...] [--physics mjx mujoco] [--raw-c]
 
 Keys: <task>_<feet>_<policy>_b<batch> for 'fast' (the key of the measurements before the
 environments' default became 'stance'), with _stance before _b<batch> for 'stance'; each model at
-its own step and iterations (envs.default_config). --float64-physics runs every environment of
+its own step and iterations (envs.default_config). --physics (default mjx) measures each environment
+under each engine (EnvConfig.physics; footforge.envs.engine): the C engine's keys end in _mujoco
+before _b<batch>. --raw-c also times MuJoCo's C engine alone on each C environment's own model
+(mujoco.rollout, `decimation` physics steps per policy step from the reset states, the policy step's
+PD targets held, no task code): keys <name>_raw_c<threads>_b<batch> for one thread and for all
+(the limit this machine sets). --float64-physics runs every environment of
 the run in float64 (EnvConfig.float64_physics; JAX's x64 is process-wide).
 
 --playground (off by default) also measures MuJoCo Playground's Go1 joystick environment
@@ -67,6 +72,11 @@ def main() -> None:
                    help="builds to measure, each holding <DIR>/<feet>/ (default: the environments' own, build/); "
                         "a LABEL is added to the keys (<task>_<feet>_<policy>_<LABEL>..._b<batch>), so that "
                         "builds from different parameter files are measured in one run")
+    p.add_argument("--physics", nargs="+", default=["mjx"], choices=["mjx", "mujoco"],
+                   help="engines to measure (EnvConfig.physics): keys of mujoco end in _mujoco before _b<batch>")
+    p.add_argument("--raw-c", action="store_true",
+                   help="with --physics mujoco: also MuJoCo's C engine alone (mujoco.rollout) on the same model, "
+                        "1 thread and all (keys <name>_raw_c<threads>_b<batch>)")
     args = p.parse_args()
     if args.mjx_impl != "jax":  # refused before any compiling, as a usage error (exit 2)
         from footforge.envs.anymal import check_mjx_impl
@@ -103,17 +113,23 @@ def main() -> None:
         for feet in args.feet:
             policies = envs.policy_types(task, feet, args.policies)
             shanks = args.shank_collisions if task == "rough" else ["on"]
-            for policy, contact, shank, (label, root) in ((kind, model, on, r) for kind in policies
-                                                          for model in args.contact_models for on in shanks
-                                                          for r in roots):
+            for policy, contact, shank, (label, root), engine in (
+                    (kind, model, on, r, e) for kind in policies for model in args.contact_models for on in shanks
+                    for r in roots for e in args.physics):
                 config = envs.default_config(task, feet, policy, contact)
                 env = envs.from_config(replace(envs.with_float64_physics(config, args.float64_physics),
                                                shank_collisions=shank == "on", mjx_impl=args.mjx_impl,
-                                               build_dir=f"{root}/{feet}" if root else config.build_dir))
+                                               build_dir=f"{root}/{feet}" if root else config.build_dir,
+                                               physics=engine))
                 name = (f"{task}_{feet}_{policy}" + (f"_{label}" if label else "")
                         + ("" if contact == "fast" else f"_{contact}") + ("" if shank == "on" else "_noshank"))
                 for batch in args.batches:
-                    figures[f"{name}_b{batch}"] = _measure(env, batch, args.steps)
+                    suffix = "_mujoco" if engine == "mujoco" else ""
+                    figures[f"{name}{suffix}_b{batch}"] = _measure(env, batch, args.steps)
+                    if args.raw_c and engine == "mujoco":
+                        for threads in sorted({1, env.physics._threads}):
+                            figures[f"{name}_raw_c{threads}_b{batch}"] = _measure_raw_c(env, batch, args.steps,
+                                                                                        threads)
         if go1 and task in go1.ENV_NAMES:
             env, meshes = go1.make_env(task)
             for batch in args.batches:
@@ -138,6 +154,31 @@ def _measure(env, batch: int, steps: int) -> dict:
     jax.block_until_ready(state.obs)
     rate = batch * steps / (time.perf_counter() - t0)
     return {"compile_s": round(compile_s, 1), "policy_steps_per_s": round(rate, 1),
+            "physics_steps_per_s": round(rate * env.config.decimation, 1)}
+
+
+def _measure_raw_c(env, batch: int, steps: int, threads: int) -> dict:
+    """MuJoCo's C engine alone on the C environment's model: `steps` policy steps of `decimation`
+    physics steps for `batch` robots from their reset states (PD targets held), by mujoco.rollout."""
+    import mujoco
+    import numpy as np
+    from mujoco import rollout
+
+    engine = env.physics
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), batch)).pipeline_state
+    start = engine._initial_state(np.asarray(state.qpos), np.asarray(state.qpos_rest), np.asarray(state.qvel),
+                                  np.asarray(state.qvel_rest))
+    control = np.repeat(np.asarray(state.ctrl, np.float64)[:, None, :], env.config.decimation, axis=1)
+    warm = np.zeros((batch, engine.model.nv))
+    with rollout.Rollout(nthread=threads if threads > 1 else 0) as pool:
+        datas = [mujoco.MjData(engine.model) for _ in range(threads)]
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            states, _ = pool.rollout(engine.model, datas, start, control, nstep=env.config.decimation,
+                                     initial_warmstart=warm)
+            start = states[:, -1]
+        rate = batch * steps / (time.perf_counter() - t0)
+    return {"threads": threads, "policy_steps_per_s": round(rate, 1),
             "physics_steps_per_s": round(rate * env.config.decimation, 1)}
 
 
