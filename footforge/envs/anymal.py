@@ -287,7 +287,7 @@ def _with_engine_sensors(model: mujoco.MjModel, folder: Path, config: EnvConfig,
 
     spec = _scene_spec(folder, config, terrain, for_mjx=True)
     probed = (category == GEOM_BASE) | ((category >= GEOM_THIGH) & (category < GEOM_THIGH + 4))
-    add_sensors(spec, model, category, model.geom(FLOOR_GEOM).id,
+    add_sensors(spec, model, [np.flatnonzero(category == GEOM_FOOT + i) for i in range(4)], model.geom(FLOOR_GEOM).id,
                 probe_bodies=np.unique(model.geom_bodyid[probed]), foot_sites=foot_sites(model))
     engine_model = spec.compile()
     _set_physics_options(engine_model, config, on_heightfield=terrain is not None)

@@ -18,13 +18,15 @@ randomisation swaps per robot, `state` the engine's own physics state):
 - `start(sys, qpos, qvel, ctrl)`: a robot at (qpos, qvel) with PD targets ctrl, everything the
   task reads computed for it;
 - `place(state, qpos, qvel, ctrl, where)`: a restart where `where` (the fields a restart sets;
-  what the task reads is recomputed by the next step, in both engines);
+  what the task reads is recomputed by the next step or by `forward`, in both engines);
 - `step(sys, state, ctrl, qvel)`: `decimation` physics steps from `state` with its joint
   velocities replaced by `qvel` (a push) and PD targets ctrl;
 - what the task reads: `state.qpos`, `state.qvel`, `state.ctrl`, `state.actuator_force`
   (actuator order of the model, N m), `foot_contacts(sys, state)` (LF, RF, LH, RH),
   `foot_forces(sys, state)` (each foot's normal ground force, N), `probe_points(state)` (the
-  world positions of the points named at construction: the base and thigh probes) and `foot_positions(state)` (the feet's touchdown sites, world, m).
+  world positions of the points named at construction: the base and thigh probes) and
+  `foot_positions(state)` (the feet's touchdown sites, world, m); `forward(sys, state)` recomputes
+  them for a placed state.
 
 Derived quantities (contacts, forces, frames, actuator forces) are those of the last physics
 step's forward pass, before its integration, in both engines (MJX's step and MuJoCo's mj_step

@@ -32,7 +32,6 @@ from flax import struct
 from mujoco import rollout
 
 from footforge import constants as C
-from footforge.envs.anymal import GEOM_FOOT
 
 FOOT_CONTACT_SLOTS = 8
 """Contacts each foot's sensor reports (the strongest first): an AOF or AFF foot's two sole boxes
@@ -62,12 +61,13 @@ class MujocoState:
     """Actuator forces (model order), N m: read from the actuatorfrc sensors."""
 
 
-def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, geom_category: np.ndarray, floor_geom: int,
-                probe_bodies, foot_sites) -> None:
+def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, foot_geoms, floor_geom: int, probe_bodies,
+                foot_sites) -> None:
     """Declares in `spec` (whose compiled form is `model`) the sensors the C engine reads, named
     `footforge/...` after the model's own: actuatorfrc per actuator, framepos of each foot site,
     framepos and frame axes of each probe body, and per leg a contact sensor between its foot
-    (the subtree of `<leg>_foot/` for the adaptive feet, the foot geom for the ball) and the floor."""
+    (the subtree of `<leg>_foot/` for the adaptive feet, the foot geom for the ball: `foot_geoms`, per
+    leg LF, RF, LH, RH, the geom ids of its foot) and the floor."""
     mj = mujoco.mjtObj
     for a in range(model.nu):
         spec.add_sensor(name=f"footforge/{model.actuator(a).name}_force", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
@@ -81,8 +81,7 @@ def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, geom_category: np.nd
                            ("y", mujoco.mjtSensor.mjSENS_FRAMEYAXIS), ("z", mujoco.mjtSensor.mjSENS_FRAMEZAXIS)):
             spec.add_sensor(name=f"footforge/{name}_{axis}", type=kind, objtype=mj.mjOBJ_XBODY, objname=name)
     floor = model.geom(floor_geom).name
-    for leg_index, leg in enumerate(C.LEGS):
-        feet = np.flatnonzero(geom_category == GEOM_FOOT + leg_index)
+    for leg, feet in zip(C.LEGS, foot_geoms):
         foot_body = f"{C.FOOT_MODEL_NAME.format(leg=leg)}/"
         if mujoco.mj_name2id(model, mj.mjOBJ_BODY, foot_body) >= 0:
             objtype, objname = mj.mjOBJ_XBODY, foot_body  # MJCF subtree1: every geom of the adaptive foot

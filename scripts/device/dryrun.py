@@ -24,7 +24,9 @@ MACHINE_PACKAGES = ["jax==0.11.2", "jaxlib==0.11.2", "flax==0.12.12", "optax==0.
 # compilation), so the dry run gives each job 30 minutes; tests/test_train.py tests the stop.
 MINUTES = ["--minutes", "30"]
 TINY = ["--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
-        "--eval-envs", "4", "--checkpoint-every", "32"]
+        "--eval-envs", "4", "--checkpoint-every", "32", "--physics", "mjx"]
+"""The flat job, tiny. --physics mjx: on the CPU `auto` would take MuJoCo's C engine, and the dry run
+checks the path the GPU takes (MJX)."""
 T0 = time.time()
 
 
@@ -44,7 +46,7 @@ def step(name: str, cmd: list[str], **kw) -> subprocess.CompletedProcess:
 
 
 ROUGH_TINY = ["--no-evaluations", "--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
-              "--checkpoint-every", "32"]
+              "--checkpoint-every", "32", "--physics", "mjx"]
 """The prepared rough call's jobs (docs/training.md: AOF P and PH side by side, no evaluations,
 frequent checkpoints), at a size the CPU compiles and runs in minutes."""
 
@@ -119,7 +121,7 @@ def main(argv: list[str]) -> int:
         t = time.time()
         shutil.rmtree(repo / "runs")
         step("evaluate", [run_sh, *MINUTES, "--results", results[2], "--resume", results[1] / "flat_ball_B.tar.gz",
-                          "evaluate", "flat_ball_B", "--", "--num-envs", "2", "--seconds", "0.4"], cwd=repo, env=env)
+                          "evaluate", "flat_ball_B", "--", "--num-envs", "2", "--seconds", "0.4", "--physics", "mjx"], cwd=repo, env=env)
         third = check(results[2], "evaluate", min_step=128)
         indices = third["evaluation"][0]["indices"]
         if "flat_ball_B/evaluation/metrics.json" not in tar_names(results[2] / "flat_ball_B.tar.gz"):
