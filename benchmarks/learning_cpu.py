@@ -139,6 +139,9 @@ def main(argv=None) -> int:
                    help="no deterministic evaluations (the curve is the training episodes'; on a GPU one costs "
                         "about 20 PPO iterations)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--physics", default="auto", choices=["auto", "mjx", "mujoco"],
+                   help="the engine (EnvConfig.physics; auto: MuJoCo's C engine on a CPU, MJX elsewhere); "
+                        "the verdict's evaluation uses the same")
     p.add_argument("--max-minutes", type=float,
                    help="stop at the checkpoint before this wall time (train's max_wall_s)")
     p.add_argument("--init-from", type=Path, metavar="RUN",
@@ -172,6 +175,9 @@ def main(argv=None) -> int:
         args.feet, args.preset, args.variant = cfg.feet, "(the run's)", "(the run's)"
     if args.build_dir:  # where the feet are built is this machine's, not the run's
         cfg = replace(cfg, build_dir=str(args.build_dir))
+    from footforge.envs import engine
+
+    cfg = replace(cfg, physics=engine.resolve(args.physics))
     t0 = time.time()
     print(f"{args.feet} {args.preset} {args.variant} on {jax.default_backend()} ({jax.device_count()} device(s))",
           flush=True)
@@ -207,11 +213,12 @@ def main(argv=None) -> int:
     result = {"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(),
               "backend": jax.default_backend(), "jax_devices": jax.device_count(), "feet": args.feet,
               "preset": args.preset, "variant": args.variant, "steps": curve[-1]["env_steps"] if curve else 0,
-              "num_envs": ppo.num_envs, "wall_s": train_s}
+              "num_envs": ppo.num_envs, "wall_s": train_s, "physics": cfg.physics}
     if not args.no_verdict:  # the final policy, deterministic, 32 robots x 20 s (footforge.rl.verdict)
         from footforge.rl.evaluate import evaluate
 
-        r = evaluate(args.out / "policy", num_envs=32, seconds=20.0, seed=args.seed, build_dir=cfg.build_dir)
+        r = evaluate(args.out / "policy", num_envs=32, seconds=20.0, seed=args.seed, build_dir=cfg.build_dir,
+                     physics=cfg.physics)
         w = r["walking"]
         result |= {"verdict": w["verdict"], "verdict_line": w["line"], "forward_error": w["forward_error_mps"],
                    "vx_slope": w["vx_slope"], "episode_length": round(w["uptime"] * 1000, 1),
