@@ -221,3 +221,18 @@ def test_a_run_resumes_under_the_other_engine(tmp_path):
     assert offset == json.loads((run / "progress.json").read_text())["global_step"] and restore is not None
     with pytest.raises(InputError, match="other settings"):
         train._resume_state(run, replace(env_config, physics="mujoco", decimation=4), ppo, print, False)
+
+
+def test_a_blown_up_c_simulation_ends_as_diverged(built):
+    """MuJoCo resets a simulation that blows up (here a base moving at 1e11 m/s) and carries on;
+    the C engine reports it as MJX would, non-finite, so the episode ends as diverged."""
+    _, env = _pair(built, "flat", "ball", "B")
+    step = jax.jit(env.step)
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    d = state.pipeline_state
+    state = state.replace(pipeline_state=env.physics.place(d, d.qpos, d.qvel.at[0].set(1e11), d.ctrl))
+    after = step(state, jp.zeros(env.action_size))
+    assert float(after.metrics["diverged"]) == 1.0 and float(after.done) == 1.0
+    assert np.all(np.isfinite(np.asarray(after.pipeline_state.qpos)))  # restarted
+    calm = step(after, jp.zeros(env.action_size))
+    assert float(calm.metrics["diverged"]) == 0.0

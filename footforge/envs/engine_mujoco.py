@@ -180,6 +180,12 @@ class MujocoPhysics:
         last = states[:, -1]
         before = states[:, -2, self._qvel] if self._decimation > 1 else state0[:, self._qvel]
         q64, v64 = last[:, self._qpos], last[:, self._qvel]
+        # A simulation that blew up (a position, velocity or acceleration past mjMAXVAL) is reset by
+        # MuJoCo to the model's qpos0 and time 0, with a warning, and goes on; MJX would carry NaNs.
+        # Its time gives it away: handed back as NaN, it ends the episode as a diverged one
+        # (LocomotionEnv.step's finiteness check), as under MJX.
+        reset = np.abs(last[:, 0] - self._decimation * self._dt) > 0.5 * self._dt
+        q64[reset], v64[reset] = np.nan, np.nan
         q, v = q64.astype(dtype), v64.astype(dtype)
         out = (q, (q64 - q).astype(dtype), v, (v64 - v).astype(dtype),
                ((v64 - before) / self._dt).astype(dtype), sensors[:, -1].astype(dtype))
