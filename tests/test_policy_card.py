@@ -46,7 +46,7 @@ def test_card_of_a_trained_run(tmp_path):
         assert cells[0].startswith(f"{results[0]['indices'][name]['mean']:.4g} ± ")
         assert cells[1].startswith(f"{results[1]['indices'][name]['mean']:.4g} ± ")
     assert "on aff feet (zero-shot)" in card and "| falls | 1/8 | 1/8 |" in card
-    assert "- on aof feet: 8 robots, 2 s, seed 0, 1 fell; walks: trot, forward error 0.09 m/s" in card.splitlines()
+    assert "- on aof feet: 8 robots, 2 s, seed 0, physics mjx, 1 fell; walks: trot, forward error 0.09 m/s" in card.splitlines()
     assert "| verdict | walks: trot, forward error 0.09 m/s | not judged |" in card
     links = re.findall(r"\]\(([^)]+)\)", card)
     assert links == ["comparison.png", "contacts_0.png", "push_response_0.png", "contacts_1.png",

@@ -515,7 +515,13 @@ def test_resume_reads_the_run_s_settings_and_names_a_differing_flag(written_run,
     run, cfg, ppo = written_run
     seen = _capture_train(monkeypatch)
     assert main("flat", "", ["--out", str(run), "--resume", "--timesteps", "160"]) == 0
-    assert seen["env"] == cfg and seen["ppo"] == replace_ppo(ppo, num_timesteps=160)
+    # The engine is this machine's (--physics auto), whatever the run last used: the rest is the run's.
+    from dataclasses import replace
+
+    from footforge.envs import engine
+
+    assert seen["env"] == replace(cfg, physics=engine.resolve("auto"))
+    assert seen["ppo"] == replace_ppo(ppo, num_timesteps=160)
     assert seen["kwargs"]["resume"] is True
     capsys.readouterr()
     assert main("flat", "", ["--out", str(run), "--resume", "--num-envs", "8", "--seed", "3"]) == 2

@@ -23,6 +23,7 @@ Domain randomisation is not yet supported by this engine (EnvConfig.randomizatio
 from __future__ import annotations
 
 import os
+import threading
 
 import jax
 import jax.numpy as jp
@@ -137,6 +138,9 @@ class MujocoPhysics:
         self._pool = rollout.Rollout(nthread=self._threads if self._threads > 1 else 0)
         self._datas = [mujoco.MjData(m) for _ in range(max(self._threads, 1))]
         self._forward_data = mujoco.MjData(m)
+        self._lock = threading.Lock()
+        """One host call at a time: under pmap over several devices each device calls back on its own
+        thread, and the pool and its MjData are shared."""
         full = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
         self._nstate = mujoco.mj_stateSize(m, full)
         # FULLPHYSICS lays out time, qpos, qvel, act, ... (MuJoCo's mjtState order).
@@ -175,8 +179,9 @@ class MujocoPhysics:
         qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = flat
         state0 = self._initial_state(qpos, qpos_rest, qvel, qvel_rest)
         control = np.repeat(np.asarray(ctrl, np.float64)[:, None, :], self._decimation, axis=1)
-        states, sensors = self._pool.rollout(self.model, self._datas, state0, control, nstep=self._decimation,
-                                             initial_warmstart=np.asarray(warmstart, np.float64))
+        with self._lock:
+            states, sensors = self._pool.rollout(self.model, self._datas, state0, control, nstep=self._decimation,
+                                                 initial_warmstart=np.asarray(warmstart, np.float64))
         last = states[:, -1]
         before = states[:, -2, self._qvel] if self._decimation > 1 else state0[:, self._qvel]
         q64, v64 = last[:, self._qpos], last[:, self._qvel]
@@ -198,10 +203,11 @@ class MujocoPhysics:
         d = self._forward_data
         out = np.empty((len(qpos), self.model.nsensordata))
         state = self._initial_state(qpos, qpos_rest, qvel, qvel_rest)
-        for i in range(len(qpos)):
-            d.qpos[:], d.qvel[:], d.ctrl[:] = state[i, self._qpos], state[i, self._qvel], ctrl[i]
-            mujoco.mj_forward(self.model, d)
-            out[i] = d.sensordata
+        with self._lock:
+            for i in range(len(qpos)):
+                d.qpos[:], d.qvel[:], d.ctrl[:] = state[i, self._qpos], state[i, self._qvel], ctrl[i]
+                mujoco.mj_forward(self.model, d)
+                out[i] = d.sensordata
         return out.astype(dtype).reshape(*batch, out.shape[-1])
 
     # JAX side ---------------------------------------------------------------------------------
