@@ -58,8 +58,13 @@ class MujocoState:
     """The constraint solver's starting acceleration for the next physics step (module docstring)."""
     sensordata: jax.Array
     """The model's sensors at the last physics step's forward pass."""
-    actuator_force: jax.Array
-    """Actuator forces (model order), N m: read from the actuatorfrc sensors."""
+    force_sensors: jax.Array = struct.field(pytree_node=False, default=None)
+    """The actuatorfrc sensors' addresses in sensordata, model order (static)."""
+
+    @property
+    def actuator_force(self) -> jax.Array:
+        """Actuator forces (model order), N m: the actuatorfrc sensors."""
+        return self.sensordata[..., self.force_sensors]
 
 
 def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, foot_geoms, floor_geom: int, probe_bodies,
@@ -148,8 +153,8 @@ class MujocoPhysics:
         self._qvel = slice(1 + m.nq, 1 + m.nq + m.nv)
         if mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_TIME.value) != 1 or m.na:
             raise ValueError("the C engine expects a model without actuator activations")
-        self._force = np.concatenate([_sensor(m, f"footforge/{m.actuator(a).name}_force") for a in range(m.nu)])
-        self._sites = np.stack([_sensor(m, f"footforge/{m.site(s).name}_pos") for s in robot.foot_sites])
+        self._force_ids = tuple(int(i) for a in range(m.nu) for i in _sensor(m, f"footforge/{m.actuator(a).name}_force"))
+        self._site_ids = jp.asarray(np.stack([_sensor(m, f"footforge/{m.site(s).name}_pos") for s in robot.foot_sites]))
         probe_geoms = np.asarray(probe_geoms)
         bodies = np.unique(m.geom_bodyid[probe_geoms])
         self._body_frames = jp.asarray(np.stack([np.concatenate([_sensor(m, f"footforge/{m.body(b).name}_{axis}")
@@ -163,8 +168,6 @@ class MujocoPhysics:
         self._probe_body = jp.asarray(np.searchsorted(bodies, m.geom_bodyid[probe_geoms]))
         self._probe_in_body = jp.asarray(m.geom_pos[probe_geoms] + local, jp.float32)
         self._contacts = jp.asarray(np.stack([_sensor(m, f"footforge/{leg}_foot_contact") for leg in C.LEGS]))
-        self._force_ids = jp.asarray(self._force)
-        self._site_ids = jp.asarray(self._sites)
 
     # Host side -------------------------------------------------------------------------------
     def _initial_state(self, qpos, qpos_rest, qvel, qvel_rest) -> np.ndarray:
@@ -211,14 +214,11 @@ class MujocoPhysics:
         return out.astype(dtype).reshape(*batch, out.shape[-1])
 
     # JAX side ---------------------------------------------------------------------------------
-    def _with_sensors(self, state: MujocoState, sensordata) -> MujocoState:
-        return state.replace(sensordata=sensordata, actuator_force=sensordata[self._force_ids])
-
     def start(self, sys, qpos, qvel, ctrl):
         zeros = jp.zeros_like
         state = MujocoState(qpos=qpos, qvel=qvel, qpos_rest=zeros(qpos), qvel_rest=zeros(qvel), ctrl=ctrl,
                             warmstart=zeros(qvel), sensordata=jp.zeros(self.model.nsensordata, qpos.dtype),
-                            actuator_force=zeros(ctrl))
+                            force_sensors=self._force_ids)
         return self.forward(sys, state)
 
     def place(self, state, qpos, qvel, ctrl, where=True):
@@ -231,7 +231,7 @@ class MujocoPhysics:
         shape = jax.ShapeDtypeStruct((self.model.nsensordata,), state.qpos.dtype)
         sensordata = jax.pure_callback(self._host_forward, shape, state.qpos, state.qpos_rest, state.qvel,
                                        state.qvel_rest, state.ctrl, vmap_method="broadcast_all")
-        return self._with_sensors(state, sensordata)
+        return state.replace(sensordata=sensordata)
 
     def step(self, sys, state, ctrl, qvel):
         pushed = qvel != state.qvel  # a changed velocity (a push) drops its float64 remainder
@@ -243,8 +243,8 @@ class MujocoPhysics:
             self._host_step, shapes, state.qpos, state.qpos_rest, qvel, qvel_rest, ctrl.astype(state.qpos.dtype),
             state.warmstart, vmap_method="broadcast_all")
         state = state.replace(qpos=qpos, qpos_rest=qpos_rest, qvel=qvel, qvel_rest=qvel_rest, ctrl=ctrl,
-                              warmstart=warmstart)
-        return self._with_sensors(state, sensordata)
+                              warmstart=warmstart, sensordata=sensordata)
+        return state
 
     # What the task reads ---------------------------------------------------------------------------
     def _contact_slots(self, state):
