@@ -12,10 +12,13 @@ os.environ.setdefault("MUJOCO_GL", "disable")
 # trainings several times) and removed afterwards: a user's cache is neither read nor filled.
 # FOOTFORGE_TEST_COMPILE_CACHE names a folder to share between pytest sessions instead (CI's
 # default and slow runs; .ci/run makes it and removes it).
+# pytest-xdist's workers start after this process has read this file and inherit its environment,
+# so they share the folder this process makes (and removes).
 _SHARED_CACHE = os.environ.get("FOOTFORGE_TEST_COMPILE_CACHE")
 _COMPILE_CACHE = _SHARED_CACHE or tempfile.mkdtemp(prefix="footforge-test-jax-cache-")
 os.environ["FOOTFORGE_COMPILE_CACHE"] = _COMPILE_CACHE
 if not _SHARED_CACHE:
+    os.environ["FOOTFORGE_TEST_COMPILE_CACHE"] = _COMPILE_CACHE
     atexit.register(shutil.rmtree, _COMPILE_CACHE, ignore_errors=True)
 from footforge.rl import compile_cache  # noqa: E402  (after FOOTFORGE_COMPILE_CACHE is set)
 

@@ -199,10 +199,26 @@ def test_physics_choice_and_refusals(built):
     assert engine.resolve("mjx") == "mjx"
     with pytest.raises(InputError, match="unknown physics"):
         engine.resolve("bullet")
-    config = envs.default_config("flat", "aof", "B")
-    with pytest.raises(InputError, match="randomisation is not yet supported"):
-        envs.make("flat", "aof", "B", physics="mujoco", build_dir=str(built["aof"][0]),
-                  randomization=replace(config.randomization, friction_range=(0.5, 1.0)))
+    with pytest.raises(InputError, match="unknown physics"):
+        envs.make("flat", "ball", "B", physics="bullet", build_dir=str(built["ball"][0]))
+
+
+@pytest.mark.parametrize("command", ["train", "evaluate"])
+def test_a_bad_thread_count_is_refused_before_any_work(command, tmp_path, capsys, monkeypatch):
+    """FOOTFORGE_PHYSICS_THREADS that is not a positive whole number: `footforge train` and
+    `footforge evaluate` on the C engine exit 2 naming the variable, and write nothing."""
+    out = tmp_path / "out"
+    monkeypatch.setenv(THREADS_ENV, "two")
+    if command == "train":
+        from footforge.cli.train import main
+
+        code = main("flat", "", ["--feet", "ball", "--out", str(out), "--physics", "mujoco", "--timesteps", "1000"])
+    else:
+        from footforge.cli.evaluate import main
+
+        code = main(["--policy", str(REPO / "policies/flat_ball_B"), "--out", str(out), "--physics", "mujoco"])
+    assert code == 2 and THREADS_ENV in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_a_run_resumes_under_the_other_engine(tmp_path):

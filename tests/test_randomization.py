@@ -79,3 +79,50 @@ def test_randomised_robots_step_with_their_own_physics(env):
     assert np.all(np.isfinite(heights)) and not np.asarray(state.done).any()
     order = np.argsort(mass)
     assert np.all(np.diff(heights[order]) < 0), (mass, heights)
+
+
+def test_the_c_engine_steps_each_robot_with_its_own_model(built):
+    """Under MuJoCo's C engine (EnvConfig.physics 'mujoco') each robot steps its own randomised
+    model: robot i's state after 0.5 s equals MuJoCo's own mj_step, run by hand on a copy of the
+    model with robot i's draw (payload and motor strength) written into it, to the solver's
+    tolerance; the same by hand with the model as built parts from it by millimetres (so the draw
+    is what made the difference)."""
+    import copy
+    from dataclasses import replace
+
+    import mujoco
+
+    from footforge.envs.config import ResetConfig
+    from footforge.envs.wrappers import wrap_for_training
+
+    draws = RandomizationConfig(friction_range=None, payload_mass_kg_range=(-1.0, 1.0), motor_strength_range=(0.9, 1.1))
+    config = envs.default_config("flat", "ball", "B")
+    env = envs.make("flat", "ball", "B", build_dir=str(built["ball"][0]), physics="mujoco", randomization=draws,
+                    reset=ResetConfig((1.0, 1.0), 0.0), pushes=replace(config.pushes, enabled=False))
+    keys = jax.random.split(jax.random.PRNGKey(1), 4)
+    wrapped = wrap_for_training(env, 1000, randomization_fn=functools.partial(randomizer(env), rng=keys))
+    state = jax.jit(wrapped.reset)(jax.random.split(jax.random.PRNGKey(2), 4))
+    start = state.pipeline_state
+    step, policy_steps = jax.jit(wrapped.step), 25
+    for _ in range(policy_steps):
+        state = step(state, jp.zeros((4, 12)))
+    end = state.pipeline_state
+    assert not np.asarray(state.done).any()
+    batched, _ = randomizer(env)(env.sys, keys)
+
+    def by_hand(i, model):
+        data = mujoco.MjData(model)
+        data.qpos[:] = np.asarray(start.qpos[i], np.float64) + np.asarray(start.qpos_rest[i], np.float64)
+        data.qvel[:] = np.asarray(start.qvel[i], np.float64) + np.asarray(start.qvel_rest[i], np.float64)
+        data.ctrl[:] = np.asarray(start.ctrl[i], np.float64)  # zero actions: the default targets throughout
+        for _ in range(policy_steps * env.config.decimation):
+            mujoco.mj_step(model, data)
+        return data.qpos
+
+    for i in range(4):
+        own = copy.copy(env.robot.engine_model)
+        for name in ("body_mass", "body_inertia", "actuator_gainprm", "actuator_biasprm", "actuator_forcerange"):
+            getattr(own, name)[:] = np.asarray(getattr(batched, name)[i], np.float64)
+        engine_qpos = np.asarray(end.qpos[i], np.float64) + np.asarray(end.qpos_rest[i], np.float64)
+        assert np.max(np.abs(by_hand(i, own) - engine_qpos)) < 1e-6, i
+        assert np.max(np.abs(by_hand(i, env.robot.engine_model) - engine_qpos)) > 1e-4, i

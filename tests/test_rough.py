@@ -262,7 +262,7 @@ def test_the_stance_holds_on_level_0_in_float64(built, feet):
     assert result["slip_after_settle_m"] < 0.005, result
 
 
-@pytest.mark.slow  # one rough environment compiled, 6 robots x 10 s: about 2 minutes
+@pytest.mark.contact_physics  # one rough environment compiled, 6 robots x 10 s: 3.5 minutes in CI
 @pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_ball_robots_stand_on_level_0_in_float32(built):
     """The rough task's default physics (float32, contact_model 'stance') on level 0, from the
@@ -285,7 +285,7 @@ def test_ball_robots_stand_on_level_0_in_float32(built):
     assert not result.fell and result.drop_after_settle_m < 0.010 and result.slip_after_settle_m < 0.005, result
 
 
-@pytest.mark.slow  # one rough environment compiled per feet: about 3 minutes each
+@pytest.mark.contact_physics  # one rough environment compiled per feet: about 3 minutes each
 @pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("feet", ["aff", "aof"])
 def test_the_adaptive_feet_stand_on_level_0_in_float32(built, feet):

@@ -81,6 +81,9 @@ def _run(args) -> int:
     from footforge.rl.policy_files import load_policy_config, policy_folder
 
     check_output_folder(args.out, force=args.force)  # before minutes of evaluation
+    from footforge.envs import engine
+
+    engine.check(engine.resolve(args.physics))
     args.policy = [policy_folder(policy) for policy in args.policy]  # a run's folder: its policy/
     if args.video:
         from footforge.rl.render import check_renderer, render_frames, write_gif, write_strip

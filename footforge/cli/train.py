@@ -144,6 +144,9 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
             from footforge.envs.anymal import check_mjx_impl
 
             check_mjx_impl(env_config)  # before the run folder is written and JAX compiles
+            from footforge.envs import engine
+
+            engine.check(env_config.physics)
             compile_cache.enable(not args.no_compile_cache)
             done = 0
             if args.resume:

@@ -57,6 +57,16 @@ def resolve(choice: str) -> PhysicsName:
     return "mujoco" if jax.default_backend() == "cpu" else "mjx"
 
 
+def check(physics: str) -> None:
+    """Raises InputError where the engine `physics` (a resolved EnvConfig.physics) cannot start, so
+    that a command refuses before writing or compiling anything: the C engine's thread count
+    (FOOTFORGE_PHYSICS_THREADS)."""
+    if physics == "mujoco":
+        from footforge.envs.engine_mujoco import physics_threads
+
+        physics_threads()
+
+
 def make(config, robot, probe_geoms, probe_local):
     """The engine EnvConfig.physics names, for `robot` (anymal.Robot) whose task reads the world
     positions of the points `probe_local` (P, 3) in the frames of geoms `probe_geoms` (P,)."""

@@ -17,11 +17,15 @@ returns nor keeps per robot, is carried as the last physics step's acceleration,
 qvel_before) / dt: a starting guess only (the solve converges from any start to its tolerance), and
 the same for every thread count, so results never depend on how many threads run.
 
-Domain randomisation is not yet supported by this engine (EnvConfig.randomization is refused).
+Domain randomisation (EnvConfig.randomization): Brax steps robot i with its own MJX model `sys`
+(DomainRandomizationVmapWrapper); the fields the configuration randomises
+(randomization.randomized_fields) travel with the host call, and each robot is stepped with its own
+copy of the MjModel carrying them (`mujoco.rollout` takes one model per robot).
 """
 
 from __future__ import annotations
 
+import copy
 import os
 import threading
 
@@ -131,12 +135,14 @@ class MujocoPhysics:
     name = "mujoco"
 
     def __init__(self, config, robot, probe_geoms, probe_local):
-        if config.randomization.enabled:
-            from footforge.errors import InputError
+        from footforge.envs.randomization import randomized_fields
 
-            raise InputError("domain randomisation is not yet supported with physics 'mujoco'",
-                             fix="use --physics mjx (EnvConfig.physics='mjx') for randomised training")
         m = self.model = robot.engine_model
+        self._randomized = randomized_fields(config.randomization)
+        """The model fields each robot brings from its own `sys` (module docstring)."""
+        self._robot_models: list[mujoco.MjModel] = []
+        self._written: list[np.ndarray] = []
+        """The randomised fields' values last written into _robot_models, per field (batch, ...)."""
         self._decimation = config.decimation
         self._dt = float(m.opt.timestep)
         self._threads = physics_threads()
@@ -176,14 +182,34 @@ class MujocoPhysics:
         state[:, self._qvel] = np.asarray(qvel, np.float64) + qvel_rest
         return state
 
-    def _host_step(self, qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart):
+    def _models(self, robots: int, fields) -> mujoco.MjModel | list[mujoco.MjModel]:
+        """The model of each of `robots` robots: the one model, or under domain randomisation a copy
+        per robot carrying its randomised `fields` (arrays (batch..., *field shape), self._randomized
+        order), written only where they changed (a robot's draw lasts the whole training). Called
+        under the lock."""
+        if not self._randomized:
+            return self.model
+        fields = [np.asarray(f, np.float64).reshape(robots, *getattr(self.model, name).shape)
+                  for name, f in zip(self._randomized, fields)]
+        if len(self._robot_models) != robots:
+            self._robot_models = [copy.copy(self.model) for _ in range(robots)]
+            self._written = []
+        if not (self._written and all(np.array_equal(a, b) for a, b in zip(fields, self._written))):
+            for name, values in zip(self._randomized, fields):
+                for model, value in zip(self._robot_models, values):
+                    getattr(model, name)[:] = value
+            self._written = fields
+        return self._robot_models
+
+    def _host_step(self, qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart, *fields):
         batch, dtype = qpos.shape[:-1], qpos.dtype
         flat = [np.reshape(x, (-1, x.shape[-1])) for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart)]
         qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = flat
         state0 = self._initial_state(qpos, qpos_rest, qvel, qvel_rest)
         control = np.repeat(np.asarray(ctrl, np.float64)[:, None, :], self._decimation, axis=1)
         with self._lock:
-            states, sensors = self._pool.rollout(self.model, self._datas, state0, control, nstep=self._decimation,
+            models = self._models(len(qpos), fields)
+            states, sensors = self._pool.rollout(models, self._datas, state0, control, nstep=self._decimation,
                                                  initial_warmstart=np.asarray(warmstart, np.float64))
         last = states[:, -1]
         before = states[:, -2, self._qvel] if self._decimation > 1 else state0[:, self._qvel]
@@ -199,7 +225,7 @@ class MujocoPhysics:
                ((v64 - before) / self._dt).astype(dtype), sensors[:, -1].astype(dtype))
         return tuple(x.reshape(*batch, x.shape[-1]) for x in out)
 
-    def _host_forward(self, qpos, qpos_rest, qvel, qvel_rest, ctrl):
+    def _host_forward(self, qpos, qpos_rest, qvel, qvel_rest, ctrl, *fields):
         batch, dtype = qpos.shape[:-1], qpos.dtype
         qpos, qpos_rest, qvel, qvel_rest, ctrl = [np.reshape(x, (-1, x.shape[-1]))
                                                   for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl)]
@@ -207,13 +233,18 @@ class MujocoPhysics:
         out = np.empty((len(qpos), self.model.nsensordata))
         state = self._initial_state(qpos, qpos_rest, qvel, qvel_rest)
         with self._lock:
+            models = self._models(len(qpos), fields)
             for i in range(len(qpos)):
                 d.qpos[:], d.qvel[:], d.ctrl[:] = state[i, self._qpos], state[i, self._qvel], ctrl[i]
-                mujoco.mj_forward(self.model, d)
+                mujoco.mj_forward(models if isinstance(models, mujoco.MjModel) else models[i], d)
                 out[i] = d.sensordata
         return out.astype(dtype).reshape(*batch, out.shape[-1])
 
     # JAX side ---------------------------------------------------------------------------------
+    def _fields_of(self, sys) -> list:
+        """The randomised model fields of this robot's `sys` (none without domain randomisation)."""
+        return [getattr(sys, name) for name in self._randomized]
+
     def start(self, sys, qpos, qvel, ctrl):
         zeros = jp.zeros_like
         state = MujocoState(qpos=qpos, qvel=qvel, qpos_rest=zeros(qpos), qvel_rest=zeros(qvel), ctrl=ctrl,
@@ -230,7 +261,7 @@ class MujocoPhysics:
     def forward(self, sys, state):
         shape = jax.ShapeDtypeStruct((self.model.nsensordata,), state.qpos.dtype)
         sensordata = jax.pure_callback(self._host_forward, shape, state.qpos, state.qpos_rest, state.qvel,
-                                       state.qvel_rest, state.ctrl, vmap_method="broadcast_all")
+                                       state.qvel_rest, state.ctrl, *self._fields_of(sys), vmap_method="broadcast_all")
         return state.replace(sensordata=sensordata)
 
     def step(self, sys, state, ctrl, qvel):
@@ -241,7 +272,7 @@ class MujocoPhysics:
                   jax.ShapeDtypeStruct((self.model.nsensordata,), state.qpos.dtype))
         qpos, qpos_rest, qvel, qvel_rest, warmstart, sensordata = jax.pure_callback(
             self._host_step, shapes, state.qpos, state.qpos_rest, qvel, qvel_rest, ctrl.astype(state.qpos.dtype),
-            state.warmstart, vmap_method="broadcast_all")
+            state.warmstart, *self._fields_of(sys), vmap_method="broadcast_all")
         state = state.replace(qpos=qpos, qpos_rest=qpos_rest, qvel=qvel, qvel_rest=qvel_rest, ctrl=ctrl,
                               warmstart=warmstart, sensordata=sensordata)
         return state

@@ -17,6 +17,20 @@ from footforge import constants as C
 from footforge.envs.config import RandomizationConfig
 
 
+FIELDS = {
+    "friction_range": ("geom_friction",),
+    "payload_mass_kg_range": ("body_mass", "body_inertia"),
+    "motor_strength_range": ("actuator_gainprm", "actuator_biasprm", "actuator_forcerange"),
+}
+"""The model fields (MjModel's, and MJX's of the same name) each RandomizationConfig range changes."""
+
+
+def randomized_fields(config: RandomizationConfig) -> tuple[str, ...]:
+    """The model fields `config` randomises (FIELDS of its ranges that are on), in FIELDS' order:
+    what an engine that does not step MJX's model must take from each robot's `sys`."""
+    return tuple(f for name, fields in FIELDS.items() if getattr(config, name) is not None for f in fields)
+
+
 def randomize(sys, key, config: RandomizationConfig, base_body: int, actuators) -> dict:
     """One robot's randomised model fields ({Model field: new value}), drawn from `key`.
 
@@ -44,6 +58,7 @@ def randomize(sys, key, config: RandomizationConfig, base_body: int, actuators) 
         changes["actuator_gainprm"] = sys.actuator_gainprm.at[actuators, 0].multiply(strength)
         changes["actuator_biasprm"] = sys.actuator_biasprm.at[actuators, 1:3].multiply(strength)
         changes["actuator_forcerange"] = sys.actuator_forcerange.at[actuators].multiply(strength)
+    assert tuple(changes) == randomized_fields(config), (tuple(changes), randomized_fields(config))
     return changes
 
 
