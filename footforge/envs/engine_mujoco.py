@@ -20,7 +20,9 @@ the same for every thread count, so results never depend on how many threads run
 Domain randomisation (EnvConfig.randomization): Brax steps robot i with its own MJX model `sys`
 (DomainRandomizationVmapWrapper); the fields the configuration randomises
 (randomization.randomized_fields) travel with the host call, and each robot is stepped with its own
-copy of the MjModel carrying them (`mujoco.rollout` takes one model per robot).
+copy of the MjModel carrying them (`mujoco.rollout` takes one model per robot). Each copy is the
+whole model, a rough terrain's heightfield included, so memory grows with the robots: randomised rough
+training on a CPU holds one terrain per robot.
 """
 
 from __future__ import annotations
