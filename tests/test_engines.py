@@ -162,7 +162,7 @@ def test_c_engine_results_do_not_depend_on_its_threads(built, monkeypatch):
     for threads in ("1", "2"):
         monkeypatch.setenv(THREADS_ENV, threads)
         _, c_env = _pair(built, "flat", "aof", "B")
-        assert c_env.physics._threads == int(threads)
+        assert c_env.physics._rollouts.threads == int(threads)
         rows.append(_rollout(c_env, _actions(c_env, seed=3)))
     for one, two in zip(*rows):
         for k in one:

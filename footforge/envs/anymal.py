@@ -105,8 +105,9 @@ class Robot:
     """Touchdown site of each leg's foot (LF, RF, LH, RH)."""
     floor_geom: int
     engine_model: mujoco.MjModel | None = None
-    """Under EnvConfig.physics 'mujoco': `model` with the sensors the C engine reads
-    (footforge.envs.engine_mujoco.add_sensors), which MJX cannot load; the same physics."""
+    """Under EnvConfig.physics 'mujoco', and for the CPU runner (load_robot(for_mjx=False)): `model`
+    with the sensors the C engine reads (footforge.envs.engine_mujoco.add_sensors), which MJX cannot
+    load; the same physics."""
 
 
 DEFAULT_BUILD_ROOT = Path("build")
@@ -222,8 +223,10 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
         # thighs are checked geometrically (module docstring).
         if category[g] == GEOM_NONE or (for_mjx and category[g] < GEOM_FOOT):
             model.geom_contype[g] = model.geom_conaffinity[g] = 0
-    engine_model = (_with_engine_sensors(model, folder, config, terrain, category)
-                    if config.physics == "mujoco" and for_mjx else None)
+    # The C engine's model (under EnvConfig.physics 'mujoco'), or the CPU runner's (for_mjx=False,
+    # footforge.envs.engine_mujoco.CpuRobots), each with the sensors it reads.
+    engine_model = (_with_engine_sensors(model, folder, config, terrain, category, for_mjx)
+                    if config.physics == "mujoco" or not for_mjx else None)
     joints = [model.joint(n) for n in C.ACTUATED_JOINTS]
     actuators = np.array([model.actuator(n).id for n in C.ACTUATED_JOINTS])
     passive = [model.joint(j).name for j in range(model.njnt)
@@ -280,15 +283,18 @@ def _set_physics_options(model: mujoco.MjModel, config: EnvConfig, *, on_heightf
 
 
 def _with_engine_sensors(model: mujoco.MjModel, folder: Path, config: EnvConfig, terrain,
-                         category: np.ndarray) -> mujoco.MjModel:
+                         category: np.ndarray, for_mjx: bool) -> mujoco.MjModel:
     """`model` compiled again with the sensors the C engine reads (engine_mujoco.add_sensors), its
-    physics settings and colliders as in `model`. Sensors change no other index or quantity."""
+    physics settings and colliders as in `model`; for the CPU runner (not for_mjx, where the base
+    and thighs collide) also their ground contacts and any closure residuals. Sensors change no
+    other index or quantity."""
     from footforge.envs.engine_mujoco import add_sensors
 
-    spec = _scene_spec(folder, config, terrain, for_mjx=True)
+    spec = _scene_spec(folder, config, terrain, for_mjx=for_mjx)
     probed = (category == GEOM_BASE) | ((category >= GEOM_THIGH) & (category < GEOM_THIGH + 4))
+    bodies = np.unique(model.geom_bodyid[probed])
     add_sensors(spec, model, [np.flatnonzero(category == GEOM_FOOT + i) for i in range(4)], model.geom(FLOOR_GEOM).id,
-                probe_bodies=np.unique(model.geom_bodyid[probed]), foot_sites=foot_sites(model))
+                probe_bodies=bodies, foot_sites=foot_sites(model), ground_bodies=() if for_mjx else bodies)
     engine_model = spec.compile()
     _set_physics_options(engine_model, config, on_heightfield=terrain is not None)
     engine_model.geom_contype[:] = model.geom_contype

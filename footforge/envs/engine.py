@@ -9,6 +9,9 @@ Two engines step the same MjModel (footforge.envs.anymal.load_robot) for the sam
   `jax.pure_callback`. On a CPU it is 3-28 times faster than MJX on the same model
   (benchmarks/RESULTS.md, "Physics engines").
 
+Outside JAX, the closed-chain evaluation and footforge play step their robots with the `mujoco`
+engine's pool too (engine_mujoco.CpuRobots), on any feet, the 34-joint closed chain included.
+
 `EnvConfig.physics` chooses; `resolve("auto")` is `mujoco` where JAX's default backend is the CPU
 and `mjx` elsewhere (the `--physics` option of train, evaluate and play).
 

@@ -74,12 +74,17 @@ class MujocoState:
 
 
 def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, foot_geoms, floor_geom: int, probe_bodies,
-                foot_sites) -> None:
+                foot_sites, *, ground_bodies=()) -> None:
     """Declares in `spec` (whose compiled form is `model`) the sensors the C engine reads, named
     `footforge/...` after the model's own: actuatorfrc per actuator, framepos of each foot site,
     framepos and frame axes of each probe body, and per leg a contact sensor between its foot
     (the subtree of `<leg>_foot/` for the adaptive feet, the foot geom for the ball: `foot_geoms`, per
-    leg LF, RF, LH, RH, the geom ids of its foot) and the floor."""
+    leg LF, RF, LH, RH, the geom ids of its foot) and the floor.
+
+    For the CPU runner (CpuRobots), whose base and thighs collide with the ground for real:
+    `ground_bodies` (body ids) get a contact sensor each between the body's own geoms and the floor
+    (the nearest contact's distance), and a model with equality constraints (the closed chain's
+    loop closures and roll couplings) the sensors its residuals are read from (ClosureResiduals)."""
     mj = mujoco.mjtObj
     for a in range(model.nu):
         spec.add_sensor(name=f"footforge/{model.actuator(a).name}_force", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
@@ -106,6 +111,52 @@ def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, foot_geoms, floor_ge
         sensor = spec.add_sensor(name=f"footforge/{leg}_foot_contact", type=mujoco.mjtSensor.mjSENS_CONTACT,
                                  objtype=objtype, objname=objname, reftype=mj.mjOBJ_GEOM, refname=floor)
         sensor.intprm[:3] = [1 | 2, 2, FOOT_CONTACT_SLOTS]
+    for b in ground_bodies:
+        # <contact body1=... geom2="floor" data="found dist" reduce="mindist" num="1">
+        sensor = spec.add_sensor(name=f"footforge/{model.body(b).name}_ground", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                                 objtype=mj.mjOBJ_BODY, objname=model.body(b).name, reftype=mj.mjOBJ_GEOM,
+                                 refname=floor)
+        sensor.intprm[:3] = [1 | 8, 1, 1]
+    for i in range(model.neq):
+        for k, obj in enumerate((model.eq_obj1id[i], model.eq_obj2id[i])):
+            if model.eq_type[i] == mujoco.mjtEq.mjEQ_CONNECT:
+                if model.eq_objtype[i] != mj.mjOBJ_SITE:
+                    raise ValueError(f"equality {i}: a connect between bodies; the closure sensors expect sites")
+                spec.add_sensor(name=f"footforge/eq{i}_anchor{k}", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+                                objtype=mj.mjOBJ_SITE, objname=model.site(obj).name)
+            elif model.eq_type[i] == mujoco.mjtEq.mjEQ_JOINT and obj >= 0:
+                spec.add_sensor(name=f"footforge/eq{i}_joint{k}", type=mujoco.mjtSensor.mjSENS_JOINTPOS,
+                                objtype=mj.mjOBJ_JOINT, objname=model.joint(obj).name)
+            elif model.eq_type[i] != mujoco.mjtEq.mjEQ_JOINT:
+                raise ValueError(f"equality {i}: type {model.eq_type[i]} has no residual sensor (connect and joint only)")
+
+
+class ClosureResiduals:
+    """The violation of each equality constraint, read from add_sensors' closure sensors: a connect's
+    anchors apart (m; MuJoCo's three constraint rows are that offset), a joint coupling's
+    q1 - q1_0 - polynomial(q2 - q2_0) (rad; MuJoCo's one row). Sensors are those of a physics step's
+    forward pass, the state before its integration, as MuJoCo's constraint rows."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.connect = np.flatnonzero(model.eq_type == mujoco.mjtEq.mjEQ_CONNECT)
+        self.coupling = np.flatnonzero(model.eq_type == mujoco.mjtEq.mjEQ_JOINT)
+        self._anchors = np.array([[_sensor(model, f"footforge/eq{i}_anchor{k}") for k in (0, 1)] for i in self.connect],
+                                 int).reshape(-1, 2, 3)
+        self._joints = np.array([_sensor(model, f"footforge/eq{i}_joint0")[0] for i in self.coupling], int)
+        self._second = np.array([_sensor(model, f"footforge/eq{i}_joint1")[0] if model.eq_obj2id[i] >= 0 else -1
+                                 for i in self.coupling], int)
+        jnt_qpos0 = lambda j: model.qpos0[model.jnt_qposadr[j]] if j >= 0 else 0.0  # noqa: E731
+        self._q0 = np.array([[jnt_qpos0(model.eq_obj1id[i]), jnt_qpos0(model.eq_obj2id[i])] for i in self.coupling])
+        self._poly = model.eq_data[self.coupling, :5]
+
+    def __call__(self, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(closure gaps (..., connects), m; coupling errors (..., couplings), rad) of sensordata (..., nsensordata)."""
+        a = sensordata[..., self._anchors]  # (..., connects, 2, 3)
+        gaps = np.linalg.norm(a[..., 0, :] - a[..., 1, :], axis=-1)
+        q1 = sensordata[..., self._joints] - self._q0[:, 0]
+        q2 = np.where(self._second >= 0, sensordata[..., np.maximum(self._second, 0)] - self._q0[:, 1], 0.0)
+        poly = sum(self._poly[:, p] * q2 ** p for p in range(5))
+        return gaps, np.abs(q1 - poly)
 
 
 def physics_threads() -> int:
@@ -131,6 +182,161 @@ def _sensor(model: mujoco.MjModel, name: str) -> np.ndarray:
     return np.arange(s.adr[0], s.adr[0] + s.dim[0])
 
 
+FULL_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
+"""The state rollouts start from and return: time, qpos, qvel (and activations, history, plugins)."""
+
+
+class Rollouts:
+    """MuJoCo's threaded batch stepping for the robots of one model: `mujoco.rollout`'s persistent
+    pool (physics_threads() threads, one MjData each), one call at a time. The one place footforge
+    steps robots on the CPU: the C engine's host call (MujocoPhysics) and the CPU runner of
+    evaluation and play (CpuRobots)."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.model = model
+        self.threads = threads = physics_threads()
+        self._pool = rollout.Rollout(nthread=threads if threads > 1 else 0)
+        self._datas = [mujoco.MjData(model) for _ in range(threads)]
+        self._lock = threading.Lock()
+        """Under pmap over several devices each device calls back on its own thread; the pool and its
+        MjData are shared."""
+        self.nstate = mujoco.mj_stateSize(model, FULL_STATE)
+        if mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_TIME.value) != 1 or model.na:
+            raise ValueError("the C engine expects a model without actuator activations")
+        # FULLPHYSICS lays out time, qpos, qvel, ... (MuJoCo's mjtState order).
+        self.qpos = slice(1, 1 + model.nq)
+        self.qvel = slice(1 + model.nq, 1 + model.nq + model.nv)
+        self.dt = float(model.opt.timestep)
+
+    def step(self, models, state0: np.ndarray, ctrl: np.ndarray, nstep: int, warmstart: np.ndarray,
+             xfrc: np.ndarray | None = None):
+        """`nstep` physics steps of each robot from its full physics state `state0` (N, nstate) under
+        controls `ctrl` (N, nu) held through the steps, with `models` (one MjModel, or one per robot)
+        and the constraint solver's starting acceleration `warmstart` (N, nv); `xfrc` (N, nbody, 6):
+        forces applied to the bodies (the viewer's mouse), held likewise.
+
+        Returns (states (N, nstep, nstate), sensordata (N, nstep, nsensordata), the next call's
+        warmstart (N, nv), blew_up (N,)). The warmstart is the last physics step's acceleration,
+        (qvel_last - qvel_before) / dt (the module docstring). A simulation that blew up (a position,
+        velocity or acceleration past mjMAXVAL) is reset by MuJoCo to the model's qpos0 and time 0,
+        with a warning, and goes on: its clock gives it away (blew_up)."""
+        n = len(state0)
+        control = np.repeat(np.asarray(ctrl, np.float64)[:, None, :], nstep, axis=1)
+        spec = mujoco.mjtState.mjSTATE_CTRL.value
+        if xfrc is not None:
+            forces = np.asarray(xfrc, np.float64).reshape(n, 1, -1)
+            control = np.concatenate([control, np.repeat(forces, nstep, axis=1)], axis=2)
+            spec |= mujoco.mjtState.mjSTATE_XFRC_APPLIED.value
+        with self._lock:
+            states, sensors = self._pool.rollout(models, self._datas, state0, control, control_spec=spec, nstep=nstep,
+                                                 initial_warmstart=np.asarray(warmstart, np.float64))
+        before = states[:, -2, self.qvel] if nstep > 1 else state0[:, self.qvel]
+        warm = (states[:, -1, self.qvel] - before) / self.dt
+        blew_up = np.abs(states[:, -1, 0] - state0[:, 0] - nstep * self.dt) > 0.5 * self.dt
+        return states, sensors, warm, blew_up
+
+
+class CpuRobots:
+    """Robots of one CPU model stepped together by the C engine (Rollouts), outside JAX: the runner
+    of the closed-chain evaluation (footforge.rl.evaluate_closed_chain) and of footforge play, on any
+    feet, the 34-joint closed chain included. `robot` comes from anymal.load_robot(for_mjx=False):
+    its base and thighs collide with the ground, and its engine_model carries the sensors read here
+    (add_sensors with ground_bodies and, for the closed chain, its closure sensors).
+
+    Each robot's full physics state (float64), PD targets, solver warm start and last sensors are
+    kept here; `sync` writes a robot into an MjData for what reads MuJoCo's data (the foot IMUs, the
+    viewer, rendering)."""
+
+    def __init__(self, robot, num: int):
+        m = self.model = robot.engine_model
+        if m is None:
+            raise ValueError("CpuRobots needs a robot from load_robot(for_mjx=False) (its engine_model)")
+        self.robot = robot
+        self._rollouts = Rollouts(m)
+        self.state = np.zeros((num, self._rollouts.nstate))
+        self.ctrl = np.zeros((num, m.nu))
+        self.warmstart = np.zeros((num, m.nv))
+        self.sensordata = np.zeros((num, m.nsensordata))
+        self.blew_up = np.zeros(num, bool)
+        self._scratch = mujoco.MjData(m)
+        self._force = np.concatenate([_sensor(m, f"footforge/{m.actuator(a).name}_force") for a in range(m.nu)])
+        self._feet = np.stack([_sensor(m, f"footforge/{leg}_foot_contact") for leg in C.LEGS])
+        # add_sensors' ground contacts, footforge/<body>_ground: the base's, and each leg's thigh's.
+        ground = {m.sensor(i).name[len("footforge/"):-len("_ground")]: _sensor(m, m.sensor(i).name)
+                  for i in range(m.nsensor) if m.sensor(i).name.startswith("footforge/")
+                  and m.sensor(i).name.endswith("_ground")}
+        pick = lambda names: np.array([ground[b] for b in names if b in ground], int).reshape(-1, 2)  # noqa: E731
+        self._base = pick([C.BASE_BODY])
+        self._thighs = [pick([f"{leg}_THIGH"]) for leg in C.LEGS]
+        if not (len(self._base) and all(len(t) for t in self._thighs)):
+            raise ValueError("CpuRobots needs the base's and every thigh's ground contact sensors (add_sensors)")
+        self.closure = ClosureResiduals(m) if m.neq else None
+
+    @property
+    def qpos(self) -> np.ndarray:
+        return self.state[:, self._rollouts.qpos]
+
+    @property
+    def qvel(self) -> np.ndarray:
+        return self.state[:, self._rollouts.qvel]
+
+    def take(self, i: int, data: mujoco.MjData) -> None:
+        """Robot i becomes `data`'s robot (after mj_forward: its state, controls and sensors), at rest
+        for the solver (no warm start), as a freshly reset MjData steps."""
+        mujoco.mj_getState(self.model, data, self.state[i], FULL_STATE)
+        self.ctrl[i], self.sensordata[i], self.warmstart[i], self.blew_up[i] = data.ctrl, data.sensordata, 0.0, False
+
+    def sync(self, i: int, data: mujoco.MjData | None = None) -> mujoco.MjData:
+        """`data` (default: a scratch MjData) holding robot i's state and controls, forward-computed."""
+        data = self._scratch if data is None else data
+        mujoco.mj_setState(self.model, data, self.state[i], FULL_STATE)
+        data.ctrl[:] = self.ctrl[i]
+        mujoco.mj_forward(self.model, data)
+        return data
+
+    def step(self, targets: np.ndarray, nstep: int, which: np.ndarray | None = None, push: np.ndarray | None = None,
+             xfrc: np.ndarray | None = None) -> np.ndarray:
+        """`nstep` physics steps of the robots `which` (a mask; default all) with PD targets `targets`
+        (N, 12, the robot's actuated joints in its actuator_ids order); `push` (N, 2) sets the
+        base's planar velocity first where not NaN (the environment's push); `xfrc` (N, nbody, 6)
+        body forces. Returns the stepped robots' sensors at every physics step (n, nstep, nsensordata)."""
+        which = np.ones(len(self.state), bool) if which is None else np.asarray(which, bool)
+        self.ctrl[:, self.robot.actuator_ids] = targets
+        if push is not None:
+            pushed = which & ~np.isnan(push[:, 0])
+            self.state[pushed, self._rollouts.qvel.start:self._rollouts.qvel.start + 2] = push[pushed]
+        states, sensors, warm, blew_up = self._rollouts.step(
+            self.model, self.state[which], self.ctrl[which], nstep, self.warmstart[which],
+            None if xfrc is None else np.asarray(xfrc)[which])
+        self.state[which], self.warmstart[which] = states[:, -1], warm
+        self.sensordata[which], self.blew_up[which] = sensors[:, -1], blew_up
+        return sensors
+
+    def actuator_force(self) -> np.ndarray:
+        """(N, nu) actuator forces in model order, N m (the last physics step's)."""
+        return self.sensordata[:, self._force]
+
+    def feet_on_ground(self) -> np.ndarray:
+        """(N, 4) whether each foot (LF, RF, LH, RH) touches the ground (its contact sensor found one)."""
+        found = self.sensordata[:, self._feet].reshape(len(self.state), 4, FOOT_CONTACT_SLOTS, 4)[..., 0]
+        return (found > 0).any(axis=2)
+
+    def ground_contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """((N,) any base geom touches the ground, (N,) legs with a thigh geom touching it): a contact
+        found at a negative distance (penetration)."""
+        def touching(sensors):  # sensors (k, 2): found, dist addresses
+            return ((self.sensordata[:, sensors[:, 0]] > 0) & (self.sensordata[:, sensors[:, 1]] < 0)).any(axis=1)
+
+        knees = sum(touching(t).astype(int) for t in self._thighs)
+        return touching(self._base), knees
+
+    def diverged(self, max_speed: float) -> np.ndarray:
+        """(N,) by the environment's criterion (EnvConfig.diverged_speed): a non-finite state, a
+        generalised velocity past `max_speed`, or a simulation MuJoCo reset because it blew up."""
+        finite = np.isfinite(self.state).all(axis=1)
+        return ~finite | (np.abs(np.nan_to_num(self.qvel, nan=np.inf)) >= max_speed).any(axis=1) | self.blew_up
+
+
 class MujocoPhysics:
     """MuJoCo's C engine behind footforge.envs.engine's interface (module docstring)."""
 
@@ -146,21 +352,13 @@ class MujocoPhysics:
         self._written: list[np.ndarray] = []
         """The randomised fields' values last written into _robot_models, per field (batch, ...)."""
         self._decimation = config.decimation
-        self._dt = float(m.opt.timestep)
-        self._threads = physics_threads()
-        self._pool = rollout.Rollout(nthread=self._threads if self._threads > 1 else 0)
-        self._datas = [mujoco.MjData(m) for _ in range(max(self._threads, 1))]
+        self._rollouts = Rollouts(m)
         self._forward_data = mujoco.MjData(m)
         self._lock = threading.Lock()
-        """One host call at a time: under pmap over several devices each device calls back on its own
-        thread, and the pool and its MjData are shared."""
-        full = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
-        self._nstate = mujoco.mj_stateSize(m, full)
-        # FULLPHYSICS lays out time, qpos, qvel, act, ... (MuJoCo's mjtState order).
-        self._qpos = slice(1, 1 + m.nq)
-        self._qvel = slice(1 + m.nq, 1 + m.nq + m.nv)
-        if mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_TIME.value) != 1 or m.na:
-            raise ValueError("the C engine expects a model without actuator activations")
+        """One host call at a time (under pmap each device calls back on its own thread): the
+        per-robot models and the forward pass's MjData are shared."""
+        self._nstate = self._rollouts.nstate
+        self._qpos, self._qvel = self._rollouts.qpos, self._rollouts.qvel
         self._force_ids = tuple(int(i) for a in range(m.nu) for i in _sensor(m, f"footforge/{m.actuator(a).name}_force"))
         self._site_ids = jp.asarray(np.stack([_sensor(m, f"footforge/{m.site(s).name}_pos") for s in robot.foot_sites]))
         probe_geoms = np.asarray(probe_geoms)
@@ -208,23 +406,17 @@ class MujocoPhysics:
         flat = [np.reshape(x, (-1, x.shape[-1])) for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart)]
         qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = flat
         state0 = self._initial_state(qpos, qpos_rest, qvel, qvel_rest)
-        control = np.repeat(np.asarray(ctrl, np.float64)[:, None, :], self._decimation, axis=1)
         with self._lock:
             models = self._models(len(qpos), fields)
-            states, sensors = self._pool.rollout(models, self._datas, state0, control, nstep=self._decimation,
-                                                 initial_warmstart=np.asarray(warmstart, np.float64))
+            states, sensors, warm, reset = self._rollouts.step(models, state0, ctrl, self._decimation, warmstart)
         last = states[:, -1]
-        before = states[:, -2, self._qvel] if self._decimation > 1 else state0[:, self._qvel]
         q64, v64 = last[:, self._qpos], last[:, self._qvel]
-        # A simulation that blew up (a position, velocity or acceleration past mjMAXVAL) is reset by
-        # MuJoCo to the model's qpos0 and time 0, with a warning, and goes on; MJX would carry NaNs.
-        # Its time gives it away: handed back as NaN, it ends the episode as a diverged one
-        # (LocomotionEnv.step's finiteness check), as under MJX.
-        reset = np.abs(last[:, 0] - self._decimation * self._dt) > 0.5 * self._dt
+        # A simulation MuJoCo reset because it blew up (Rollouts.step) is handed back as NaN: it ends
+        # the episode as a diverged one (LocomotionEnv.step's finiteness check), as under MJX, which
+        # carries the NaNs.
         q64[reset], v64[reset] = np.nan, np.nan
         q, v = q64.astype(dtype), v64.astype(dtype)
-        out = (q, (q64 - q).astype(dtype), v, (v64 - v).astype(dtype),
-               ((v64 - before) / self._dt).astype(dtype), sensors[:, -1].astype(dtype))
+        out = (q, (q64 - q).astype(dtype), v, (v64 - v).astype(dtype), warm.astype(dtype), sensors[:, -1].astype(dtype))
         return tuple(x.reshape(*batch, x.shape[-1]) for x in out)
 
     def _host_forward(self, qpos, qpos_rest, qvel, qvel_rest, ctrl, *fields):

@@ -1,11 +1,14 @@
 """Zero-shot evaluation on the closed chain: a policy trained on simplified feet (ball, AFF, AOF)
 run with CPU MuJoCo on the 34-joint SoftFoot-Q, beside the same policy on the feet it was trained on.
 
-One runner makes both columns: N independent robots (one MjData each) with the same seeds, so the
-same commands, pushes and observation noise draws. The jitted policy is called once per policy
-step for all robots together; in between, each robot's model is stepped at its own physics step:
-the closed chain at its build's 0.25 ms with its build's solver (80 steps per 20 ms policy step),
-the training feet at the environment's sim_dt and solver settings (5 ms, 4 steps). What the
+One runner makes both columns: N independent robots with the same seeds, so the same commands,
+pushes and observation noise draws. The jitted policy is called once per policy step for all
+robots together; in between, the robots are stepped together by the C engine's CPU runner
+(footforge.envs.engine_mujoco.CpuRobots: MuJoCo's threaded mujoco.rollout, the pool the `mujoco`
+training engine steps with; contacts, actuator forces and closure residuals read from MJCF
+sensors), each feet at its own physics step: the closed chain at its build's 0.25 ms with its
+build's solver (80 steps per 20 ms policy step), the training feet at the environment's sim_dt and
+solver settings (2.5 ms, 8 steps under the `stance` contact). What the
 policy sees and how its action becomes PD targets are the MJX environment's: observations (the
 height scan of P policies included), commands, base velocity and height come from its own
 functions (LocomotionEnv's, RoughEnv's on terrain tiles) evaluated on the CPU state.
@@ -38,8 +41,8 @@ import mujoco
 import numpy as np
 
 from footforge.envs.anymal import Robot, ensure_built, load_robot
+from footforge.envs.engine_mujoco import CpuRobots
 from footforge.envs.config import check_policy_on_feet
-from footforge.envs.stability import diverged
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
 from footforge.rl.evaluate import INDICES
@@ -155,18 +158,21 @@ def cpu_robot(config, feet: str, build_root: Path | None, terrain: Terrain | Non
 def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, terrain: Terrain | None = None,
         progress: Callable[[int], None] | None = None, imu: FootImuEstimator | None = None) -> dict:
     """One column: `num_robots` robots on `robot`'s model for `steps` policy steps (see the module
-    docstring). `env` is the policy's environment (LocomotionEnv on flat ground, RoughEnv on
-    `terrain`), whose observation, command and base-height functions the robots go through.
-    `imu`: a haptic policy's passive joints estimated on the closed chain (`robot`)."""
+    docstring), stepped together by the C engine's CPU runner (footforge.envs.engine_mujoco.CpuRobots).
+    `env` is the policy's environment (LocomotionEnv on flat ground, RoughEnv on `terrain`), whose
+    observation, command and base-height functions the robots go through. `imu`: a haptic policy's
+    passive joints estimated on the closed chain (`robot`)."""
     config, model = env.config, robot.model
     decimation = int(round(config.policy_dt / model.opt.timestep))
     control = Controller(env, observed_robot(robot, imu), policy)
-    datas = [mujoco.MjData(model) for _ in range(num_robots)]
-    for i, d in enumerate(datas):
-        place_at_start(robot, d, terrain, i)
-    info, obs = control.start(*observed_states(datas, imu), seed)
-    equality = _EqualityResiduals(model) if model.neq else None
-    alive, ok = np.ones(num_robots, bool), np.ones(num_robots, bool)
+    robots = CpuRobots(robot, num_robots)
+    data = mujoco.MjData(robots.model)
+    for i in range(num_robots):
+        place_at_start(robot, data, terrain, i)
+        robots.take(i, data)
+    info, obs = control.start(*observed_states(robots, imu), seed)
+    alive = np.ones(num_robots, bool)
+    ok = np.ones(num_robots, bool)
     fall_step = np.full(num_robots, -1)
     # (robots, steps) records; a robot's row stays NaN (not alive) from its fall on.
     rows = {k: np.full((num_robots, steps), np.nan) for k in (*INDICES, "vx", "vx_command", "vy_command")}
@@ -179,26 +185,20 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     for t in range(steps):
         if not alive.any():  # all fell: nothing left to simulate
             break
-        action, targets, push_now, push, info, keys = control.act(obs, _stack(datas, "qpos"), info)
-        for i in np.flatnonzero(alive):
-            d = datas[i]
-            d.ctrl[robot.actuator_ids] = targets[i]
-            if push_now[i]:  # as the environment: the push sets the base's planar velocity, then the physics runs
-                d.qvel[:2] = push[i]
-            for _ in range(decimation):
-                t0 = time.perf_counter()
-                mujoco.mj_step(model, d)
-                physics_wall += time.perf_counter() - t0
-                if equality is not None:
-                    for k, value in zip(worst, equality(d)):
-                        worst[k][i, t] = np.fmax(worst[k][i, t], value)
-                        totals[k] += (value, 1)
-            ok[i] = not diverged(d, config.diverged_speed)
-        contacts = padded_contacts(datas)
-        fallen = control.touching(*contacts) | ~ok
-        feet_down[:, t] = control.feet_on_ground(*contacts)
-        info, obs, row = control.settle(*observed_states(datas, imu), info, keys, action,
-                                        _stack(datas, "actuator_force"))
+        action, targets, push_now, push, info, keys = control.act(obs, robots.qpos, info)
+        t0 = time.perf_counter()
+        # As the environment: a push sets the base's planar velocity, then the physics runs.
+        sensors = robots.step(targets, decimation, which=alive, push=np.where(push_now[:, None], push, np.nan))
+        physics_wall += time.perf_counter() - t0
+        if robots.closure is not None:  # every physics step's residuals, the worst constraint of each
+            for k, residual in zip(worst, robots.closure(sensors)):
+                per_step = residual.max(axis=-1, initial=0.0)  # (alive robots, physics steps)
+                worst[k][alive, t] = per_step.max(axis=1)
+                totals[k] += (per_step.sum(), per_step.size)
+        ok &= ~robots.diverged(config.diverged_speed) | ~alive
+        fallen = control.fallen(robots)
+        feet_down[:, t] = robots.feet_on_ground()
+        info, obs, row = control.settle(*observed_states(robots, imu), info, keys, action, robots.actuator_force())
         fall_step[alive & fallen] = t
         alive &= ~fallen
         live[:, t] = alive  # like footforge.rl.evaluate: the step a robot falls on is not counted
@@ -216,9 +216,9 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
                     np.hypot(rows["vx_command"], rows["vy_command"]))
     traces = {"vx_m_s": rows["vx"], "vx_command_m_s": rows["vx_command"]}
     closure = None
-    if equality is not None:
+    if robots.closure is not None:
         traces |= worst
-        closure = {"num_closures": int(equality.connect.sum()), "num_couplings": int(equality.coupling.sum())}
+        closure = {"num_closures": len(robots.closure.connect), "num_couplings": len(robots.closure.coupling)}
         for k, mean, peak in (("closure_gap_m", "closure_gap_mean_m", "closure_gap_max_m"),
                               ("coupling_rad", "coupling_mean_rad", "coupling_max_rad")):
             total, count = totals[k]
@@ -245,12 +245,12 @@ def observed_robot(robot: Robot, imu: FootImuEstimator | None) -> Robot:
                    passive_names=tuple(imu.names))
 
 
-def observed_states(datas, imu: FootImuEstimator | None) -> tuple[np.ndarray, np.ndarray]:
-    """(qpos, qvel) of the robots in `datas`, stacked, as observed_robot's tables index them."""
-    qpos, qvel = _stack(datas, "qpos"), _stack(datas, "qvel")
+def observed_states(robots: CpuRobots, imu: FootImuEstimator | None) -> tuple[np.ndarray, np.ndarray]:
+    """(qpos, qvel) of the robots, as observed_robot's tables index them."""
+    qpos, qvel = robots.qpos.copy(), robots.qvel.copy()
     if imu is None:
         return qpos, qvel
-    estimates = [imu(d) for d in datas]
+    estimates = [imu(robots.sync(i)) for i in range(len(qpos))]
     return (np.concatenate([qpos, np.stack([e[0] for e in estimates])], axis=1),
             np.concatenate([qvel, np.stack([e[1] for e in estimates])], axis=1))
 
@@ -274,44 +274,12 @@ def _spawn(terrain: Terrain, i: int) -> np.ndarray:
     return np.array(terrain.tile_center(c.num_levels - 1, i % c.num_columns), float)
 
 
-def _stack(datas, field: str) -> np.ndarray:
-    return np.stack([getattr(d, field) for d in datas])
-
-
-def padded_contacts(datas) -> tuple[np.ndarray, np.ndarray]:
-    """Every robot's contacts (geom pairs, signed distances) padded to one power-of-two length,
-    so that the jitted contact check compiles for a few sizes only. Padding pairs have a
-    positive distance: no contact."""
-    size = 1 << (max(max(d.ncon for d in datas), 1) - 1).bit_length()
-    geoms, dists = np.zeros((len(datas), size, 2), np.int32), np.ones((len(datas), size))
-    for i, d in enumerate(datas):
-        geoms[i, :d.ncon], dists[i, :d.ncon] = d.contact.geom, d.contact.dist
-    return geoms, dists
-
-
-class _EqualityResiduals:
-    """MuJoCo's violation of each equality constraint, from the constraint rows of the last step:
-    a connect has three rows (the anchors' offset, m), a joint coupling one (rad). The rows are
-    those of the state before the step's integration, one step behind, which every step samples."""
-
-    def __init__(self, model: mujoco.MjModel):
-        self.neq = model.neq
-        self.connect = model.eq_type == mujoco.mjtEq.mjEQ_CONNECT
-        self.coupling = model.eq_type == mujoco.mjtEq.mjEQ_JOINT
-
-    def __call__(self, data: mujoco.MjData) -> tuple[float, float]:
-        """(largest closure gap, m; largest coupling error, rad)."""
-        n = data.ne  # the equality rows come first
-        residual = np.sqrt(np.bincount(data.efc_id[:n], data.efc_pos[:n] ** 2, minlength=self.neq))
-        return residual[self.connect].max(initial=0.0), residual[self.coupling].max(initial=0.0)
-
-
 class Controller:
     """The MJX environment's policy side (LocomotionEnv.policy_start, policy_act, policy_command,
     policy_observe) for a batch of CPU robots, jitted and vectorised, with the same random keys.
 
     start: the policy's side of env.reset for given states; act: the policy's action, its PD
-    targets and the push; touching: the environment's termination contacts, from MuJoCo's;
+    targets and the push; fallen: the environment's termination, from the CPU robots' sensors;
     settle: after the physics (commands, tracking errors, next observation). start and settle
     take an optional command per robot (vx m/s, vy m/s, yaw rate rad/s; footforge's play) that
     replaces the environment's drawn, heading-steered one where it is not NaN. The environment's
@@ -323,13 +291,11 @@ class Controller:
         import jax
         import jax.numpy as jp
 
-        from footforge.envs.contacts import foot_contacts, ground_contacts
         from footforge.envs.locomotion import reset_keys
 
         env = copy.copy(env)
         env.robot = robot  # ANYmal's joints (defaults, ranges) are the same on every feet
         config, r = env.config, robot
-        category, floor = jp.asarray(r.geom_category), r.floor_geom
 
         def start(qpos, qvel, rng, command):  # the PD targets start at the defaults
             return env.policy_start(_State(qpos, qvel), {}, reset_keys(rng), jp.asarray(r.default_q), command)
@@ -339,10 +305,6 @@ class Controller:
                 obs = {"state": obs, "privileged_state": jp.zeros((obs.shape[0], env.observation_size[
                     "privileged_state"][0]))}
             return jax.vmap(env.policy_act)(info, policy(obs, jax.random.PRNGKey(0))[0])
-
-        def touching(geoms, dists):
-            base, knees = ground_contacts(category, floor, geoms, dists)
-            return base | (knees >= config.terminate_on_knees)
 
         def settle(qpos, qvel, info, keys, action, actuator_force, command):
             state = _State(qpos, qvel)
@@ -360,9 +322,8 @@ class Controller:
 
         self._start = jax.jit(jax.vmap(start))
         self._act = jax.jit(act)
-        self._touching = jax.jit(jax.vmap(touching))
-        self._feet = jax.jit(jax.vmap(lambda geoms, dists: foot_contacts(category, floor, geoms, dists)))
         self._settle = jax.jit(jax.vmap(settle))
+        self._config = config
         self._split = lambda seed, n: jax.random.split(jax.random.PRNGKey(seed), n)
 
     def start(self, qpos: np.ndarray, qvel: np.ndarray, seed: int, command: np.ndarray | None = None):
@@ -375,15 +336,11 @@ class Controller:
         action, target, push_now, push, info, keys = self._act(obs, qpos, info)
         return action, np.asarray(target), np.asarray(push_now), np.asarray(push), info, keys
 
-    def touching(self, geoms: np.ndarray, dists: np.ndarray) -> np.ndarray:
-        """Per robot: base contact or `terminate_on_knees` thigh contacts with the floor, from its
-        contacts (robots, n, 2) geom pairs and (robots, n) signed distances."""
-        return np.asarray(self._touching(geoms, dists))
-
-    def feet_on_ground(self, geoms: np.ndarray, dists: np.ndarray) -> np.ndarray:
-        """Per robot and leg (LF, RF, LH, RH): does its foot touch the floor, from its contacts
-        as in touching()."""
-        return np.asarray(self._feet(geoms, dists))
+    def fallen(self, robots: CpuRobots) -> np.ndarray:
+        """Per robot, the environment's termination after its last step: a base contact with the
+        ground, `terminate_on_knees` legs with a thigh contact, or a diverged simulation."""
+        base, knees = robots.ground_contacts()
+        return base | (knees >= self._config.terminate_on_knees) | robots.diverged(self._config.diverged_speed)
 
     def settle(self, qpos, qvel, info, keys, action, actuator_force, command: np.ndarray | None = None):
         """(info, observations, index rows as numpy) after the physics of a policy step;

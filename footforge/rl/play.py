@@ -3,9 +3,10 @@
 What is exported is what is seen: the policy acts through onnxruntime on the graph that
 `footforge export` writes (footforge.rl.export_onnx.build_model: for a policy folder the graph is
 built in memory, for an .onnx file the file is read), never through the JAX checkpoint. Everything
-around the network is the closed-chain runner's (footforge.rl.evaluate_closed_chain.Controller): the MJX
+around the network is the closed-chain runner's (footforge.rl.evaluate_closed_chain.Controller): the
 environment's observation (noise included, as in training and evaluation), its action clip and PD
-targets, its termination contacts, evaluated on one CPU MuJoCo robot; the runner calls the policy
+targets, its termination contacts, for one robot stepped by MuJoCo's C engine
+(footforge.envs.engine_mujoco.CpuRobots, the `mujoco` training engine's pool); the runner calls the policy
 inside its jitted step, through jax.pure_callback.
 
 The command (forward vx m/s, lateral vy m/s, yaw rate rad/s, in the base's heading frame as in
@@ -192,6 +193,7 @@ class Player:
     def __init__(self, policy: OnnxPolicy, config: PlayConfig = PlayConfig()):
         import mujoco
 
+        from footforge.envs.engine_mujoco import CpuRobots
         from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, Controller, cpu_robot, observed_robot, policy_environment
         from footforge.rl.foot_imu import FootImuEstimator
 
@@ -203,8 +205,10 @@ class Player:
         self.feet, self.policy, self.config = feet, policy, config
         self.robot = own if feet == env_config.feet else cpu_robot(env_config, feet, config.build_root, self.terrain,
                                                                    own_physics=True)
-        self.model = self.robot.model
+        self.robots = CpuRobots(self.robot, 1)  # the C engine's CPU runner, as the closed-chain evaluation
+        self.model = self.robots.model
         self.data = mujoco.MjData(self.model)
+        """What the viewer shows and perturbs (its mouse forces, xfrc_applied, act on the next step)."""
         self.policy_dt = env_config.policy_dt
         self.decimation = int(round(self.policy_dt / self.model.opt.timestep))
         limits = env_config.commands
@@ -223,7 +227,8 @@ class Player:
         from footforge.rl.evaluate_closed_chain import observed_states, place_at_start
 
         place_at_start(self.robot, self.data, self.terrain, 0)
-        self._info, self._obs = self._control.start(*observed_states([self.data], self._imu),
+        self.robots.take(0, self.data)
+        self._info, self._obs = self._control.start(*observed_states(self.robots, self._imu),
                                                     self.config.seed + self.resets, self._command(command))
         self.resets += 1
 
@@ -241,21 +246,16 @@ class Player:
         Returns {"fell", "base_height_m" (above the ground under the base), "vx", "vy", "yaw_rate"
         (base frame, m/s and rad/s), "command", "feet_on_ground" (LF, RF, LH, RH)}; after a fall
         the robot is back at its start."""
-        import mujoco
+        from footforge.rl.evaluate_closed_chain import observed_states
 
-        from footforge.rl.evaluate_closed_chain import observed_states, padded_contacts
-        from footforge.envs.stability import diverged
-
-        d, command = self.data, self._command(command)
-        action, targets, _, _, self._info, keys = self._control.act(self._obs, d.qpos[None], self._info)
-        d.ctrl[self.robot.actuator_ids] = targets[0]
-        for _ in range(self.decimation):
-            mujoco.mj_step(self.model, d)
-        contacts = padded_contacts([d])
-        fell = diverged(d, self.policy.config.diverged_speed) or bool(self._control.touching(*contacts)[0])
-        feet = self._control.feet_on_ground(*contacts)[0].tolist()
-        self._info, self._obs, row = self._control.settle(*observed_states([d], self._imu), self._info, keys, action,
-                                                          d.actuator_force[None], command)
+        command = self._command(command)
+        action, targets, _, _, self._info, keys = self._control.act(self._obs, self.robots.qpos, self._info)
+        self.robots.step(targets, self.decimation, xfrc=self.data.xfrc_applied[None])
+        fell = bool(self._control.fallen(self.robots)[0])
+        feet = self.robots.feet_on_ground()[0].tolist()
+        self._info, self._obs, row = self._control.settle(*observed_states(self.robots, self._imu), self._info, keys,
+                                                          action, self.robots.actuator_force(), command)
+        self.robots.sync(0, self.data)
         record = {"fell": fell, "base_height_m": float(row["base_height"][0]), "vx": float(row["vx"][0]),
                   "vy": float(row["vy"][0]), "yaw_rate": float(row["yaw_rate"][0]), "command": command[0].tolist(),
                   "feet_on_ground": feet}
