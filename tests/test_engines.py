@@ -138,6 +138,54 @@ def test_the_engine_comparison_can_fail(float64_parts):
     assert parts["obs"] > 1e3 * TIGHT and parts["base_pose"] > 1e3 * TIGHT and parts["feet"] > 1e3 * TIGHT, parts
 
 
+HEIGHTFIELD = dict(obs=5e-4, passive=5e-4, force_n=1e-2, position_m=1e-5)
+"""MJX in float64 against the C engine on a heightfield: MJX collides a heightfield by its own
+prism tests, not MuJoCo's, so contact points and depths agree to about 1e-7 m, not to rounding.
+Measured (rough ball P, 4 robots x 2 policy steps of random actions, both converged, 2026-11-28):
+base 2e-7 m, feet 7.5e-7 m, foot forces 4.8e-4 N, observations (the height scan included) 2.2e-5,
+rewards 4e-8; the bounds are 10-20 times that, and still 300 times below what one physics step
+more per policy step changes on flat ground (test_the_engine_comparison_can_fail)."""
+ROUGH_TILES = dict(num_levels=2, num_columns=2, tile_size_m=4.0, border_m=2.0, platform_m=1.0,
+                   proportions=(1, 1, 0, 0, 0, 0))
+"""Four tiles (smooth and rough slopes, difficulty 0 and 0.5): the smallest terrain with slopes
+under the feet, so that MJX compiles in a minute."""
+
+_FLOAT64_MORE = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import test_engines as T
+from footforge.envs.terrain import TerrainConfig
+out = {}
+for task, feet, policy, build in zip(*[iter(sys.argv[2:])] * 4):
+    extra = {"terrain": TerrainConfig(**T.ROUGH_TILES)} if task == "rough" else {}
+    mjx_env, c_env = T._pair({feet: (build, None)}, task, feet, policy, float64_physics=True, **T.CONVERGED, **extra)
+    actions = T._actions(mjx_env)
+    out[f"{task}-{feet}-{policy}"] = T._parts(T._rollout(mjx_env, actions), T._rollout(c_env, actions))
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_engines_are_the_same_physics_in_float64_on_adaptive_feet_and_a_heightfield(built):
+    """As the flat ball comparison above, for the adaptive feet (AOF's split sole boxes and its
+    passive joints, haptic observations) on flat ground, to rounding (TIGHT), and for ball feet on
+    a heightfield (a perceptive policy: the height scan observed), within HEIGHTFIELD. One
+    subprocess (JAX's x64 is process-wide)."""
+    import os
+    import subprocess
+    import sys
+
+    cases = [("flat", "aof", "BH"), ("rough", "ball", "P")]
+    argv = [str(a) for task, feet, policy in cases for a in (task, feet, policy, built[feet][0])]
+    done = subprocess.run([sys.executable, "-c", _FLOAT64_MORE, str(Path(__file__).parent), *argv],
+                          capture_output=True, text=True, env=os.environ | {"JAX_ENABLE_X64": "1"}, timeout=800)
+    assert done.returncode == 0, done.stderr[-3000:]
+    parts = json.loads(done.stdout.strip().splitlines()[-1])
+    _assert_agree(parts["flat-aof-BH"], obs=TIGHT, passive=TIGHT, force_n=TIGHT, position_m=TIGHT)
+    _assert_agree(parts["rough-ball-P"], **HEIGHTFIELD)
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("task,feet,policy", [("flat", "ball", "B"), ("flat", "aof", "BH")])
@@ -147,7 +195,7 @@ def test_engines_agree_in_float32(built, task, feet, policy):
     passive joints observed. Not on the rough terrain: there float32 MJX keeps a heightfield contact
     only while a foot penetrates, its depth in 0.12 um steps (docs/training.md), and within 2 steps
     a foot's contact differed and the feet parted by 19 mm (2026-11-27, ball P and AOF PH); the
-    rough terrain's comparison belongs in float64, as the flat one above (not written yet)."""
+    rough terrain's comparison is in float64 (the test above)."""
     mjx_env, c_env = _pair(built, task, feet, policy, **CONVERGED)
     actions = _actions(mjx_env)
     mjx_rows, c_rows = _rollout(mjx_env, actions), _rollout(c_env, actions)
