@@ -127,7 +127,7 @@ def main() -> None:
                     suffix = "_mujoco" if engine == "mujoco" else ""
                     figures[f"{name}{suffix}_b{batch}"] = _measure(env, batch, args.steps)
                     if args.raw_c and engine == "mujoco":
-                        for threads in sorted({1, env.physics._threads}):
+                        for threads in sorted({1, env.physics._rollouts.threads}):
                             figures[f"{name}_raw_c{threads}_b{batch}"] = _measure_raw_c(env, batch, args.steps,
                                                                                         threads)
         if go1 and task in go1.ENV_NAMES:

@@ -6,7 +6,8 @@
 
 Any policy type: haptic ones (BH, PH) read the closed chain's passive joints as estimated from the
 foot's IMUs. The closed chain steps at its own 0.25 ms (80 physics
-steps per policy step, about real time or slower per robot on one core: keep --robots small).
+steps per policy step), its robots on every thread (FOOTFORGE_PHYSICS_THREADS): about 0.3 simulated
+seconds per second per thread, so 8 robots x 20 s take 4-5 minutes on 2 cores: keep --robots small.
 Without --build-root the builds are build/<feet> (build/full for the closed chain), made on first use.
 Writes <out>/metrics.json, closed_chain.md (tracking errors, falls, closure drift and real-time
 factor per policy and feet) and closed_chain_<i>.png (forward velocity against the command on
