@@ -11,7 +11,7 @@ import pytest
 
 from footforge import envs
 from footforge.envs import terrain as terrain_lib
-from footforge.envs.anymal import GEOM_BASE, GEOM_FOOT, GEOM_THIGH
+from footforge.envs.contacts import foot_contacts, ground_contacts
 from footforge.envs.engine_mujoco import THREADS_ENV, ClosureResiduals, CpuRobots
 from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, cpu_robot, place_at_start
 
@@ -23,6 +23,11 @@ def _robot(built, feet, terrain=None):
 
 def _targets(robot, n, seed=0):
     return robot.default_q + np.random.default_rng(seed).normal(0.0, 0.2, (n, 12))
+
+
+def _contact_list(data):
+    """MuJoCo's contact list of `data`: (geom pairs (ncon, 2), signed distances (ncon,))."""
+    return data.contact.geom[:data.ncon].copy().reshape(-1, 2), data.contact.dist[:data.ncon].copy()
 
 
 def _placed(robot, n, terrain=None):
@@ -58,15 +63,10 @@ def test_one_policy_step_is_mujocos_own_mj_step(built, feet):
         np.testing.assert_array_equal(robots.qpos[i], d.qpos)
         np.testing.assert_array_equal(robots.qvel[i], d.qvel)
         np.testing.assert_array_equal(robots.actuator_force()[i], d.actuator_force)
-        # Each foot's contact from MuJoCo's contact list of the last step: a contact of a foot geom
-        # with the floor at a distance within its margin (what the foot's contact sensor counts).
-        category = robot.geom_category
-        touching = np.zeros(4, bool)
-        for c in d.contact[:d.ncon]:
-            other = c.geom[1] if c.geom[0] == robot.floor_geom else c.geom[0] if c.geom[1] == robot.floor_geom else -1
-            if other >= 0 and GEOM_FOOT <= category[other] < GEOM_FOOT + 4:
-                touching[category[other] - GEOM_FOOT] = True
-        np.testing.assert_array_equal(robots.feet_on_ground()[i], touching)
+        # Each foot's contact from MuJoCo's contact list of the last step, read as the MJX
+        # environment reads its contact slots (footforge.envs.contacts).
+        touching = foot_contacts(robot.geom_category, robot.floor_geom, *_contact_list(d))
+        np.testing.assert_array_equal(robots.feet_on_ground()[i], np.asarray(touching))
     assert robots.feet_on_ground()[0].all()  # the controls: the standing robot touches with every foot,
     assert np.abs(robots.qvel[1, :2] - robots.qvel[0, :2]).max() > 0.1  # and the push moved robot 1
 
@@ -84,17 +84,9 @@ def test_base_and_thigh_ground_contacts_are_mujocos(built, feet):
         data.qpos[2] -= drop
         mujoco.mj_forward(robot.engine_model, data)
         robots.take(i, data)
-        category, floor = robot.geom_category, robot.floor_geom
-        base, thighs = False, set()
-        for c in data.contact[:data.ncon]:
-            other = c.geom[1] if c.geom[0] == floor else c.geom[0] if c.geom[1] == floor else -1
-            if other < 0 or c.dist >= 0:
-                continue
-            base |= category[other] == GEOM_BASE
-            if GEOM_THIGH <= category[other] < GEOM_THIGH + 4:
-                thighs.add(int(category[other]))
+        base, knees = ground_contacts(robot.geom_category, robot.floor_geom, *_contact_list(data))
         got_base, got_knees = robots.ground_contacts()
-        assert (bool(got_base[i]), int(got_knees[i])) == (base, len(thighs)), drop
+        assert (bool(got_base[i]), int(got_knees[i])) == (bool(base), int(knees)), drop
     base, knees = robots.ground_contacts()
     assert (bool(base[0]), int(knees[0])) == (False, 0)
     assert knees[1] == 4 and base[2]  # the controls: lowered robots do touch

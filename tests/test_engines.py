@@ -257,20 +257,31 @@ def test_physics_choice_and_refusals(built):
         envs.make("flat", "ball", "B", physics="bullet", build_dir=str(built["ball"][0]))
 
 
-@pytest.mark.parametrize("command", ["train", "evaluate"])
+@pytest.mark.parametrize("command", ["train", "evaluate", "evaluate-closed-chain", "play"])
 def test_a_bad_thread_count_is_refused_before_any_work(command, tmp_path, capsys, monkeypatch):
     """FOOTFORGE_PHYSICS_THREADS that is not a positive whole number: `footforge train` and
-    `footforge evaluate` on the C engine exit 2 naming the variable, and write nothing."""
+    `footforge evaluate` on the C engine, and the commands that always step it (the closed-chain
+    evaluation, play), exit 2 naming the variable, and write nothing."""
     out = tmp_path / "out"
     monkeypatch.setenv(THREADS_ENV, "two")
+    policy = str(REPO / "policies/flat_ball_B")
     if command == "train":
         from footforge.cli.train import main
 
         code = main("flat", "", ["--feet", "ball", "--out", str(out), "--physics", "mujoco", "--timesteps", "1000"])
-    else:
+    elif command == "evaluate":
         from footforge.cli.evaluate import main
 
-        code = main(["--policy", str(REPO / "policies/flat_ball_B"), "--out", str(out), "--physics", "mujoco"])
+        code = main(["--policy", policy, "--out", str(out), "--physics", "mujoco"])
+    elif command == "evaluate-closed-chain":
+        from footforge.cli.evaluate_closed_chain import main
+
+        code = main(["--policy", policy, "--out", str(out)])
+    else:
+        from footforge.cli.play import main
+
+        out = tmp_path / "out.json"
+        code = main([policy, "--headless", "--log", str(out)])
     assert code == 2 and THREADS_ENV in capsys.readouterr().err
     assert not out.exists()
 

@@ -66,7 +66,10 @@ def _run(args) -> int:
 
     from footforge.cli.help import console as make_console
 
+    from footforge.envs import engine
+
     console = make_console()
+    engine.check("mujoco")  # its robots step on the C engine's threads (FOOTFORGE_PHYSICS_THREADS)
     check_output_folder(args.out, force=args.force)  # before minutes of simulation
     args.policy = [policy_folder(policy) for policy in args.policy]  # a run's folder: its policy/
     trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder

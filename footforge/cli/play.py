@@ -72,9 +72,11 @@ def main(argv: list[str] | None = None, prog: str = "footforge play") -> int:
 
 def _check_arguments(args) -> None:
     """Everything that can be checked in a second, before the policy is loaded and compiled."""
+    from footforge.envs import engine
     from footforge.errors import InputError
     from footforge.rl.play import FEET
 
+    engine.check("mujoco")  # the robot steps on the C engine (FOOTFORGE_PHYSICS_THREADS)
     if not args.headless and (args.video or args.log):
         raise InputError("--video and --log are for --headless runs", fix="add --headless (and --seconds, --command)")
     if args.seconds <= 0 or args.width < 16 or args.height < 16:

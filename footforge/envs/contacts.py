@@ -4,8 +4,9 @@ where the base and thighs are probed for ground contact geometrically.
 Every function takes the robot's geom categories (footforge.envs.anymal: GEOM_BASE, GEOM_THIGH +
 leg, GEOM_FOOT + leg, in the order LF, RF, LH, RH), the floor geom's id, the contact slots' geom
 pairs (ncon, 2) and signed distances (ncon,), m; a slot touches when its distance is negative.
-The environments (footforge.envs.locomotion) and the CPU evaluation on the closed chain
-(footforge.rl.evaluate_closed_chain) read contacts through these alike.
+The MJX environments (footforge.envs.locomotion) read their contact slots through these; the CPU
+runner (footforge.envs.engine_mujoco.CpuRobots) reads MJCF contact sensors instead, which the
+tests check against these functions applied to MuJoCo's own contact list.
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ def foot_normal_forces(geom_category, floor_geom, geoms, dist, normal):
 def ground_contacts(geom_category, floor_geom, geoms, dist):
     """(any base geom touches the floor, number of legs with a thigh geom touching it), from
     fixed-size contact arrays (geom pairs (ncon, 2), signed distances (ncon,)): for CPU MuJoCo's
-    models, where the base and thighs collide (footforge.rl.evaluate_closed_chain)."""
+    models, where the base and thighs collide (the reference the CPU runner's ground-contact
+    sensors are tested against)."""
     hit, other = floor_hits(geom_category, floor_geom, geoms, dist)
     base = jp.any(hit & (other == GEOM_BASE))
     knees = sum(jp.any(hit & (other == GEOM_THIGH + i)).astype(jp.int32) for i in range(4))

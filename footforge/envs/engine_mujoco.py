@@ -193,7 +193,6 @@ class Rollouts:
     evaluation and play (CpuRobots)."""
 
     def __init__(self, model: mujoco.MjModel):
-        self.model = model
         self.threads = threads = physics_threads()
         self._pool = rollout.Rollout(nthread=threads if threads > 1 else 0)
         self._datas = [mujoco.MjData(model) for _ in range(threads)]

@@ -258,14 +258,15 @@ def observed_states(robots: CpuRobots, imu: FootImuEstimator | None) -> tuple[np
 def place_at_start(robot: Robot, data: mujoco.MjData, terrain: Terrain | None = None, i: int = 0) -> None:
     """Puts robot i where the runner starts it: standing at rest under the default PD targets, as
     the environment starts, at the origin or (on `terrain`) on the centre of a tile of its
-    hardest level, column i modulo the columns."""
-    mujoco.mj_resetData(robot.model, data)
+    hardest level, column i modulo the columns. `data` may belong to robot.model or to its
+    engine_model (the same joints and actuators, more sensors): its own model computes it."""
+    mujoco.mj_resetData(data.model, data)
     data.qpos[:] = robot.stand_qpos
     if terrain is not None:
         data.qpos[:2] = _spawn(terrain, i)
         data.qpos[2] += terrain.height_at(*data.qpos[:2])
     data.ctrl[robot.actuator_ids] = robot.default_q
-    mujoco.mj_forward(robot.model, data)
+    mujoco.mj_forward(data.model, data)
 
 
 def _spawn(terrain: Terrain, i: int) -> np.ndarray:
