@@ -78,7 +78,7 @@ def profile(env, batch: int, repeats: int, settle_steps: int) -> dict:
         state = step(state, actions)
     data = state.pipeline_state
     mj = env.robot.model
-    m = env.sys  # the environment's own MJX model (anymal.fit_heightfield_subgrids applied)
+    m = env.sys  # the environment's own MJX model
     jax.block_until_ready(data)
     ms, compile_s = {}, {}
     staged = data

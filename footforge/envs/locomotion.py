@@ -17,13 +17,14 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jp
 import mujoco
+import numpy as np
 from brax import math as brax_math
 from brax.envs.base import Env, State
 from mujoco import mjx
 
 from footforge import constants as C
 from footforge.envs import contacts, engine, observation_layout, rewards
-from footforge.envs.anymal import (GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
+from footforge.envs.anymal import (GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl,
                                    load_robot)
 from footforge.envs.config import EnvConfig, check_feet_and_policy
 from footforge.envs.wrappers import policy_side
@@ -86,8 +87,6 @@ class LocomotionEnv(Env):
         # but the first of a multi-process run (--coordinator) is another machine's device, and
         # JAX refuses to close a computation over such arrays.
         self.sys = mjx.put_model(r.model, device=jax.local_devices()[0], impl=config.mjx_impl)
-        if config.mjx_impl == "jax":  # MJX Warp collides heightfields its own way
-            self.sys = fit_heightfield_subgrids(self.sys, r.model)
         self._n_passive = len(r.passive_qpos)
         self._obs_size = observation_layout.size(config, self._n_passive)
         # Privileged (critic-only) observations: true base velocity (3), each foot's normal
@@ -104,10 +103,17 @@ class LocomotionEnv(Env):
         self.default_q = jp.asarray(r.default_q)
         """The actuated joints' default angles, rad (actuator order)."""
         self._q_lo, self._q_hi = jp.asarray(r.q_limits[:, 0]), jp.asarray(r.q_limits[:, 1])
+        foot_geoms, foot_local, foot_radius = contacts.foot_points(r.model, r.geom_category)
+        self._foot_geoms, self._foot_local = jp.asarray(foot_geoms), jp.asarray(foot_local)
+        self._foot_radius = jp.asarray(foot_radius)
         stand = mujoco.MjData(r.model)
         stand.qpos[:] = r.stand_qpos
         mujoco.mj_kinematics(r.model, stand)
-        self._stand_site_clearance = float(stand.site_xpos[r.foot_sites, 2].min())  # flat ground at z = 0
+        lowest = (stand.geom_xpos[foot_geoms] + np.einsum("pij,pj->pi", stand.geom_xmat[foot_geoms].reshape(-1, 3, 3),
+                                                         foot_local))[:, 2] - foot_radius
+        self._stand_foot_clearance = float(lowest.min())
+        """How far the stand keyframe's lowest foot collider point is above flat ground (z = 0), m:
+        about minus its resting contact depth."""
         self._push_every = max(1, int(round(config.pushes.interval_s / config.policy_dt)))
         self._command_every = max(1, int(round(config.commands.resample_s / config.policy_dt)))
 
@@ -159,8 +165,10 @@ class LocomotionEnv(Env):
         targets at default x f, f drawn per joint in EnvConfig.reset.joint_pos_factor_range, and
         joint velocities in +-joint_vel_max. The pose is the build's `stand` keyframe (at rest
         under the default targets) at the spawn point, its leg joints moved by default x (f - 1):
-        with f = 1 the robot starts at rest. Otherwise the base is raised or lowered so that the
-        lowest foot touchdown point stays where it was (straighter legs would start buried)."""
+        with f = 1 on flat ground the robot starts at rest. The base is raised or lowered so that
+        the lowest point of any foot collider is as high above the ground under it as in the stand
+        on flat ground (straighter legs, tilted soles or a foot past a small platform onto a slope
+        would start buried)."""
         r, cfg = self.robot, self.config.reset
         k_pos, k_vel = jax.random.split(key)
         lo, hi = cfg.joint_pos_factor_range
@@ -171,10 +179,14 @@ class LocomotionEnv(Env):
                                                      self._q_lo, self._q_hi))
         qvel = jp.zeros(self.mjx_model.nv).at[r.actuated_dof].set(
             jax.random.uniform(k_vel, (N_ACTUATED,), minval=-cfg.joint_vel_max, maxval=cfg.joint_vel_max))
-        if lo != 1.0 or hi != 1.0:
-            sites = mjx.kinematics(self.mjx_model, mjx.make_data(self.mjx_model).replace(qpos=qpos)).site_xpos[r.foot_sites]
-            clearance = jp.min(sites[:, 2] - self.terrain_height(sites[:, :2]))
-            qpos = qpos.at[2].add(self._stand_site_clearance - clearance)
+        # Every foot collider's lowest point, the ground under it: the base goes up or down until the
+        # lowest foot is as high above its ground as in the stand on flat ground (a straighter leg,
+        # a tilted sole, or a foot reaching onto a slope past a tile's platform would start buried).
+        kin = mjx.kinematics(self.mjx_model, mjx.make_data(self.mjx_model).replace(qpos=qpos))
+        g = self._foot_geoms
+        points = kin.geom_xpos[g] + jp.einsum("pij,pj->pi", kin.geom_xmat[g], self._foot_local)
+        clearance = jp.min(points[:, 2] - self._foot_radius - self.terrain_height(points[:, :2]))
+        qpos = qpos.at[2].add(self._stand_foot_clearance - clearance)
         return qpos, qvel, target
 
     # The policy's side: what a controller on the robot computes, from the robot's state (data's
