@@ -15,6 +15,23 @@ GL_UNAVAILABLE: "tuple[str, str] | None" = None
 """(backend asked for in MUJOCO_GL, why it cannot load), or None when nothing was switched off."""
 
 
+GL_SETTINGS = ("glfw", "egl", "osmesa", "", "on", "enable", "enabled", "true", "1",
+               "off", "disable", "disabled", "false", "0")
+"""MUJOCO_GL values that both MuJoCo and dm_control accept on Linux, as written: dm_control compares
+the value as it is (dm_control/_render/constants.py), MuJoCo lower-cased (mujoco/rendering/classic/
+gl_context.py: also glx; egl and osmesa on Linux only; wgl, cgl on Windows and macOS)."""
+
+
+def gl_setting_error() -> "str | None":
+    """For footforge's command lines, first thing: why MUJOCO_GL's value would make `import mujoco` or
+    `import dm_control` raise (an input error: exit 2), or None when it is unset or accepted."""
+    value = _os.environ.get("MUJOCO_GL")
+    if value is None or value in GL_SETTINGS or "mujoco" in _sys.modules:
+        return None
+    return (f"MUJOCO_GL={value!r} is not a value MuJoCo and dm_control accept ({', '.join(repr(v) for v in GL_SETTINGS)}): "
+            "set egl, osmesa or glfw to render, disable not to, or unset it")
+
+
 def _missing_gl_library(backend: str) -> "str | None":
     name = {"osmesa": "OSMesa", "egl": "EGL"}.get(backend)
     if name is None:
@@ -32,6 +49,8 @@ def _missing_gl_library(backend: str) -> "str | None":
 def _check_gl_backend() -> None:
     global GL_UNAVAILABLE
     if "mujoco" in _sys.modules or "MUJOCO_GL" not in _os.environ:  # settled, or MuJoCo's own default
+        return
+    if gl_setting_error() is not None:  # `import mujoco` raises naming it: the command lines refuse it first
         return
     backend = _os.environ["MUJOCO_GL"].lower()
     reason = _missing_gl_library(backend)

@@ -336,3 +336,27 @@ def test_tables_are_not_cut_when_piped(monkeypatch):
     out.print(table)
     text = out.file.getvalue()
     assert "…" not in text and all(h in text for h in headers)
+
+
+@pytest.mark.parametrize("value", ["bogus", "Egl"])
+def test_an_unknown_mujoco_gl_is_an_input_error_for_every_command(value):
+    """MUJOCO_GL with a value MuJoCo or dm_control rejects ('Egl': dm_control compares it as written)
+    made `import mujoco` raise a traceback from every command, --help included: now each command
+    and each pipelines/ script refuses it first, exit 2, one line naming the value and the accepted
+    ones. The control: the same commands with MUJOCO_GL=disable print their help (exit 0)."""
+    import os
+    import subprocess
+    import sys
+
+    commands = [["-m", "footforge.cli.main", "--help"], ["-m", "footforge.cli.main", "build", "--help"],
+                ["-m", "footforge.cli.main", "train", "flat", "--help"], ["-m", "footforge.cli.main", "evaluate", "--help"],
+                ["-m", "footforge.cli.main", "play", "--help"], ["-m", "footforge.cli.main", "evaluate-closed-chain", "--help"],
+                [str(REPO / "pipelines" / "train_rough.py"), "--help"]]
+    for command in commands:
+        for setting, code in ((value, 2), ("disable", 0)):
+            done = subprocess.run([sys.executable, *command], capture_output=True, text=True, timeout=300,
+                                  env=os.environ | {"MUJOCO_GL": setting})
+            assert done.returncode == code, (command, setting, done.stderr[-2000:])
+            if code == 2:
+                assert "Traceback" not in done.stderr and done.stderr.count("\n") == 1, (command, done.stderr)
+                assert f"MUJOCO_GL={value!r}" in done.stderr and "'egl'" in done.stderr and "unset it" in done.stderr
