@@ -192,21 +192,23 @@ print(json.dumps({"same": T._parts(T._rollout(mjx_env, actions), c_rows),
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("feet,policy", [("ball", "P"), ("aof", "PH")])
 def test_engines_agree_on_a_heightfield(built, feet, policy):
-    """Rough ball P (the height scan observed) and rough AOF PH (the sole capsules, passive joints,
-    haptic observations) on ROUGH_TILES (feet on slopes), float64, both solvers converged: the two
-    engines' robots stay closer to each other than the C engine's own robots do to a C engine
-    taking one physics step more per policy step (the control, computed here): base, feet and
-    probe points within a third of that, and within a centimetre.
+    """Rough ball P (the height scan observed) and rough AOF PH (sole boxes, passive joints, haptic
+    observations) on ROUGH_TILES (feet on slopes), float64, both solvers converged: the two engines'
+    robots stay closer to each other than the C engine's own robots do to a C engine taking one
+    physics step more per policy step (the control, computed here): base, feet and probe points
+    within half of that, and within a centimetre.
 
     Not to rounding: a heightfield is collided by each engine's own code. MuJoCo's C engine makes
-    one contact per terrain prism a geom overlaps, MJX its own manifold, so they agree while a foot
-    touches one face of the terrain and part where it touches two. Measured 2026-11-28 (4 robots,
-    2 policy steps): rough ball P to 1e-6 m at three robots, and at the fourth, whose sphere lands
-    on a platform's edge (C: a second contact on the slope's prism, normal tilted 27 deg; MJX: one),
-    feet 1.25 mm and base 0.1 mm apart, observations 0.025. Rough AOF PH, three action seeds: base
-    0.01-0.75 mm and feet 0.07-4.6 mm apart, foot forces 16-264 N at impacts, one contact flag; the
-    control parts the bases by 2.1-2.7 mm and the feet by 14.5-17 mm. With sole boxes and spawns
-    that buried feet: 125 mm and up to 4.8e5 N (RESULTS.md, "Physics engines")."""
+    one contact per terrain prism a geom overlaps, MJX its own manifold (a box: four points), so
+    they agree while a foot touches one face of the terrain and part where it touches several.
+    Measured 2026-11-28 (4 robots, 2 policy steps, action seeds 1-3), against the control: rough
+    ball P to 1e-5 at three robots and at the fourth, whose sphere lands on a platform's edge (C: a
+    second contact on the slope's prism, normal tilted 27 deg; MJX: one), feet 1.3 mm apart (control
+    11-13 mm), base 0.1 mm (2.4-3.0 mm). Rough AOF PH: feet 2.3-6.3 mm (14.5-17 mm), base 0.2-1.35 mm
+    (2.1-2.7 mm), probes 0.9-6.2 mm (6.2-6.5 mm), forces up to 700 N apart at impacts: at seed 1 (the
+    one tested here) at most 0.15 of the control, at seed 3 the probes 0.98 of it. So this guards
+    what went wrong before (spawns that buried feet: 125 mm, up to 4.8e5 N), not a close match of
+    AOF on a heightfield (RESULTS.md, "Physics engines": the C engine's box-heightfield collision)."""
     import os
     import subprocess
     import sys
@@ -219,7 +221,7 @@ def test_engines_agree_on_a_heightfield(built, feet, policy):
     same, control = out["same"], out["one_more_step"]
     assert same["done"] == 0, same
     for key in ("base_pose", "feet", "probes"):
-        assert same[key] < control[key] / 3, (key, same, control)
+        assert same[key] < control[key] / 2, (key, same, control)
     assert max(same["feet"], same["base_pose"]) < 0.01, same  # and absolutely: within a centimetre after two policy steps
 
 

@@ -59,3 +59,13 @@ def test_the_resting_ball_s_normal_force_is_its_weight(settled):
     weight = 2.0 * -model.opt.gravity[2]
     np.testing.assert_allclose(float(np.asarray(normal)[on_ball].sum()), weight, rtol=0.02)
 
+
+def test_heightfield_bounds_read_and_replace(settled):
+    model, mjx_model, _ = settled
+    bounds = mjx_private.heightfield_bounds(mjx_model)
+    np.testing.assert_allclose(bounds, model.geom_rbound)  # MJX's default: the geoms' own bounds
+    bounds[model.geom("brick").id] = 0.042
+    replaced = mjx_private.with_heightfield_bounds(mjx_model, bounds)
+    assert mjx_private.heightfield_bounds(replaced)[model.geom("brick").id] == pytest.approx(0.042)
+    assert mjx_private.heightfield_bounds(mjx_model)[model.geom("brick").id] == pytest.approx(model.geom_rbound[
+        model.geom("brick").id])  # a copy: the original model keeps its bounds

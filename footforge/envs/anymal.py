@@ -7,10 +7,8 @@ ground contact only ends episodes and is measured geometrically instead
 (footforge.envs.locomotion.LocomotionEnv.contact_flags). Their colliders would otherwise be the
 most of MJX's contact slots (83 of ball feet's 87 on flat ground), each of them constraint rows of
 every Newton iteration (benchmarks/step_profile.py). The feet keep theirs; on a heightfield the
-shank tubes collide as capsules (MJX has no cylinder-heightfield collision), and in either engine
-the AFF/AOF sole boxes as two capsules on their bottom edges (_sole_boxes_as_edge_capsules: MuJoCo's
-C engine collides boxes with heightfields badly). CPU MuJoCo (load_robot(for_mjx=False)) keeps
-every other collider of the build.
+shank tubes collide as capsules (MJX has no cylinder-heightfield collision). CPU MuJoCo
+(load_robot(for_mjx=False)) keeps every collider of the build.
 """
 
 from __future__ import annotations
@@ -186,58 +184,13 @@ def _shank_tubes_as_capsules(spec: mujoco.MjSpec) -> None:
                 geom.size = [radius, half_length - radius, 0.0]
 
 
-SOLE_EDGE_RADIUS_M = 0.010
-"""Radius of the capsules that stand for an adaptive sole box's two long bottom edges on a
-heightfield (_sole_boxes_as_edge_capsules): the larger, the deeper a sole may sink before MuJoCo's
-C engine turns its contact normals sideways (benchmarks/box_on_heightfield.py: at 6 mm deep 4 mm
-threw a sole 0.3 m, 8 mm held it within 0.02 mm of the plane's figures)."""
-
-
-def _sole_boxes_as_edge_capsules(spec: mujoco.MjSpec) -> None:
-    """On a heightfield, each colliding box of an adaptive foot (AOF's two soles, AFF's one) collides
-    as two capsules of radius SOLE_EDGE_RADIUS_M whose lowest lines are the box's two long bottom
-    edges: on a plane the same four support points as the box (its bottom corners) and the same
-    contacts per sole (four); the capsules reach the radius past the box's sides and ends at the
-    bottom, and the box's height above them does not collide.
-
-    Why: MuJoCo's C engine collides a convex geom with a heightfield one contact per terrain prism
-    it overlaps (mjc_ConvexHField; MuJoCo issue #236): a sole box (62-75 x 55 mm) on the 0.1 m
-    terrain overlaps two to eight prisms and gets two to six contacts at whichever box vertices are
-    deepest in each, so on a heightfield that is exactly a plane it rocks, its force peaks at up to
-    5x the plane's, and at some spots of a 20 deg ramp a 6 kg sole is thrown a metre; MJX keeps a
-    four-point manifold and follows the plane. These capsules follow the plane in both engines
-    (benchmarks/box_on_heightfield.py, RESULTS.md "Physics engines"), and the two engines' rough
-    AOF rollouts agree 5x closer than with boxes. On flat ground (a plane geom) the boxes stay:
-    box-plane contacts are exact in both engines."""
-    r = SOLE_EDGE_RADIUS_M
-    for body in spec.bodies:
-        if "_foot/" not in body.name:
-            continue
-        for geom in list(body.geoms):
-            if geom.type != mujoco.mjtGeom.mjGEOM_BOX or not (geom.contype or geom.conaffinity):
-                continue
-            hx, hy, hz = geom.size
-            rot = np.zeros(9)
-            mujoco.mju_quat2Mat(rot, np.asarray(geom.quat, float))
-            rot = rot.reshape(3, 3)
-            for side in (-1.0, 1.0):
-                ends = [np.asarray(geom.pos) + rot @ np.array([x, side * hy, -(hz - r)]) for x in (-hx, hx)]
-                body.add_geom(name=f"{geom.name}_edge{'L' if side > 0 else 'R'}", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
-                              fromto=np.concatenate(ends), size=[r, 0.0, 0.0], contype=geom.contype,
-                              conaffinity=geom.conaffinity, condim=geom.condim, priority=geom.priority,
-                              friction=geom.friction, solmix=geom.solmix, solref=geom.solref, solimp=geom.solimp,
-                              margin=geom.margin, gap=geom.gap, group=geom.group, mass=0.0)
-            spec.delete(geom)
-
-
 def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robot:
     """The build's scene, set up for MJX as described in the module docstring.
 
     With a `terrain` (footforge.envs.terrain.Terrain) its heightfield replaces the floor plane,
     under the same geom name. MJX collides heightfields with spheres, capsules, boxes and meshes
     only, and a heightfield costs one prism test per sample under a geom's bounding sphere: the
-    ball feet keep their spheres, the AFF/AOF sole boxes collide as capsules along their bottom
-    edges (_sole_boxes_as_edge_capsules, in both engines), the shank tubes as capsules
+    feet (small spheres or boxes) keep their collisions, the shank tubes collide as capsules
     (_shank_tubes_as_capsules). On either ground the base's and thighs' collisions (cylinders,
     a 0.6 m box) are switched off for MJX and their ground contact is measured geometrically
     instead (LocomotionEnv.contact_flags). for_mjx=False keeps the model's own geoms, for MuJoCo
@@ -300,8 +253,6 @@ def _scene_spec(folder: Path, config: EnvConfig, terrain, for_mjx: bool) -> mujo
 
         spec.delete(spec.geom(FLOOR_GEOM))
         add_to_spec(spec, terrain, name=FLOOR_GEOM)
-        if config.feet in ("aff", "aof"):  # the approximations' sole boxes; the closed chain keeps its geoms
-            _sole_boxes_as_edge_capsules(spec)
         if for_mjx and config.shank_collisions:
             _shank_tubes_as_capsules(spec)
     return spec
@@ -349,6 +300,29 @@ def _with_engine_sensors(model: mujoco.MjModel, folder: Path, config: EnvConfig,
     engine_model.geom_contype[:] = model.geom_contype
     engine_model.geom_conaffinity[:] = model.geom_conaffinity
     return engine_model
+
+
+def fit_heightfield_subgrids(mjx_model, model: mujoco.MjModel):
+    """`mjx_model` (mjx.put_model(model), the "jax" implementation) with each box's heightfield
+    subgrid sized to what MJX's box-heightfield collision can reach, no larger.
+
+    MJX tests a box against the terrain prisms of a fixed subgrid of n x n cells, n =
+    ceil(2 r / cell) + 1 with r the box's bounding-sphere radius (ModelJAX.geom_rbound_hfield,
+    geom_rbound by default), but starts that subgrid at the box's centre minus its largest
+    half-size a (collision_convex.hfield_convex), not minus r. From that start, n - 1 >= (a + r) /
+    cell cells already reach past the box's far side in any orientation, so r_fit = (a + r) / 2
+    gives the same cells the box can touch. On the 0.1 m terrain this takes AOF's back sole box
+    (a 37.6 mm, r 50.013 mm: 13 um over one cell's 50 mm) from 3 x 3 cells (18 prisms) to the 2 x 2
+    (8 prisms) of its front box (AOF's collision stage, timed alone for 128 robots: 170 -> 97 ms,
+    benchmarks/step_profile.py); every other footforge geom keeps its subgrid. The near side is
+    MJX's own: a yawed box's corner can reach up to r - a beyond the start, with or without this.
+    Spheres and capsules start at their own bound and keep it."""
+    from footforge.envs import mjx_private
+
+    fitted = mjx_private.heightfield_bounds(mjx_model)  # mujoco-mjx 3.17: a static numpy field
+    boxes = model.geom_type == mujoco.mjtGeom.mjGEOM_BOX
+    fitted[boxes] = (model.geom_size[boxes].max(axis=1) + model.geom_rbound[boxes]) / 2
+    return mjx_private.with_heightfield_bounds(mjx_model, fitted)
 
 
 def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[float, float, float]:

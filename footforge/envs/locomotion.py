@@ -24,7 +24,7 @@ from mujoco import mjx
 
 from footforge import constants as C
 from footforge.envs import contacts, engine, observation_layout, rewards
-from footforge.envs.anymal import (GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl,
+from footforge.envs.anymal import (GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
                                    load_robot)
 from footforge.envs.config import EnvConfig, check_feet_and_policy
 from footforge.envs.wrappers import policy_side
@@ -87,6 +87,8 @@ class LocomotionEnv(Env):
         # but the first of a multi-process run (--coordinator) is another machine's device, and
         # JAX refuses to close a computation over such arrays.
         self.sys = mjx.put_model(r.model, device=jax.local_devices()[0], impl=config.mjx_impl)
+        if config.mjx_impl == "jax":  # MJX Warp collides heightfields its own way
+            self.sys = fit_heightfield_subgrids(self.sys, r.model)
         self._n_passive = len(r.passive_qpos)
         self._obs_size = observation_layout.size(config, self._n_passive)
         # Privileged (critic-only) observations: true base velocity (3), each foot's normal
