@@ -15,7 +15,7 @@ as footforge's terrain (then it is a staircase of the plane, no longer equal to 
 Prints one JSON line: per engine and shape, the worst ratio of peak force heightfield / plane and
 the worst extra motion (mm) over the exact heightfields, and every case under "cases".
 
-    python benchmarks/box_on_heightfield.py [--engines c mjx] [--out FILE.jsonl]
+    python benchmarks/box_on_heightfield.py [--engines c mjx] [--shapes box "edge capsules" "corner spheres"] [--out FILE.jsonl]
     python benchmarks/box_on_heightfield.py --summarise FILE.jsonl   # the summary of a written run again
 """
 from __future__ import annotations
@@ -69,6 +69,22 @@ def boxes_as_edge_capsules(body, radius_m: float) -> None:
                           condim=geom.condim, friction=geom.friction, solref=geom.solref, solimp=geom.solimp, mass=0.0)
 
 
+CORNER_SPHERE_RADIUS_M = 0.008
+"""The corner spheres' radius: the build's `collision` option `sole: spheres, grid [2, 2], radius_m`."""
+SHAPES = ("box", "edge capsules", "corner spheres")
+
+
+def box_as_corner_spheres(body, geom, radius_m: float) -> None:
+    """Four spheres of radius_m inset by it from the box's bottom corners, their lowest points on its
+    bottom face (the sole the build makes with `collision: sole: spheres, grid [2, 2]`)."""
+    hx, hy, hz = geom.size
+    for x in (-1, 1):
+        for y in (-1, 1):
+            body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius_m, 0, 0], mass=0.0,
+                          pos=np.asarray(geom.pos) + [x * (hx - radius_m), y * (hy - radius_m), -(hz - radius_m)],
+                          condim=geom.condim, friction=geom.friction, solref=geom.solref, solimp=geom.solimp)
+
+
 def scene(surface: str, slope_deg: float, quantum_m: float, shape: str) -> mujoco.MjModel:
     t = math.radians(slope_deg)
     spec = mujoco.MjSpec()
@@ -98,6 +114,9 @@ def scene(surface: str, slope_deg: float, quantum_m: float, shape: str) -> mujoc
     body.inertia = [MASS_KG / 3 * (SOLE_HALF_M[(i + 1) % 3] ** 2 + SOLE_HALF_M[(i + 2) % 3] ** 2) for i in range(3)]
     body.add_geom(name="sole", type=mujoco.mjtGeom.mjGEOM_BOX, size=SOLE_HALF_M,
                   friction=[0.8, 0.005, 0.0001], solref=[0.004, 1], solimp=[0.99, 0.999, 0.001, 0.5, 2])
+    if shape == "corner spheres":
+        box_as_corner_spheres(body, spec.geom("sole"), CORNER_SPHERE_RADIUS_M)
+        spec.delete(spec.geom("sole"))
     if shape == "edge capsules":
         boxes_as_edge_capsules(body, EDGE_RADIUS_M)
         spec.delete(spec.geom("sole"))
@@ -157,7 +176,7 @@ def summarise(cases, engines):
     extra motion (mm) over the exact heightfields, and the worst extra motion over the quantised ones."""
     summary = {}
     for engine in engines:
-        for shape in ("box", "edge capsules"):
+        for shape in sorted({c["shape"] for c in cases}, key=SHAPES.index):
             for depth in START_DEPTHS_M:
                 mine = [c for c in cases if c["engine"] == engine and c["shape"] == shape and c["start_depth_m"] == depth]
                 exact, quantised = [c for c in mine if not c["quantum_m"]], [c for c in mine if c["quantum_m"]]
@@ -172,6 +191,7 @@ def summarise(cases, engines):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--engines", nargs="+", choices=("c", "mjx"), default=["c", "mjx"])
+    parser.add_argument("--shapes", nargs="+", choices=SHAPES, default=list(SHAPES[:2]))
     parser.add_argument("--out", help="also write every case as JSON lines here")
     parser.add_argument("--edge-radius-m", type=float, help="the edge capsules' radius, m",
                         default=None)
@@ -193,7 +213,7 @@ def main(argv=None):
     radius = EDGE_RADIUS_M
     began = time.time()
     cases = []
-    for shape in ("box", "edge capsules"):
+    for shape in args.shapes:
         for slope in SLOPES_DEG:
             for spot in SPOTS:
                 for depth in START_DEPTHS_M:
