@@ -32,6 +32,15 @@ def gl_setting_error() -> "str | None":
             "set egl, osmesa or glfw to render, disable not to, or unset it")
 
 
+def gl_setting_refused(prog: str) -> bool:
+    """For each command line's main, first thing: print `prog: error: ...` and return True where
+    MUJOCO_GL's value would make `import mujoco` raise (gl_setting_error; the command exits 2)."""
+    error = gl_setting_error()
+    if error is not None:
+        print(f"{prog}: error: {error}", file=_sys.stderr)
+    return error is not None
+
+
 def _missing_gl_library(backend: str) -> "str | None":
     name = {"osmesa": "OSMesa", "egl": "EGL"}.get(backend)
     if name is None:

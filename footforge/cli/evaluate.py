@@ -59,8 +59,7 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate") -> int
     import footforge
 
     footforge.headless_by_default()  # before any import of MuJoCo
-    if (gl_error := footforge.gl_setting_error()) is not None:  # before `import mujoco` raises on it
-        print(f"{prog}: error: {gl_error}", file=sys.stderr)
+    if footforge.gl_setting_refused(prog):  # before `import mujoco` raises on it
         return 2
     args = parser(prog).parse_args(argv)
 

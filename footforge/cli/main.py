@@ -381,8 +381,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    if (gl_error := footforge.gl_setting_error()) is not None:  # before `import mujoco` raises on it
-        print(f"footforge: error: {gl_error}", file=sys.stderr)
+    if footforge.gl_setting_refused("footforge"):  # before `import mujoco` raises on it
         return EXIT_INPUT_ERROR
     argv = sys.argv[1:] if argv is None else list(argv)
     first = next((i for i, a in enumerate(argv) if not a.startswith("-")), None)

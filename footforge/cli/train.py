@@ -98,8 +98,7 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
 
 def main(task: str, description: str, argv: list[str] | None = None, prog: str | None = None) -> int:
     """`footforge train TASK` (and pipelines/train_TASK.py): one training run of `task`, flat or rough."""
-    if (gl_error := footforge.gl_setting_error()) is not None:  # before `import mujoco` raises on it
-        print(f"{prog or 'footforge train ' + task}: error: {gl_error}", file=sys.stderr)
+    if footforge.gl_setting_refused(prog or f"footforge train {task}"):  # before `import mujoco` raises on it
         return EXIT_INPUT_ERROR
     args = parser(task, description, prog).parse_args(argv)
 

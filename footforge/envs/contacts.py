@@ -53,8 +53,7 @@ def ground_contacts(geom_category, floor_geom, geoms, dist):
 def foot_points(model: mujoco.MjModel, geom_category: np.ndarray):
     """Points whose lowest reach bounds each foot collider from below, for any pose: (geom ids,
     points in the geom frame, radius). A collider's lowest point is the lowest of its points' z
-    minus their radius: a box's 8 corners (radius 0), a sphere's centre and a capsule's two
-    segment ends (their radius)."""
+    minus their radius: a box's 8 corners (radius 0), a sphere's centre (its radius)."""
     geoms, points, radius = [], [], []
     for g in np.flatnonzero((geom_category >= GEOM_FOOT) & (geom_category < GEOM_FOOT + 4)):
         size, kind = model.geom_size[g], model.geom_type[g]
@@ -62,8 +61,6 @@ def foot_points(model: mujoco.MjModel, geom_category: np.ndarray):
             local, r = box_corners(size), 0.0
         elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
             local, r = np.zeros((1, 3)), size[0]
-        elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
-            local, r = np.array([[0.0, 0.0, -size[1]], [0.0, 0.0, size[1]]]), size[0]
         else:
             raise ValueError(f"foot geom {model.geom(g).name}: no lowest points for geom type {kind}")
         geoms += [g] * len(local)
