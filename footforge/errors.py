@@ -1,6 +1,9 @@
 """Error types and the exit-code convention of the command line.
 
-Exit codes: 0 success, 1 validation or check failures, 2 usage or input errors.
+Exit codes: 0 success, 1 validation or check failures, 2 usage or input errors, and as shells
+report a process ended by a signal (128 + its number): 130 interrupted (Ctrl-C, SIGINT), 143
+terminated (SIGTERM, a batch scheduler's kill). An interrupted or terminated command first cleans up
+what it was writing and says what was kept.
 Every error names the file, the element and the fix, so the CLI prints it without a traceback.
 """
 
@@ -9,6 +12,23 @@ from __future__ import annotations
 EXIT_OK = 0
 EXIT_CHECK_FAILED = 1
 EXIT_INPUT_ERROR = 2
+EXIT_INTERRUPTED = 130
+"""128 + SIGINT (2)."""
+EXIT_TERMINATED = 143
+"""128 + SIGTERM (15)."""
+
+
+def interrupt_exit_code(interrupt: BaseException) -> int:
+    """The exit code of a command stopped by `interrupt` (a KeyboardInterrupt): 143 where it came
+    from SIGTERM (footforge.processes.sigterm_as_interrupt raises Terminated), else 130."""
+    from footforge.processes import Terminated
+
+    return EXIT_TERMINATED if isinstance(interrupt, Terminated) else EXIT_INTERRUPTED
+
+
+def interrupt_word(interrupt: BaseException) -> str:
+    """How a command's last line names its stop: 'terminated' (SIGTERM) or 'interrupted'."""
+    return "terminated" if interrupt_exit_code(interrupt) == EXIT_TERMINATED else "interrupted"
 
 
 class FootforgeError(Exception):

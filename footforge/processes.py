@@ -52,14 +52,19 @@ def die_with_parent(parent_pid: int) -> None:
                      name="footforge-parent-watch").start()
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised as an interrupt (sigterm_as_interrupt): cleaned up as Ctrl-C is, but it exits
+    143, not 130 (footforge.errors.interrupt_exit_code)."""
+
+
 def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt(f"signal {signum}")
+    raise Terminated(f"signal {signum}")
 
 
 @contextmanager
 def sigterm_as_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM raises KeyboardInterrupt in the main thread, so a terminated run
-    cleans up exactly as an interrupted one does. Restores the previous handler after; does
+    """Within the block, SIGTERM raises Terminated (a KeyboardInterrupt) in the main thread, so a
+    terminated run cleans up exactly as an interrupted one does. Restores the previous handler after; does
     nothing outside the main thread (where Python cannot install handlers)."""
     if threading.current_thread() is not threading.main_thread():
         yield

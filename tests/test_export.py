@@ -80,7 +80,7 @@ CASES = {  # (task, feet, policy, privileged critic, observation size of the pol
 
 
 @pytest.mark.parametrize("case", CASES)
-def test_onnx_matches_the_jax_policy_on_random_observations(tmp_path, capsys, case):
+def test_onnx_matches_the_jax_policy_on_random_observations(tmp_path, capsys, case, monkeypatch):
     import footforge
 
     task, feet, policy_type, privileged, size = CASES[case]
@@ -88,11 +88,13 @@ def test_onnx_matches_the_jax_policy_on_random_observations(tmp_path, capsys, ca
     ppo = PPOConfig(policy_hidden_layers=(32, 16, 8), value_hidden_layers=(8,), seed=3)
     obs_size = {"state": (size,), "privileged_state": (size + 20,)} if privileged else size
     policy_dir = _perturbed_policy(env_config, ppo, tmp_path / "policy", obs_size)
+    monkeypatch.chdir(tmp_path)  # the default output goes to the current folder, named after the run
     code = main(["export", str(policy_dir)])
     text = capsys.readouterr()
     assert code == 0, text.err
-    path = policy_dir / "policy.onnx"
-    assert path.is_file() and str(path) in text.out
+    path = tmp_path / f"{tmp_path.name}.onnx"
+    assert path.is_file() and path.name in text.out
+    assert not list(policy_dir.glob("*.onnx"))  # never into the policy's own folder
 
     rng = np.random.default_rng(1)
     obs = np.concatenate([rng.normal(0.0, 1.0, (64, size)), rng.uniform(-5.0, 5.0, (64, size))]).astype(np.float32)
@@ -195,8 +197,10 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, capsys, monk
 
     # A write that fails midway (here: a full disk) leaves neither the file nor its temporary, and
     # an earlier export in its place untouched.
+    monkeypatch.chdir(tmp_path)
     assert main(["export", str(policy_dir)]) == 0
-    earlier = (policy_dir / "policy.onnx").read_bytes()
+    written = tmp_path / f"{tmp_path.name}.onnx"  # the default: named after the folder holding policy/
+    earlier = written.read_bytes()
 
     def full_disk(model, path):
         with open(path, "wb") as f:
@@ -207,8 +211,8 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, capsys, monk
     capsys.readouterr()
     assert main(["export", str(policy_dir)]) == 2
     assert "No space left on device" in capsys.readouterr().err
-    assert (policy_dir / "policy.onnx").read_bytes() == earlier
-    assert not [p for p in policy_dir.iterdir() if ".tmp" in p.name]
+    assert written.read_bytes() == earlier
+    assert not [p for p in tmp_path.iterdir() if ".tmp" in p.name]
     assert main(["export", str(policy_dir), "--out", str(tmp_path / "new.onnx")]) == 2
     assert not (tmp_path / "new.onnx").exists() and not list(tmp_path.glob(".new*"))
 
@@ -257,5 +261,5 @@ def test_commands_take_a_run_folder_for_its_policy(tmp_path, capsys):
         capsys.readouterr()
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
-        assert "is a training run without a policy yet" in err, (argv, err)
+        assert "is a training run without a policy or an intact checkpoint yet" in err, (argv, err)
     assert not (tmp_path / "e").exists() and not (tmp_path / "c").exists()

@@ -139,7 +139,7 @@ def resumed(built, tmp_path_factory):
     assert not (out / "policy").exists()
     # Resume with the same options and a total just past the checkpoint: it must continue, not
     # restart. 50 more steps are not whole iterations of 32: Brax runs 64, as the run announces.
-    done = subprocess.run(_train(out, built["ball"][0], killed_at + 50, "--resume"), env=env,
+    done = subprocess.run(_train(out, built["ball"][0], killed_at + 50, "--resume", "--shorten"), env=env,
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     return out, killed_at, done.stdout
@@ -158,8 +158,13 @@ def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
     assert progress["resumes"] == 1 and progress["global_step"] == train.planned_steps(ppo, killed_at) == killed_at + 64
     assert f"steps {killed_at:,} -> {killed_at + 64:,} (--timesteps {killed_at + 50:,} rounded up" in stdout
     assert (out / "tensorboard").is_dir() and len(list((out / "tensorboard").iterdir())) >= 2
+    # One curve over the kill: steps and cumulative wall time never go back, no step evaluated twice.
+    curve = _curve_rows(out)
+    steps, evaluations = [r["global_step"] for r in curve], [r["global_step"] for r in curve if "eval/episode_reward" in r]
+    assert steps == sorted(steps) and [r["wall_s"] for r in curve] == sorted(r["wall_s"] for r in curve), curve
+    assert len(evaluations) == len(set(evaluations)) and evaluations[-1] == killed_at + 64, evaluations
     # Resuming with other options (here another seed) is refused, naming the option.
-    other = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume", "--seed", "3"),
+    other = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume", "--seed", "3", "--shorten"),
                            capture_output=True, text=True, timeout=900)
     assert other.returncode == 2 and "--seed 3 differs from the run's 0" in other.stderr
 
@@ -609,8 +614,9 @@ def test_training_errors_go_to_stderr(written_run):
 
 
 def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypatch, capsys):
-    """SIGTERM (a batch scheduler's kill) during training: no traceback, exit 2, and stderr says
-    what the run folder keeps and how to continue."""
+    """SIGTERM (a batch scheduler's kill) during training: no traceback, exit 143 (128 + 15, as a
+    shell reports a terminated process), and stderr says what the run folder keeps and how to
+    continue."""
     from footforge.rl import train as train_lib
     from footforge.cli import train as train_cli
 
@@ -623,8 +629,8 @@ def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypa
     before = signal.getsignal(signal.SIGTERM)
     code = train_cli.main("flat", "test", ["--feet", "ball", "--out", str(tmp_path / "run")])
     captured = capsys.readouterr()
-    assert code == 2
-    assert "train_flat: interrupted; no checkpoint was written" in captured.err
+    assert code == 143
+    assert "train_flat: terminated; no checkpoint was written" in captured.err
     assert signal.getsignal(signal.SIGTERM) is before  # the handler is the pipeline's only while it trains
 
 
@@ -762,7 +768,7 @@ def test_resuming_a_complete_run_says_so_and_trains_nothing(written_run, monkeyp
 
     run, _, _ = written_run  # checkpoints at 32 and 64
     seen = _capture_train(monkeypatch)
-    assert main("flat", "", ["--out", str(run), "--resume", "--timesteps", "64"]) == 0
+    assert main("flat", "", ["--out", str(run), "--resume", "--timesteps", "64", "--shorten"]) == 0
     out = capsys.readouterr().out
     assert "already complete at step 64 (of 64); pass --timesteps with a larger total to extend it" in out
     assert not seen
@@ -827,3 +833,192 @@ def test_a_run_stopped_before_its_first_checkpoint_starts_again_with_the_same_co
     train.prepare_run_dir(run, notice=messages.append)
     assert "reached no checkpoint, so it starts again" in messages[0]
     assert not (run / "config.json").exists() and (run / "notes.txt").read_text() == "mine"
+
+
+def _interrupting(signum):
+    from footforge.rl import train as train_lib
+
+    def interrupted(*args, **kwargs):
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt  # what Python makes of Ctrl-C
+        os.kill(os.getpid(), signum)
+        time.sleep(5)  # the handler interrupts this
+        raise AssertionError("the signal did not interrupt training")
+    return train_lib, interrupted
+
+
+@pytest.mark.parametrize("signum, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_an_interrupt_names_only_complete_checkpoints_and_exits_as_shells_expect(written_run, monkeypatch, capsys,
+                                                                                 signum, code, word):
+    """Ctrl-C exits 130 and SIGTERM 143 (128 + the signal). A checkpoint whose manifest was not yet
+    written when the run stopped (orbax's files there, the manifest not) is not named as kept, and
+    a resume does not start from it."""
+    from footforge.cli import train as train_cli
+    from footforge.rl import train
+
+    run, _, _ = written_run
+    (run / "checkpoints" / f"{64:012d}" / train.CHECKPOINT_MANIFEST).unlink()  # its write cut short
+    module, interrupted = _interrupting(signum)
+    monkeypatch.setattr(module, "train", interrupted)
+    assert train_cli.main("flat", "test", ["--out", str(run), "--resume"]) == code
+    err = capsys.readouterr().err
+    assert f"train_flat: {word}; {run} keeps its checkpoints up to step 32: continue with --resume" in err, err
+    assert train.latest_intact_checkpoint(run)[0] == 32
+
+
+def test_a_shorter_total_on_resume_is_refused_unless_asked(written_run, monkeypatch, capsys):
+    """--resume --timesteps below the run's total (96) would silently cut the run short: exit 2,
+    naming --shorten; with --shorten it is accepted. --shorten alone is a usage error."""
+    from footforge.cli.train import main
+
+    run, _, _ = written_run
+    seen = _capture_train(monkeypatch)
+    assert main("flat", "", ["--out", str(run), "--resume", "--timesteps", "80"]) == 2
+    err = capsys.readouterr().err
+    assert "--timesteps 80 is below the run's total of 96" in err and "--shorten" in err and not seen
+    assert main("flat", "", ["--out", str(run), "--resume", "--shorten"]) == 2
+    assert "--shorten goes with --resume --timesteps" in capsys.readouterr().err and not seen
+    assert main("flat", "", ["--out", str(run), "--resume", "--timesteps", "80", "--shorten"]) == 0
+    assert seen["ppo"].num_timesteps == 80
+    assert main("flat", "", ["--out", str(run), "--resume", "--timesteps", "160"]) == 0  # extending needs nothing
+    assert seen["ppo"].num_timesteps == 160
+
+
+def _at_total(run):
+    """The written run as if its total were its last checkpoint's step (64): killed during its final
+    evaluation, after that checkpoint and before policy/."""
+    config = json.loads((run / "config.json").read_text())
+    config["ppo"]["num_timesteps"] = 64
+    (run / "config.json").write_text(json.dumps(config))
+
+
+def test_a_run_killed_before_its_policy_is_finished_by_resume(written_run, capsys):
+    """A run stopped after its last checkpoint but before policy/ (issue: `--resume` said "already
+    complete" and wrote nothing, export refused the run): --resume writes policy/ from the newest
+    intact checkpoint; a damaged policy/ is rewritten the same way; a complete one is left."""
+    from footforge.cli.train import main
+    from footforge.rl import train
+
+    run, _, _ = written_run
+    _at_total(run)
+    assert not (run / "policy").exists()
+    assert main("flat", "", ["--out", str(run), "--resume"]) == 0
+    out = capsys.readouterr().out
+    assert "it has no policy/ yet: wrote" in out and "from checkpoint 64" in out and "already complete at step 64" in out
+    assert train.policy_meta(run / "policy")["global_step"] == 64 and train.policy_problem(run) is None
+    np.testing.assert_array_equal(_kernel(train.load_policy_parameters(run / "policy").params),
+                                  _kernel(_params(64, PPOConfig(**SMALL_PPO))))
+    before = (run / "policy" / "footforge.json").stat().st_mtime_ns
+    assert main("flat", "", ["--out", str(run), "--resume"]) == 0  # nothing to do: policy/ left as it is
+    assert "wrote" not in capsys.readouterr().out and (run / "policy" / "footforge.json").stat().st_mtime_ns == before
+    _truncate_data(run / "policy")
+    assert "damaged" in train.policy_problem(run)
+    assert main("flat", "", ["--out", str(run), "--resume"]) == 0
+    assert "its policy/ is damaged" in capsys.readouterr().out and train.policy_problem(run) is None
+
+
+def test_a_run_without_a_policy_is_used_through_its_newest_intact_checkpoint(written_run, tmp_path, capsys,
+                                                                              monkeypatch):
+    """export (and evaluate, play: the same policy_folder) of a run with checkpoints but no policy/,
+    or a damaged one, uses its newest intact checkpoint and says so; a checkpoint folder is a policy
+    too, its configs read from the run; a damaged policy's fix names commands that work."""
+    from footforge.cli.main import main
+    from footforge.cli.train import main as train_main
+    from footforge.rl import train
+
+    run, cfg, _ = written_run
+    newest = run / "checkpoints" / f"{64:012d}"
+    assert train.policy_folder(run) == newest
+    monkeypatch.chdir(tmp_path)
+    assert main(["export", str(run)]) == 0
+    captured = capsys.readouterr()
+    assert f"{run}: it has no policy/ yet; using its newest intact checkpoint, step 64" in captured.err
+    assert (tmp_path / "run_step64.onnx").is_file()  # named after the run and step, in the current folder
+    (tmp_path / "run_step64.onnx").unlink()
+    assert main(["export", str(newest)]) == 0 and (tmp_path / "run_step64.onnx").is_file()
+    saved = train.load_policy_parameters(newest)
+    assert saved.global_step == 64 and saved.env == cfg
+    assert train.load_policy_config(run) == cfg
+    _truncate_data(newest)  # then the newest intact one is 32
+    assert train.policy_folder(run) == run / "checkpoints" / f"{32:012d}"
+    assert main(["export", str(newest), "--out", str(tmp_path / "x.onnx")]) == 2
+    err = capsys.readouterr().err
+    assert "the checkpoint is damaged or incomplete" in err and f"{32:012d}" in err
+    # A damaged policy/: the run folder falls back to a checkpoint; the policy folder itself is
+    # refused with fixes that work.
+    _at_total(run)
+    assert train_main("flat", "", ["--out", str(run), "--resume", "--timesteps", "32", "--shorten"]) == 0
+    assert train.policy_meta(run / "policy")["global_step"] == 32
+    _truncate_data(run / "policy")
+    assert train.policy_folder(run) == run / "checkpoints" / f"{32:012d}"
+    capsys.readouterr()
+    assert main(["export", str(run / "policy"), "--out", str(tmp_path / "y.onnx")]) == 2
+    err = capsys.readouterr().err
+    assert "the policy is damaged" in err and f"pass the run folder {run}" in err
+    assert f"footforge train flat --out {run} --resume" in err
+    assert main(["export", str(run), "--out", str(tmp_path / "y.onnx")]) == 0
+    assert "its policy/ is damaged; using its newest intact checkpoint, step 32" in capsys.readouterr().err
+
+
+def _curve_rows(run):
+    return [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+
+
+def _write_curve(run, rows):
+    (run / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+
+
+def _resumed_ppo(calls):
+    """Brax's PPO as train() calls it on a resume: the initial evaluation (step 0), a training
+    log, then one epoch's checkpoint and evaluation."""
+    def run(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save, *rest):
+        calls.append(remaining)
+        log(0, {"eval/episode_reward": 0.5})
+        log(remaining // 2, {"episode/length": 3.0})
+        save(remaining, None, restore)
+        log(remaining, {"eval/episode_reward": 1.0, "eval/walltime": 0.1, "training/sps": 10.0})
+    return run
+
+
+@pytest.mark.parametrize("killed", ["after the evaluation of 64", "before the evaluation of 64",
+                                    "after a damaged checkpoint 64"])
+def test_curves_continue_from_the_resumed_step(written_run, monkeypatch, killed):
+    """The curve after a kill and a resume has one increasing step axis and cumulative wall time:
+    rows the killed call logged after the restored checkpoint move to metrics.set_aside.jsonl;
+    the resumed call's first evaluation is written only if the checkpoint's was not. Kills at three
+    points: after the last checkpoint's evaluation and a training log past it; between a
+    checkpoint and its evaluation; after a checkpoint later found damaged (resumed from 32)."""
+    from footforge.rl import train
+
+    run, cfg, ppo = written_run
+    rows = [{"global_step": 0, "wall_s": 1.0, "eval/episode_reward": 0.1},
+            {"global_step": 16, "wall_s": 2.0, "episode/length": 2.0},
+            {"global_step": 32, "wall_s": 3.0, "eval/episode_reward": 0.2},
+            {"global_step": 48, "wall_s": 4.0, "episode/length": 2.5},
+            {"global_step": 64, "wall_s": 5.0, "eval/episode_reward": 0.3},
+            {"global_step": 80, "wall_s": 6.0, "episode/length": 2.7}]
+    if killed == "before the evaluation of 64":
+        rows = rows[:4]
+    _write_curve(run, rows)
+    (run / "progress.json").write_text(json.dumps({"global_step": 64, "resumes": 0, "metrics": {},
+                                                   "wall_s_total": 5.0}))
+    if killed == "after a damaged checkpoint 64":
+        _truncate_data(run / "checkpoints" / f"{64:012d}")
+    calls = []
+    monkeypatch.setattr(train, "_run_ppo", _resumed_ppo(calls))
+    train.train(cfg, ppo, run, resume=True, notice=lambda text: None)
+    curve = _curve_rows(run)
+    steps = [r["global_step"] for r in curve]
+    walls = [r["wall_s"] for r in curve]
+    assert steps == sorted(steps) and walls == sorted(walls), curve
+    restored = 32 if killed == "after a damaged checkpoint 64" else 64
+    assert all(r["wall_s"] >= 5.0 for r in curve if r["global_step"] > restored)  # the earlier calls' time counts
+    aside = [json.loads(line) for line in (run / "metrics.set_aside.jsonl").read_text().splitlines()] \
+        if (run / "metrics.set_aside.jsonl").exists() else []
+    assert all(r["set_aside_by_resume"] == 1 for r in aside)
+    expected = {"after the evaluation of 64": ([0, 16, 32, 48, 64, 80, 96], [80]),
+                "before the evaluation of 64": ([0, 16, 32, 48, 64, 80, 96], []),  # 64: the resumed call's evaluation
+                "after a damaged checkpoint 64": ([0, 16, 32, 64, 96], [48, 64, 80])}[killed]
+    assert (steps, [r["global_step"] for r in aside]) == expected, (curve, aside)
+    evaluations = [r["global_step"] for r in curve if "eval/episode_reward" in r]
+    assert len(evaluations) == len(set(evaluations))  # no step evaluated twice

@@ -86,7 +86,7 @@ def _run(args) -> int:
     from footforge.envs import engine
 
     engine.check(engine.resolve(args.physics))
-    args.policy = [policy_folder(policy) for policy in args.policy]  # a run's folder: its policy/
+    args.policy = [_used(policy) for policy in args.policy]  # a run's folder: its policy/ (or newest checkpoint)
     if args.video:
         from footforge.rl.render import check_renderer, render_frames, write_gif, write_strip
 
@@ -138,3 +138,15 @@ def _run(args) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+def _used(given):
+    """The folder used for policy `given` (footforge.rl.policy_files.policy_folder), said when it is
+    not what the user named."""
+    from footforge.rl.policy_files import folder_note, policy_folder
+
+    used = policy_folder(given)
+    note = folder_note(given, used)
+    if note:
+        print(f"evaluate: note: {note}", file=sys.stderr)
+    return used

@@ -73,7 +73,7 @@ def _run(args) -> int:
     console = make_console()
     engine.check("mujoco")  # its robots step on the C engine's threads (FOOTFORGE_PHYSICS_THREADS)
     check_output_folder(args.out, force=args.force)  # before minutes of simulation
-    args.policy = [policy_folder(policy) for policy in args.policy]  # a run's folder: its policy/
+    args.policy = [_used(policy) for policy in args.policy]  # a run's folder: its policy/ (or newest checkpoint)
     trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder
     build_defaults_if_missing([*trained_on, "full"], args.build_root, console)
     results = []
@@ -105,3 +105,15 @@ def _run(args) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+def _used(given):
+    """The folder used for policy `given` (footforge.rl.policy_files.policy_folder), said when it is
+    not what the user named."""
+    from footforge.rl.policy_files import folder_note, policy_folder
+
+    used = policy_folder(given)
+    note = folder_note(given, used)
+    if note:
+        print(f"evaluate_closed_chain: note: {note}", file=sys.stderr)
+    return used

@@ -20,7 +20,8 @@ import footforge
 
 footforge.headless_by_default()  # before any import of MuJoCo
 
-from footforge.errors import EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError
+from footforge.errors import (EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError, interrupt_exit_code,
+                              interrupt_word)
 from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET
 
 if TYPE_CHECKING:
@@ -223,9 +224,12 @@ def _parser() -> argparse.ArgumentParser:
     e = sub.add_parser("export", help="write a trained policy as ONNX (normaliser inside, metadata for deployment)",
                        description="Write a trained policy as one ONNX file: observation normaliser and network "
                                    "inside, the observation layout, action scale and joint order as metadata.")
-    e.add_argument("policy_dir", type=Path, metavar="POLICY_DIR", help="a training run's folder, or its policy/ folder")
-    e.add_argument("--out", type=Path, metavar="FILE.onnx", help="output file (default POLICY_DIR/policy.onnx); an "
-                   "existing file is replaced only where footforge exported it")
+    e.add_argument("policy_dir", type=Path, metavar="POLICY_DIR",
+                   help="a training run's folder (its policy/, or without one its newest intact checkpoint), its "
+                        "policy/ folder, or one of its checkpoints/<step>/ folders")
+    e.add_argument("--out", type=Path, metavar="FILE.onnx", help="output file (default: RUN.onnx in the current "
+                   "folder, named after the run; RUN_stepN.onnx for a checkpoint); an existing file is replaced only "
+                   "where footforge exported it")
     e.add_argument("--force", action="store_true", help="replace --out even if footforge did not write it")
     return p
 
@@ -367,7 +371,11 @@ def _run_check(args, console) -> int:
 
 def _run_export(args, console) -> int:
     from footforge.rl.export_onnx import export
+    from footforge.rl.policy_files import folder_note, policy_folder
 
+    note = folder_note(args.policy_dir, policy_folder(args.policy_dir))
+    if note:
+        print(f"footforge export: note: {note}", file=sys.stderr)
     out = export(args.policy_dir, args.out, force=args.force)
     console.print(f"policy written to {out}", markup=False, highlight=False, soft_wrap=True)
     return EXIT_OK
@@ -406,9 +414,9 @@ def _main(argv: list[str] | None) -> int:
             traceback.print_exc()
         errors.print(f"footforge: error: {e}", markup=False, highlight=False, soft_wrap=True)  # paths unbroken
         return e.exit_code
-    except KeyboardInterrupt:
-        errors.print("footforge: interrupted; no output was written")
-        return EXIT_INPUT_ERROR
+    except KeyboardInterrupt as e:
+        errors.print(f"footforge: {interrupt_word(e)}; no output was written")
+        return interrupt_exit_code(e)
 
 
 if __name__ == "__main__":

@@ -57,18 +57,21 @@ def main(argv: list[str] | None = None, prog: str = "footforge play") -> int:
         return 2
     args = parser(prog).parse_args(argv)
 
-    from footforge.errors import FootforgeError
+    from footforge.errors import FootforgeError, interrupt_exit_code, interrupt_word
+
+    from footforge.processes import sigterm_as_interrupt
 
     try:
-        _check_arguments(args)
-        return _run(args)
+        with sigterm_as_interrupt():  # a terminated play cleans up (no half-written video) as Ctrl-C does
+            _check_arguments(args)
+            return _run(args)
     except FootforgeError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         return e.exit_code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         if args.headless:
-            print(f"{PROG}: interrupted; no video or log was written", file=sys.stderr)
-            return 2
+            print(f"{PROG}: {interrupt_word(e)}; no video or log was written", file=sys.stderr)
+            return interrupt_exit_code(e)
         return 0  # Ctrl-C is one way to leave the viewer
 
 
@@ -90,9 +93,12 @@ def _check_arguments(args) -> None:
         raise InputError("no such policy folder or file", file=str(args.policy),
                          fix="pass a training run's folder (or its policy/ folder), or an .onnx file from footforge "
                              "export")
-    from footforge.rl.policy_files import policy_folder
+    from footforge.rl.policy_files import folder_note, policy_folder
 
-    args.policy = policy_folder(args.policy)  # a run's folder: its policy/
+    used = policy_folder(args.policy)  # a run's folder: its policy/ (or its newest intact checkpoint)
+    if folder_note(args.policy, used):
+        print(f"{PROG}: note: {folder_note(args.policy, used)}", file=sys.stderr)
+    args.policy = used
     for flag, path, suffix in (("--video", args.video, ".gif"), ("--log", args.log, ".json")):
         if path is not None:
             _check_output(flag, path, suffix, args.force)

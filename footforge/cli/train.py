@@ -12,7 +12,7 @@ import footforge
 
 footforge.headless_by_default()  # before any import of MuJoCo
 
-from footforge.errors import EXIT_INPUT_ERROR, InputError
+from footforge.errors import EXIT_INPUT_ERROR, InputError, interrupt_exit_code, interrupt_word
 
 
 DESCRIPTIONS = {
@@ -35,7 +35,9 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     p.add_argument("--policy", choices=TASKS[task], help="policy type (default B)")
     p.add_argument("--num-envs", type=int, help="parallel robots (default 2048)")
     p.add_argument("--timesteps", type=int, help=f"environment steps in total (default {default_ppo(task).num_timesteps:,}; "
-                                                 "with --resume it may extend the run)")
+                                                 "with --resume it may extend the run, or with --shorten end it earlier)")
+    p.add_argument("--shorten", action="store_true",
+                   help="with --resume and --timesteps: allow a total below the run's own (refused without it)")
     p.add_argument("--seed", type=int, help="(default 0)")
     p.add_argument("--out", type=Path, required=True, help="run folder")
     p.add_argument("--resume", action="store_true",
@@ -126,6 +128,9 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
             if args.coordinator:
                 raise InputError(MULTI_PROCESS_UNSUPPORTED, fix="train on one machine (Brax splits --num-envs over "
                                                                 "all its GPUs), or leave out --coordinator")
+            if args.shorten and not args.resume:
+                raise InputError("--shorten goes with --resume (a new run's --timesteps is its total)",
+                                 fix="leave out --shorten")
             if args.resume and args.init_from:
                 raise InputError("--init-from starts a new run from another run's parameters; --resume continues "
                                  "the run in --out", fix="pass one of them")
@@ -155,6 +160,10 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
                 kept = train.latest_intact_checkpoint(args.out)
                 done = kept[0] if kept else 0
                 if done >= ppo.num_timesteps:
+                    finished = train.finish_run(args.out)  # a run killed after its last checkpoint
+                    if finished:
+                        console.print(f"{args.out}: {finished[1]}: wrote {args.out / 'policy'} from checkpoint "
+                                      f"{finished[0]:,}", markup=False, highlight=False, soft_wrap=True)
                     console.print(f"{args.out}: already complete at step {done:,} (of {ppo.num_timesteps:,}); pass "
                                   f"--timesteps with a larger total to extend it", markup=False, highlight=False,
                                   soft_wrap=True)
@@ -169,12 +178,13 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
     except FootforgeError as e:
         print(f"{name}: error: {e}", file=sys.stderr)
         return e.exit_code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
+        # Only complete checkpoints (with their manifest) are named: one being written is not.
         kept = train.latest_intact_checkpoint(args.out) if args.out.is_dir() else None
-        print(f"{name}: interrupted; " + (f"{args.out} keeps its checkpoints up to step {kept[0]:,}: continue "
-                                          f"with --resume" if kept else "no checkpoint was written: the same "
-                                          "command starts the run again"), file=sys.stderr)
-        return EXIT_INPUT_ERROR
+        print(f"{name}: {interrupt_word(e)}; "
+              + (f"{args.out} keeps its checkpoints up to step {kept[0]:,}: continue with --resume"
+                 if kept else "no checkpoint was written: the same command starts the run again"), file=sys.stderr)
+        return interrupt_exit_code(e)
     if metrics.get("stopped_for_time"):
         console.print(f"stopped at the wall-time budget ({args.max_minutes:g} min) after a checkpoint; "
                       f"--resume continues")
@@ -319,7 +329,14 @@ def _resumed_configs(task: str, args):
                                  f"{getattr(env_config.terrain, f.name)} (its config.json)", file=str(args.out),
                                  fix="leave out --terrain to continue the run with its own terrain")
     if args.timesteps is not None:
+        if args.timesteps < ppo.num_timesteps and not args.shorten:
+            raise InputError(f"--resume --timesteps {args.timesteps:,} is below the run's total of "
+                             f"{ppo.num_timesteps:,} steps (its config.json)", file=str(args.out),
+                             fix=f"add --shorten to end the run at {args.timesteps:,}, or leave out --timesteps to "
+                                 f"train it to {ppo.num_timesteps:,}")
         ppo = replace(ppo, num_timesteps=args.timesteps)
+    elif args.shorten:
+        raise InputError("--shorten goes with --resume --timesteps N", fix="give the new total with --timesteps")
     from footforge.envs import engine
 
     return replace(env_config, physics=engine.resolve(args.physics or "auto")), ppo

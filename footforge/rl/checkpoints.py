@@ -8,8 +8,11 @@ Integrity: every checkpoint gets `footforge_checkpoint.json` (CHECKPOINT_MANIFES
 after Brax's and orbax's files are complete, with each file's size and SHA-256. A resume verifies
 checkpoints from the newest down and continues from the newest intact one (resume_point); the
 ones it skips (no manifest, a file truncated, missing or changed, or unreadable by orbax) are
-named and renamed to `<step>.corrupt` so the resumed run can write that step again. Checkpoints
-of runs from before the manifest are accepted when orbax reads them.
+named and renamed to `<step>.corrupt` so the resumed run can write that step again. A checkpoint
+without a manifest is one whose write did not finish (a kill between orbax's files and the
+manifest: orbax may well read it, but not every file need be complete), except in runs from before
+the manifest, where no checkpoint has one: those are accepted when orbax reads them
+(`legacy_run`).
 """
 
 from __future__ import annotations
@@ -60,12 +63,18 @@ def write_checkpoint_manifest(folder: Path) -> None:
     write_json(folder / CHECKPOINT_MANIFEST, {"files": files})
 
 
-def checkpoint_problem(folder: Path, *, read: bool = True) -> str | None:
+def legacy_run(run_dir: Path) -> bool:
+    """Whether the run's checkpoints are from before manifests: it has some, and none has one."""
+    found = checkpoints(run_dir)
+    return bool(found) and not any((path / CHECKPOINT_MANIFEST).is_file() for _, path in found)
+
+
+def checkpoint_problem(folder: Path, *, read: bool = True, legacy: bool = False) -> str | None:
     """Why the checkpoint folder `folder` cannot be trusted, or None if it is intact.
 
-    With a manifest, every file it lists must be there with its size and SHA-256. Without one (a
-    write that did not finish, or a run from before manifests), Brax's network config must be
-    there and, as with `read`, orbax must read the parameters.
+    With a manifest, every file it lists must be there with its size and SHA-256. Without one, the
+    write did not finish, except with `legacy` (a run from before manifests, legacy_run): then
+    Brax's network config must be there and, as with `read`, orbax must read the parameters.
     """
     folder = Path(folder)
     manifest = folder / CHECKPOINT_MANIFEST
@@ -82,6 +91,8 @@ def checkpoint_problem(folder: Path, *, read: bool = True) -> str | None:
                 return f"{name} has {path.stat().st_size} bytes, {expected['bytes']} were written"
             if _sha256(path) != expected["sha256"]:
                 return f"{name} changed since it was written (SHA-256 differs)"
+    elif not legacy:
+        return f"no {CHECKPOINT_MANIFEST}: its write did not finish"
     elif not (folder / "ppo_network_config.json").is_file():
         return f"no {CHECKPOINT_MANIFEST} and no ppo_network_config.json: its write did not finish"
     else:
@@ -103,8 +114,9 @@ def load_parameters(folder: Path):
 
 def latest_intact_checkpoint(run_dir: Path, *, read: bool = False) -> tuple[int, Path] | None:
     """The newest checkpoint that passes checkpoint_problem."""
+    legacy = legacy_run(run_dir)
     for step, path in reversed(checkpoints(run_dir)):
-        if checkpoint_problem(path, read=read) is None:
+        if checkpoint_problem(path, read=read, legacy=legacy) is None:
             return step, path
     return None
 
@@ -121,8 +133,9 @@ def resume_point(run_dir: Path, notice: Callable[[str], None], set_aside: bool):
         raise InputError(f"nothing to resume: no checkpoints in {run_dir / 'checkpoints'}", file=str(run_dir),
                          fix="start without --resume (with --force to start this run over), or give another run")
     skipped = []
+    legacy = legacy_run(run_dir)
     for step, path in reversed(found):
-        problem = checkpoint_problem(path, read=False)
+        problem = checkpoint_problem(path, read=False, legacy=legacy)
         params = None
         if problem is None:
             try:

@@ -36,8 +36,15 @@ OPSET = 17
 IR_VERSION = 8
 """ONNX IR version of opset 17: readable by onnxruntime >= 1.12 and most deployment runtimes."""
 
-DEFAULT_FILE = "policy.onnx"
-"""Written into the policy folder unless --out says otherwise."""
+def default_file(policy_dir: Path) -> Path:
+    """Where export writes without --out: in the current folder, never into the policy's own (a
+    shipped, tracked policy folder, or a checkpoint whose manifest lists its files), named after
+    the run: `flat_aof_B.onnx` for runs/flat_aof_B or its policy/, `flat_aof_B_step3870720.onnx`
+    for one of its checkpoints, else the folder's own name."""
+    policy_dir = Path(policy_dir).resolve()
+    if policy_dir.parent.name == "checkpoints" and policy_dir.name.isdigit():
+        return Path(f"{policy_dir.parent.parent.name}_step{int(policy_dir.name)}.onnx")
+    return Path(f"{policy_dir.parent.name if policy_dir.name == 'policy' else policy_dir.name}.onnx")
 
 ACTIVATIONS = ("elu", "swish", "silu", "relu", "tanh")
 """Brax activation names (ppo_network_config.json) the exporter translates."""
@@ -48,7 +55,7 @@ METADATA_KEYS = ("footforge_version", "task", "feet", "policy_type", "global_ste
 
 
 def export(policy_dir: Path, out: Path | None = None, *, force: bool = False) -> Path:
-    """Writes `policy_dir`'s policy as ONNX to `out` (default POLICY_DIR/policy.onnx), whole or
+    """Writes `policy_dir`'s policy as ONNX to `out` (default: default_file, in the current folder), whole or
     not at all. Returns the path written. An existing `out` is replaced only where footforge wrote
     it (an ONNX model whose producer is footforge) or with `force`.
 
@@ -64,11 +71,11 @@ def export(policy_dir: Path, out: Path | None = None, *, force: bool = False) ->
 
     from footforge.rl.policy_files import policy_folder
 
-    policy_dir = policy_folder(policy_dir)  # a run's folder: its policy/
+    policy_dir = policy_folder(policy_dir)  # a run's folder: its policy/ (or its newest intact checkpoint)
     if not policy_dir.is_dir():
         raise InputError("no such folder", file=str(policy_dir),
                          fix="pass a training run's folder (footforge train), or its policy/ folder")
-    out = Path(out) if out is not None else policy_dir / DEFAULT_FILE
+    out = Path(out) if out is not None else default_file(policy_dir)
     check_output_file(out)
     if out.suffix.lower() != ".onnx":
         raise InputError("export writes an ONNX model: --out must end in .onnx", file=str(out),

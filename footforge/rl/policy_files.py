@@ -3,8 +3,10 @@
 A policy folder is the run's newest intact checkpoint (Brax's files and the manifest) plus
 `footforge.json`: the environment and PPO configs, the global step, and from training runs the
 training wall time over every call and the machine (footforge.rl.train.machine), which the policy
-card shows. The commands that take a policy accept the folder or the run folder around it
-(policy_folder).
+card shows. The commands that take a policy (export, evaluate, play) accept the policy folder, the
+run folder around it, or one of the run's checkpoint folders (`<run>/checkpoints/<step>/`, its
+configs read from the run's config.json): a run without a policy yet, or with a damaged one, is used
+through its newest intact checkpoint (policy_folder, policy_meta).
 """
 
 from __future__ import annotations
@@ -17,18 +19,19 @@ from pathlib import Path
 from footforge.atomic import atomic_directory, write_json
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
-from footforge.rl.checkpoints import CHECKPOINT_MANIFEST, checkpoint_problem, latest_intact_checkpoint, \
+from footforge.rl.checkpoints import CHECKPOINT_MANIFEST, checkpoint_problem, latest_intact_checkpoint, legacy_run, \
     write_checkpoint_manifest
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict, to_dict
 from footforge.rl.networks import network_factory
 from footforge.rl.run_folder import is_run_folder
 
 
-def write_policy(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, this_machine: dict) -> None:
-    """run_dir/policy: the newest intact checkpoint (the final parameters) and the configs."""
+def write_policy(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, this_machine: dict) -> int | None:
+    """run_dir/policy: the newest intact checkpoint (the final parameters) and the configs. Returns
+    that checkpoint's step (None: no intact checkpoint, nothing written)."""
     final = latest_intact_checkpoint(run_dir)
     if final is None:
-        return
+        return None
     state_file = run_dir / "progress.json"
     with atomic_directory(run_dir / "policy") as tmp:
         shutil.copytree(final[1], tmp, dirs_exist_ok=True)
@@ -36,6 +39,30 @@ def write_policy(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, this_mach
         write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
                                              "global_step": final[0], "wall_s": recorded.get("wall_s_total"),
                                              "machine": this_machine})
+    return final[0]
+
+
+def policy_problem(run_dir: Path) -> str | None:
+    """Why run_dir/policy is not the run's final policy (missing, damaged, or older than the
+    newest intact checkpoint), or None when it is, or when there is no intact checkpoint to
+    write it from."""
+    final = latest_intact_checkpoint(run_dir)
+    if final is None:
+        return None
+    folder = Path(run_dir) / "policy"
+    try:
+        step = int(json.loads((folder / "footforge.json").read_text())["global_step"])
+    except FileNotFoundError:
+        return "it has no policy/ yet"
+    except (OSError, ValueError, KeyError, TypeError):
+        return "its policy/footforge.json is unreadable"
+    if (folder / CHECKPOINT_MANIFEST).is_file():
+        problem = checkpoint_problem(folder, read=False)
+        if problem:
+            return f"its policy/ is damaged ({problem})"
+    if step != final[0]:
+        return f"its policy/ is from step {step:,}, its newest intact checkpoint from {final[0]:,}"
+    return None
 
 
 def initial_policy(env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observation_size,
@@ -77,16 +104,44 @@ def load_policy_config(policy_dir: Path) -> EnvConfig:
     Raises:
       InputError: the folder is not a footforge policy.
     """
-    return env_config_from_dict(_policy_meta(Path(policy_dir).resolve())["env"])
+    return env_config_from_dict(_policy_meta(policy_folder(policy_dir).resolve())["env"])
 
 
 def policy_folder(path: Path) -> Path:
-    """`path` itself, or where `path` is a training run's folder, the policy/ folder inside it: the
-    commands that take a policy accept either."""
+    """The folder whose parameters a command given `path` uses: `path` itself (a policy folder or a
+    checkpoint folder), or for a training run's folder its policy/ when intact, else its newest
+    intact checkpoint (a run stopped before it wrote policy/)."""
     path = Path(path)
-    if not (path / "footforge.json").is_file() and (path / "policy" / "footforge.json").is_file():
-        return path / "policy"
-    return path
+    if (path / "footforge.json").is_file():
+        return path
+    policy, run = path / "policy", is_run_folder(path)
+    final = latest_intact_checkpoint(path) if run else None
+    if (policy / "footforge.json").is_file():
+        # A damaged policy/ of a run: its newest intact checkpoint; with none, the policy (whose
+        # damage the loader reports).
+        return final[1] if final is not None and _damaged(policy) else policy
+    return final[1] if final is not None else path
+
+
+def folder_note(given: Path, used: Path) -> str | None:
+    """What a command says when `policy_folder(given)` chose a checkpoint of a run: which, and why."""
+    if Path(used).parent.name != "checkpoints" or Path(given).resolve() == Path(used).resolve():
+        return None
+    why = "its policy/ is damaged" if (Path(given) / "policy").exists() else "it has no policy/ yet"
+    return f"{given}: {why}; using its newest intact checkpoint, step {int(Path(used).name):,} ({used})"
+
+
+def _damaged(policy_dir: Path) -> str | None:
+    if not (policy_dir / CHECKPOINT_MANIFEST).is_file():  # policies from before manifests have none
+        return None
+    return checkpoint_problem(policy_dir, read=False)
+
+
+def _checkpoint_run(folder: Path) -> Path | None:
+    """The run folder of a checkpoint folder `<run>/checkpoints/<step>/`, or None."""
+    if folder.name.isdigit() and folder.parent.name == "checkpoints" and is_run_folder(folder.parent.parent):
+        return folder.parent.parent
+    return None
 
 
 def policy_meta(policy_dir: Path) -> dict:
@@ -96,11 +151,26 @@ def policy_meta(policy_dir: Path) -> dict:
     Raises:
       InputError: the folder is not a footforge policy.
     """
-    return _policy_meta(Path(policy_dir).resolve())
+    return _policy_meta(policy_folder(policy_dir).resolve())
 
 
 def _policy_meta(policy_dir: Path) -> dict:
     meta_file = policy_dir / "footforge.json"
+    run = _checkpoint_run(policy_dir) if not meta_file.is_file() else None
+    if run is not None:  # a checkpoint folder: the configs of its run
+        problem = checkpoint_problem(policy_dir, read=False, legacy=legacy_run(run))
+        if problem:
+            final = latest_intact_checkpoint(run)
+            raise InputError(f"the checkpoint is damaged or incomplete: {problem}", file=str(policy_dir),
+                             fix=f"pass the run's newest intact checkpoint, {final[1]}" if final else
+                                 "the run has no intact checkpoint: train it again")
+        saved = json.loads((run / "config.json").read_text())
+        progress = run / "progress.json"
+        recorded = json.loads(progress.read_text()) if progress.is_file() else {}
+        meta = {"env": saved["env"], "ppo": saved["ppo"], "global_step": int(policy_dir.name)}
+        if recorded.get("global_step") == meta["global_step"]:  # the run's time and machine up to this step
+            meta |= {"wall_s": recorded.get("wall_s_total"), "machine": recorded.get("machine")}
+        return meta
     if not policy_dir.exists():
         raise InputError(f"{policy_dir} does not exist", file=str(policy_dir),
                          fix="pass a training run's folder, or its policy/ folder (a run writes it when it ends, or "
@@ -109,9 +179,10 @@ def _policy_meta(policy_dir: Path) -> dict:
         raise InputError(f"{policy_dir} is a file, not a policy folder", file=str(policy_dir),
                          fix="pass a training run's folder (footforge train), or its policy/ folder")
     if not meta_file.is_file() and is_run_folder(policy_dir):
-        raise InputError(f"{policy_dir} is a training run without a policy yet", file=str(policy_dir),
-                         fix="a run writes policy/ when it ends or stops at --max-minutes; `footforge train ... "
-                             "--resume --max-minutes 1` writes it from the newest checkpoint")
+        raise InputError(f"{policy_dir} is a training run without a policy or an intact checkpoint yet",
+                         file=str(policy_dir),
+                         fix="train it until its first checkpoint: footforge train ... --out "
+                             f"{policy_dir} --resume (or the same command that started it)")
     if not meta_file.is_file():
         raise InputError(f"{policy_dir} is not a footforge policy (no footforge.json)", file=str(policy_dir),
                          fix="pass a training run's folder (footforge train), or its policy/ folder")
@@ -151,14 +222,19 @@ def load_policy_parameters(policy_dir: Path) -> SavedPolicy:
     """
     from brax.training.agents.ppo import checkpoint as brax_checkpoint
 
-    policy_dir = Path(policy_dir).resolve()
+    policy_dir = policy_folder(policy_dir).resolve()
     meta = _policy_meta(policy_dir)
     env_config, ppo = env_config_from_dict(meta["env"]), from_dict(PPOConfig, meta["ppo"])
-    if (policy_dir / CHECKPOINT_MANIFEST).is_file():  # policies from before manifests have none
-        problem = checkpoint_problem(policy_dir, read=False)
-        if problem:
-            raise InputError(f"the policy is damaged: {problem}", file=str(policy_dir),
-                             fix="use the run's newest intact checkpoints/<step>/ (the same files), or train again")
+    problem = _damaged(policy_dir) if (policy_dir / "footforge.json").is_file() else None
+    if problem:
+        run = policy_dir.parent
+        fix = "train again"
+        if policy_dir.name == "policy" and is_run_folder(run):
+            final = latest_intact_checkpoint(run)
+            task = meta["env"].get("task", "flat")
+            fix = (f"pass the run folder {run} (or its checkpoint {final[1]}) instead, or rewrite the policy with "
+                   f"footforge train {task} --out {run} --resume" if final else fix)
+        raise InputError(f"the policy is damaged: {problem}", file=str(policy_dir), fix=fix)
     config_file = policy_dir / "ppo_network_config.json"
     try:
         cfg = json.loads(config_file.read_text())

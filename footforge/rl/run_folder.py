@@ -21,8 +21,8 @@ from footforge.rl.checkpoints import latest_checkpoint
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict
 
 
-RUN_ENTRIES = ("config.json", "progress.json", "metrics.jsonl", "tensorboard", "checkpoints", "policy",
-               "terrain.png", MARKER)
+RUN_ENTRIES = ("config.json", "progress.json", "metrics.jsonl", "metrics.set_aside.jsonl", "tensorboard",
+               "checkpoints", "policy", "terrain.png", MARKER)
 """What footforge writes in a run folder: all that `force` removes (with these names' temporaries)."""
 
 

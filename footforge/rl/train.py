@@ -6,7 +6,14 @@ metrics: the learning curve), `tensorboard/`, `progress.json` (the global step, 
 time over every call to the last checkpoint, `wall_s_total`, and the machine, machine()) and at
 the end the policy folder (footforge.rl.policy_files). `resume` restores the latest intact
 checkpoint and trains the remaining steps with a new seed (the same seed would replay the same
-experience).
+experience); a resume of a run already at its total writes a missing, damaged or stale policy/
+from that checkpoint (finish_run), so a run killed after its last checkpoint is never stranded.
+
+One curve per run, whatever the kills: a resume continues `metrics.jsonl` from the step it
+restored (continue_curve: the rows logged after that checkpoint by the call that was killed, or of
+a checkpoint found damaged, move to `metrics.set_aside.jsonl`), TensorBoard hides the same steps
+(tensorboardX's purge_step), and each row's `wall_s` counts the training time of every call, so
+both axes only grow.
 
 Optimiser state: Brax 0.14.2's PPO cannot restore it. Its `train` builds the Adam moments (and
 the adaptive-KL learning rate, which lives in the same optax state) with `optimizer.init` inside
@@ -46,8 +53,57 @@ from footforge.rl.config import (  # noqa: F401 (re-exported)
 from footforge.rl.networks import network_factory
 from footforge.rl.policy_files import (  # noqa: F401 (re-exported)
     SavedPolicy, initial_policy, load_policy, load_policy_config, load_policy_parameters, policy_folder, policy_meta,
-    write_policy)
+    policy_problem, write_policy)
 from footforge.rl.run_folder import RUN_ENTRIES, is_run_folder, load_run_config, prepare_run_dir  # noqa: F401
+
+
+CURVE = "metrics.jsonl"
+CURVE_SET_ASIDE = "metrics.set_aside.jsonl"
+"""Rows of the curve that a resume left behind (logged after the checkpoint it restored), each
+with "set_aside_by_resume": the number of that resume."""
+
+
+def continue_curve(run_dir: Path, step: int, resume: int) -> bool:
+    """Before resume number `resume` continues the run from its checkpoint at `step`: the curve's rows
+    past `step` move to CURVE_SET_ASIDE (appended), the others stay in order. Returns whether a kept
+    row at `step` holds an evaluation: then the resumed call's first evaluation, of the same
+    parameters, is not written again."""
+    path = Path(run_dir) / CURVE
+    if not path.is_file():
+        return False
+    kept, aside, evaluated = [], [], False
+    for line in path.read_text().splitlines():
+        try:
+            row = json.loads(line)
+            row_step = int(row["global_step"])
+        except (ValueError, KeyError, TypeError):  # a line cut short by a kill
+            continue
+        if row_step > step:
+            aside.append(json.dumps(row | {"set_aside_by_resume": resume}))
+        else:
+            kept.append(line)
+            evaluated |= row_step == step and any(k.startswith("eval/") for k in row)
+    if aside:
+        with open(Path(run_dir) / CURVE_SET_ASIDE, "a") as f:
+            f.write("\n".join(aside) + "\n")
+    with atomic_file(path) as tmp:
+        Path(tmp).write_text("".join(line + "\n" for line in kept))
+    return evaluated
+
+
+def finish_run(run_dir: Path) -> tuple[int, str] | None:
+    """Writes run_dir/policy from the run's newest intact checkpoint where it is missing, damaged or
+    older than that checkpoint (a run killed after its last checkpoint, during its final
+    evaluation). Returns (the step written, what was wrong), or None when policy/ was the final one
+    already (or there is no intact checkpoint)."""
+    problem = policy_problem(run_dir)
+    if problem is None:
+        return None
+    env_config, ppo = load_run_config(run_dir)
+    state_file = Path(run_dir) / "progress.json"
+    recorded = json.loads(state_file.read_text()) if state_file.is_file() else {}
+    step = write_policy(Path(run_dir), env_config, ppo, recorded.get("machine") or machine())
+    return (step, problem) if step is not None else None
 
 
 class _OutOfTime(Exception):
@@ -227,7 +283,13 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                     | origin)
     remaining = ppo.num_timesteps - offset
     if remaining <= 0:
+        if primary:
+            finished = finish_run(run_dir)
+            if finished:
+                notice(f"{run_dir}: {finished[1]}: wrote policy/ from checkpoint {finished[0]:,}")
         return json.loads(state_file.read_text()).get("metrics", {}) if state_file.exists() else {}
+    # The curve continues from the restored checkpoint (module docstring).
+    evaluated_at_offset = continue_curve(run_dir, offset, resumes) if resume and primary else False
 
     env = from_config(env_config)  # Brax evaluates on the same environment
     if primary and env_config.task == "rough":  # the terrain this run walks
@@ -235,7 +297,9 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
 
         with atomic_file(run_dir / "terrain.png") as tmp:
             preview(env.terrain, tmp)
-    writer = SummaryWriter(str(run_dir / "tensorboard")) if primary else None
+    # On a resume, TensorBoard hides what the killed call logged after the checkpoint (purge_step).
+    writer = SummaryWriter(str(run_dir / "tensorboard"), purge_step=offset + 1 if resume else None) \
+        if primary else None
     epochs = training_epochs(ppo, offset)
     total = planned_steps(ppo, offset)  # what Brax will run: whole iterations
     last: dict = {}
@@ -258,16 +322,17 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         if not primary:
             return
         global_step = offset + step
-        for key, value in metrics.items():
-            try:
-                writer.add_scalar(key, float(value), global_step)
-            except (TypeError, ValueError):
-                continue
-        writer.flush()
         now = {k: float(v) for k, v in metrics.items() if hasattr(v, "__float__")}
         last.update(now)
-        with open(run_dir / "metrics.jsonl", "a") as f:  # one line per evaluation or training-episodes log
-            f.write(json.dumps({"global_step": global_step, "wall_s": time.time() - t0} | now) + "\n")
+        # A resumed call's first evaluation evaluates the checkpoint's parameters, which the curve
+        # holds already unless the killed call died before evaluating them.
+        if not (step == 0 and evaluated_at_offset):
+            for key, value in now.items():
+                writer.add_scalar(key, value, global_step)
+            writer.flush()
+            with open(run_dir / CURVE, "a") as f:  # one line per evaluation or training-episodes log
+                f.write(json.dumps({"global_step": global_step, "wall_s": wall_s_before + time.time() - t0} | now)
+                        + "\n")
         # The end of an epoch (its checkpoint written, its evaluation run if any) is the call that
         # carries Brax's training/sps; the initial evaluation and the training-episode logs do not.
         epoch_end = "training/sps" in metrics
