@@ -6,7 +6,8 @@ figures of one run are comparable with each other (ratios), not with another mac
 
 Usage: python benchmarks/env_speed.py [--batches 16 64 256] [--steps 20] [--feet ball aff aof]
            [--tasks flat rough] [--policies B P BH PH] [--contact-models fast stance]
-           [--float64-physics] [--shank-collisions on off] [--playground] [--mjx-impl jax|warp]
+           [--float64-physics] [--shank-collisions on off] [--heightfield-soles spheres box] [--playground]
+           [--mjx-impl jax|warp]
            [--build-roots [LABEL=]DIR ...] [--physics mjx mujoco] [--raw-c]
 
 Keys: <task>_<feet>_<policy>_b<batch> for 'fast' (the key of the measurements before the
@@ -61,6 +62,9 @@ def main() -> None:
     p.add_argument("--shank-collisions", nargs="+", default=["on"], choices=["on", "off"],
                    help="rough task: shank tubes colliding with the terrain (EnvConfig.shank_collisions); "
                         "'on off' measures both (keys of 'off' end in _noshank before _b<batch>)")
+    p.add_argument("--heightfield-soles", nargs="+", default=["spheres"], choices=["spheres", "box"],
+                   help="rough AFF/AOF: the sole colliders on the heightfield (EnvConfig.heightfield_soles); "
+                        "'spheres box' measures both (keys of 'box' end in _soleboxes before _b<batch>)")
     p.add_argument("--no-compile-cache", action="store_true",
                    help="measure cold compilation: without JAX's persistent cache (footforge/rl/compile_cache.py)")
     p.add_argument("--playground", action="store_true",
@@ -113,16 +117,18 @@ def main() -> None:
         for feet in args.feet:
             policies = envs.policy_types(task, feet, args.policies)
             shanks = args.shank_collisions if task == "rough" else ["on"]
-            for policy, contact, shank, (label, root), engine in (
-                    (kind, model, on, r, e) for kind in policies for model in args.contact_models for on in shanks
-                    for r in roots for e in args.physics):
+            soles = args.heightfield_soles if task == "rough" and feet != "ball" else ["spheres"]
+            for policy, contact, shank, sole, (label, root), engine in (
+                    (kind, model, on, so, r, e) for kind in policies for model in args.contact_models for on in shanks
+                    for so in soles for r in roots for e in args.physics):
                 config = envs.default_config(task, feet, policy, contact)
                 env = envs.from_config(replace(envs.with_float64_physics(config, args.float64_physics),
                                                shank_collisions=shank == "on", mjx_impl=args.mjx_impl,
                                                build_dir=f"{root}/{feet}" if root else config.build_dir,
-                                               physics=engine))
+                                               physics=engine, heightfield_soles=sole))
                 name = (f"{task}_{feet}_{policy}" + (f"_{label}" if label else "")
-                        + ("" if contact == "fast" else f"_{contact}") + ("" if shank == "on" else "_noshank"))
+                        + ("" if contact == "fast" else f"_{contact}") + ("" if shank == "on" else "_noshank")
+                        + ("" if sole == "spheres" else "_soleboxes"))
                 for batch in args.batches:
                     suffix = "_mujoco" if engine == "mujoco" else ""
                     figures[f"{name}{suffix}_b{batch}"] = _measure(env, batch, args.steps)

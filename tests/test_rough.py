@@ -127,6 +127,59 @@ def test_no_foot_starts_inside_a_slope(built):
     assert min(unlifted) < env._stand_foot_clearance - 0.005, unlifted
 
 
+@pytest.mark.parametrize("feet", ["aff", "aof"])
+def test_sole_boxes_become_spheres_on_the_heightfield_without_changing_the_robot(built, feet):
+    """EnvConfig.heightfield_soles 'spheres' (the rough default): each sole box of the build is a
+    3 x 2 grid of 8 mm spheres whose lowest points lie on the box's bottom face, inside its
+    footprint, with the box's friction and contact parameters; every body's mass, centre of mass
+    and inertia are the build's (the spheres carry none); 'box' keeps the boxes; the flat task is
+    untouched."""
+    kw = dict(build_dir=str(built[feet][0]), terrain=SMALL, physics="mujoco")
+    spheres, boxes = (envs.make("rough", feet, "B", heightfield_soles=s, **kw).robot.model for s in ("spheres", "box"))
+    flat = envs.make("flat", feet, "B", build_dir=str(built[feet][0]), physics="mujoco").robot.model
+    for attribute in ("body_mass", "body_ipos", "body_inertia", "body_subtreemass"):
+        np.testing.assert_array_equal(getattr(spheres, attribute), getattr(boxes, attribute))
+    sole_boxes = [g for g in range(boxes.ngeom) if boxes.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX
+                  and "_foot/sole" in boxes.body(boxes.geom_bodyid[g]).name and boxes.geom_conaffinity[g]]
+    assert len(sole_boxes) == {"aff": 4, "aof": 8}[feet]
+    assert sum(flat.geom_type == mujoco.mjtGeom.mjGEOM_BOX) == sum(boxes.geom_type == mujoco.mjtGeom.mjGEOM_BOX)
+    for g in sole_boxes:
+        body = boxes.geom_bodyid[g]
+        balls = [h for h in range(spheres.ngeom) if spheres.geom_bodyid[h] == body
+                 and spheres.geom_type[h] == mujoco.mjtGeom.mjGEOM_SPHERE]
+        assert len(balls) == 6
+        centre, half = boxes.geom_pos[g], boxes.geom_size[g]
+        for h in balls:
+            r = spheres.geom_size[h][0]
+            assert r == 0.008
+            assert spheres.geom_pos[h][2] - r == pytest.approx(centre[2] - half[2], abs=1e-9)  # on the bottom face
+            assert np.all(np.abs(spheres.geom_pos[h][:2] - centre[:2]) <= half[:2] - r + 1e-9)  # inside it
+            for attribute in ("geom_friction", "geom_solref", "geom_solimp", "geom_condim", "geom_contype",
+                              "geom_conaffinity"):
+                np.testing.assert_array_equal(getattr(spheres, attribute)[h], getattr(boxes, attribute)[g])
+
+
+def test_sole_spheres_stand_from_their_own_rest(built, monkeypatch):
+    """On the sole spheres the rough task starts from their own rest on flat ground
+    (footforge.models.rest), not from the build's `stand` (the rest on its boxes): AOF at the stance
+    spawn of seed 0 on level 0, MuJoCo's C engine, zero actions for 10 s, slips less than 5 mm. The
+    control, run here: the same from the build's box rest, where a foot was kicked 12 cm up within
+    0.1 s and the feet slid 20 mm (measured 2026-11-28; the other seven spawns 3.1-5.2 mm)."""
+    from footforge.envs import anymal
+    from footforge.validate.stance import env_stance, env_stance_start
+
+    results = []
+    for own_rest in (True, False):
+        if not own_rest:
+            monkeypatch.setattr(anymal, "_stand_on_sole_spheres", lambda folder, config: None)
+        env, start = env_stance_start("rough", "aof", str(built["aof"][0]), seed=0, physics="mujoco")
+        assert env.config.heightfield_soles == "spheres"
+        results.append(env_stance(env, start, seconds=10.0))
+    ours, control = results
+    assert not ours.fell and ours.slip_after_settle_m < 0.005 and ours.drop_after_settle_m < 0.005, ours
+    assert control.fell or control.slip_after_settle_m > 0.010, control
+
+
 def _lowest_site_clearance(env, qpos) -> float:
     data = mujoco.MjData(env.robot.model)
     data.qpos[:] = qpos
@@ -134,14 +187,15 @@ def _lowest_site_clearance(env, qpos) -> float:
     return min(p[2] - env.terrain.height_at(p[0], p[1]) for p in data.site_xpos[env.robot.foot_sites])
 
 
-def test_box_heightfield_subgrids_are_fitted_without_losing_a_contact(rough):
-    """anymal.fit_heightfield_subgrids: AOF's back sole box is tested against 2 x 2 terrain cells
-    instead of MJX's 3 x 3 (its bounding radius is 13 um over half a cell), the other geoms keep
-    theirs, and MJX finds the same penetrating contacts (geom pairs, depths, points) as with its
-    own subgrids, at random poses over every level: tilted, turned, feet in and above the ground."""
+def test_box_heightfield_subgrids_are_fitted_without_losing_a_contact(built):
+    """anymal.fit_heightfield_subgrids, with the build's sole boxes on the heightfield
+    (heightfield_soles 'box'): AOF's back sole box is tested against 2 x 2 terrain cells instead of
+    MJX's 3 x 3 (its bounding radius is 13 um over half a cell), the other geoms keep theirs, and MJX
+    finds the same penetrating contacts (geom pairs, depths, points) as with its own subgrids, at
+    random poses over every level: tilted, turned, feet in and above the ground."""
     from mujoco.mjx._src import collision_driver
 
-    env, _, _ = rough["aof"]
+    env = envs.make("rough", "aof", "PH", build_dir=str(built["aof"][0]), terrain=SMALL, heightfield_soles="box")
     model, fitted, default = env.robot.model, env.sys, mjx.put_model(env.robot.model)
 
     def subgrids(m):

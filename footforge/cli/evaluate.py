@@ -33,7 +33,8 @@ def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
     from footforge.cli.help import DocstringHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
-    p.add_argument("--policy", type=Path, nargs="+", required=True, help="training runs' folders, or their policy/ folders")
+    p.add_argument("--policy", type=Path, nargs="+", required=True, help="training runs' folders (each its policy/, or without an intact one its newest intact "
+                        "checkpoint), policy/ folders, or checkpoints/<step>/ folders")
     p.add_argument("--feet", nargs="+", choices=FEET, help="feet to evaluate on (default: each policy's own)")
     p.add_argument("--num-envs", type=int, default=1024, help="robots evaluated at once, each for --seconds")
     p.add_argument("--seconds", type=float, help="simulated time (default 60 s flat, 17.5 s rough)")

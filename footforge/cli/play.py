@@ -29,7 +29,8 @@ def parser(prog: str = "footforge play") -> argparse.ArgumentParser:
     from footforge.cli.help import DocstringHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
-    p.add_argument("policy", type=Path, metavar="POLICY", help="a training run's folder (or its policy/ folder), or an .onnx file")
+    p.add_argument("policy", type=Path, metavar="POLICY", help="a training run's folder (its policy/, or without an "
+                   "intact one its newest intact checkpoint), a policy/ or checkpoints/<step>/ folder, or an .onnx file")
     p.add_argument("--feet", help="ball, aff, aof or full (the 34-joint closed chain); default: the policy's own")
     p.add_argument("--terrain", action="store_true",
                    help="walk on terrain tiles (slopes, stairs down, obstacles) instead of flat ground")

@@ -13,6 +13,7 @@ shank tubes collide as capsules (MJX has no cylinder-heightfield collision). CPU
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from dataclasses import dataclass
@@ -232,10 +233,14 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     passive = [model.joint(j).name for j in range(model.njnt)
                if "_foot/" in model.joint(j).name and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     passive.sort(key=lambda n: (C.LEGS.index(n.split("_")[0]), n))
+    stand_qpos = model.key("stand" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand") >= 0
+                           else "home").qpos.copy()
+    if terrain is not None and config.heightfield_soles == "spheres":  # the rest on the spheres, not the boxes
+        on_spheres = _stand_on_sole_spheres(folder, config)
+        stand_qpos = stand_qpos if on_spheres is None else on_spheres
     return Robot(
         model=model, home_qpos=model.key("home").qpos.copy(),
-        stand_qpos=model.key("stand" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand") >= 0
-                             else "home").qpos.copy(),
+        stand_qpos=stand_qpos,
         actuated_qpos=np.array([j.qposadr[0] for j in joints]), actuated_dof=np.array([j.dofadr[0] for j in joints]),
         actuator_ids=actuators, default_q=np.array([C.DEFAULT_JOINT_ANGLES_RAD[n] for n in C.ACTUATED_JOINTS]),
         q_limits=np.array([j.range for j in joints]), haa=np.array([i for i, n in enumerate(C.ACTUATED_JOINTS) if n.endswith("HAA")]),
@@ -255,7 +260,79 @@ def _scene_spec(folder: Path, config: EnvConfig, terrain, for_mjx: bool) -> mujo
         add_to_spec(spec, terrain, name=FLOOR_GEOM)
         if for_mjx and config.shank_collisions:
             _shank_tubes_as_capsules(spec)
+        if config.heightfield_soles == "spheres":
+            _sole_boxes_as_spheres(spec, config)
     return spec
+
+
+def _stand_on_sole_spheres(folder: Path, config: EnvConfig) -> np.ndarray | None:
+    """The `stand` pose (footforge.models.rest) of the build in `folder` with its sole boxes as
+    EnvConfig.heightfield_soles' spheres, on the scene's flat floor; None where no sole box is
+    replaced (ball feet). The build's `stand` is the rest on its boxes: the spheres, inset from the
+    box's edges, hold the loaded soles at other angles, and a robot started from the boxes' rest on
+    them is not at rest (measured 2026-11-28: one AOF spawn of eight on rough level 0 kicked a foot
+    up 12 cm in the first 0.1 s and slid 20 mm; from this pose 3.3 mm, as the others)."""
+    scene = folder / "scene.xml"
+    return _stand_on_sole_spheres_cached(str(scene), scene.stat().st_mtime_ns, tuple(config.heightfield_sole_grid),
+                                         float(config.heightfield_sole_radius_m))
+
+
+@functools.lru_cache(maxsize=8)
+def _stand_on_sole_spheres_cached(scene: str, mtime_ns: int, grid: tuple[int, int], radius_m: float):
+    from footforge.models.rest import NoRest, rest_pose
+
+    spec = mujoco.MjSpec.from_file(scene)
+    config = EnvConfig(heightfield_sole_grid=grid, heightfield_sole_radius_m=radius_m)
+    if not _sole_boxes_as_spheres(spec, config):
+        return None
+    try:
+        qpos, _ = rest_pose(spec.compile())
+    except NoRest as e:
+        raise InputError(f"the robot on its sole spheres (heightfield_sole_grid {grid}, radius {radius_m} m) did "
+                         f"not come to rest on flat ground ({e})", file=scene,
+                         fix="set heightfield_soles to 'box', or another grid or radius") from None
+    return qpos
+
+
+_SOLE_GEOM_ATTRIBUTES = ("contype", "conaffinity", "group", "friction", "solmix", "solref", "solimp", "condim",
+                         "priority", "margin", "gap")
+"""What a sole sphere takes over from the box it stands in for."""
+
+
+def _sole_boxes_as_spheres(spec: mujoco.MjSpec, config: EnvConfig) -> int:
+    """Each colliding sole box of the derived feet becomes a grid of spheres on its bottom face
+    (EnvConfig.heightfield_soles): the same friction and contact parameters, no mass (the bodies'
+    inertials are explicit), in both engines' models, so a heightfield is collided by each engine's
+    sphere-prism test, which agree. Returns the number of boxes replaced."""
+    from footforge.geometry import sole_primitives
+
+    grid, radius = tuple(config.heightfield_sole_grid), config.heightfield_sole_radius_m
+    if len(grid) != 2 or min(grid) < 1 or not radius > 0:
+        raise InputError(f"heightfield_sole_grid {grid} and heightfield_sole_radius_m {radius}: give two counts of at "
+                         "least 1 and a positive radius", fix="e.g. heightfield_sole_grid=(3, 2), "
+                                                              "heightfield_sole_radius_m=0.008")
+    replaced = 0
+    for body in spec.bodies:
+        if "_foot/sole" not in body.name:
+            continue
+        for geom in list(body.geoms):
+            if geom.type != mujoco.mjtGeom.mjGEOM_BOX or not (geom.contype or geom.conaffinity):
+                continue
+            if not np.allclose(geom.quat, [1.0, 0.0, 0.0, 0.0]):  # the build places sole boxes unrotated
+                raise InputError(f"the sole box {geom.name} is rotated in its body; heightfield_soles 'spheres' "
+                                 f"places spheres on an unrotated box", fix="set heightfield_soles to 'box'")
+            if radius > min(geom.size[:2]):
+                raise InputError(f"heightfield_sole_radius_m {radius} is wider than the sole box {geom.name} (half "
+                                 f"sizes {geom.size[0]:.4f} x {geom.size[1]:.4f} m)",
+                                 fix=f"give at most {min(geom.size[:2]):.4f}")
+            for i, shape in enumerate(sole_primitives(np.array(geom.pos), np.array(geom.size), "spheres", grid, radius)):
+                sphere = body.add_geom(name=f"{geom.name}_sphere{i}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                                       size=[shape["size"][0], 0.0, 0.0], pos=shape["pos"], mass=0.0)
+                for name in _SOLE_GEOM_ATTRIBUTES:
+                    setattr(sphere, name, getattr(geom, name))
+            spec.delete(geom)
+            replaced += 1
+    return replaced
 
 
 def _set_physics_options(model: mujoco.MjModel, config: EnvConfig, *, on_heightfield: bool) -> None:

@@ -342,6 +342,26 @@ class EnvConfig:
     and knee probes that end episodes), as MuJoCo Playground's Go1. On MJX the shanks cost about
     half the ball robot's rough-terrain throughput and nothing measurable on AOF
     (docs/defaults.md)."""
+    heightfield_soles: Literal["spheres", "box"] = "spheres"
+    """Rough task, AFF and AOF: what the sole plates collide through on the terrain heightfield.
+    "spheres" (default): each sole box of the build stands in as a grid of spheres on its bottom face
+    (heightfield_sole_grid, heightfield_sole_radius_m; the spheres of footforge.geometry.sole_primitives,
+    standing where the box stands on flat ground). "box": the build's boxes.
+
+    Why spheres: MuJoCo's C engine collides a box with a heightfield through one contact per terrain
+    prism (penetration along a prism's side faces as often as its top: up to 5.1x the plane's force,
+    a sole thrown 0.24-0.82 m on a 20 deg slope), MJX through its own four-point manifold, so the two
+    engines' rough AOF robots parted by 2.3-6.3 mm of foot within two policy steps; a sphere touches a
+    prism's top face at one point in both engines, and with spheres they agree to 4e-6 m
+    (benchmarks/box_on_heightfield.py, tests/test_engines.py, RESULTS.md "Physics engines"). What
+    it costs: a heightfield feature narrower than the spheres' spacing can reach between them; the
+    terrain's 0.1 m samples ramp over a whole cell, and a 3 x 2 grid spaces the spheres 2.3-3.0 cm
+    along the foot and 3.9 cm across. The flat task keeps the boxes (on a plane both engines give
+    the box's four corners)."""
+    heightfield_sole_grid: tuple[int, int] = (3, 2)
+    """Spheres per sole plate along the foot (x) and across it (y), heightfield_soles "spheres"."""
+    heightfield_sole_radius_m: float = 0.008
+    """Their radius, m."""
     terminate_on_knees: int = 2
     """A step with at least this many thigh (knee) contacts ends the episode; any base contact does."""
 
@@ -399,8 +419,11 @@ _SAVED_BEFORE_TERMS = {  # ObservationConfig's flat keys before each group was d
 def upgrade_saved(env: dict) -> dict:
     """An EnvConfig as a run saved it (config.json's "env"), in today's form: runs saved before the
     observation groups and reward terms were declared once hold flat scale and noise keys
-    (lin_vel_scale, ...) and bare reward scales; the values carry over unchanged."""
+    (lin_vel_scale, ...) and bare reward scales; the values carry over unchanged. Rough runs saved
+    before EnvConfig.heightfield_soles collided their soles as boxes, and load so."""
     env = dict(env)
+    if env.get("task") == "rough" and "heightfield_soles" not in env:
+        env["heightfield_soles"] = "box"  # rough runs saved before the key stood on the build's sole boxes
     if "observations" in env:
         obs = {}
         for key, value in env["observations"].items():

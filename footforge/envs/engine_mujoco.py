@@ -40,10 +40,12 @@ from mujoco import rollout
 
 from footforge import constants as C
 
-FOOT_CONTACT_SLOTS = 16
+FOOT_CONTACT_SLOTS = 24
 """Contacts each foot's sensor reports (the strongest first): an AOF foot's two sole boxes make up
-to 4 contacts each on a plane; on a heightfield MuJoCo makes one per terrain prism a box reaches,
-up to 6 a box (benchmarks/box_on_heightfield.py), so 12 an AOF foot; a ball foot one or two."""
+to 4 contacts each on a plane; on a heightfield MuJoCo makes one per terrain prism a geom reaches:
+up to 6 a box (benchmarks/box_on_heightfield.py), one a sphere, two where it sits on a crease
+between prisms, so an AOF foot's 12 heightfield spheres (EnvConfig.heightfield_soles) 12-24; a ball
+foot one or two."""
 THREADS_ENV = "FOOTFORGE_PHYSICS_THREADS"
 """Environment variable: threads of the C engine's pool (default: the CPUs this process may use).
 Results do not depend on it."""

@@ -25,6 +25,7 @@ from dm_control import mjcf
 
 from footforge.errors import InputError
 from footforge.geometry import box_corners
+from footforge.geometry import sole_primitives as geometry_sole_primitives
 from footforge.inputs.params import FootContact, PassiveJoint
 from footforge.inputs.sidecar import FAMILIES, Sidecar
 from footforge.mjcf.elements import MeshAssets, add_body_tree, add_default_classes, add_geoms, inertial_attributes
@@ -255,17 +256,8 @@ def _add_envelope_colliders(body, derived: DerivedBody, source: FootSource, vari
 
 def sole_primitives(center, half, contact: FootContact) -> list[dict]:
     """Geom attributes of the spheres or capsules (FootContact) standing in for a sole box
-    (`center`, `half` sizes, in the sole body's frame). Their lowest points lie on the box's
-    bottom face, the outer ones reaching its edges, so they touch flat ground where the box would."""
-    r, (nx, ny) = contact.radius_m, contact.grid
-    z = center[2] - half[2] + r
-    ys = np.linspace(center[1] - half[1] + r, center[1] + half[1] - r, ny) if ny > 1 else [center[1]]
-    if contact.sole == "spheres":
-        xs = np.linspace(center[0] - half[0] + r, center[0] + half[0] - r, nx) if nx > 1 else [center[0]]
-        return [dict(type="sphere", size=[r], pos=[x, y, z]) for x in xs for y in ys]
-    edges = np.linspace(center[0] - half[0] + r, center[0] + half[0] - r, nx + 1)  # capsule segments
-    return [dict(type="capsule", size=[r], fromto=[x0, y, z, x1, y, z])
-            for x0, x1 in zip(edges[:-1], edges[1:]) for y in ys]
+    (footforge.geometry.sole_primitives)."""
+    return geometry_sole_primitives(center, half, contact.sole, contact.grid, contact.radius_m)
 
 
 def sole_clearance(root: mjcf.RootElement) -> float:

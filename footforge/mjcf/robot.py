@@ -148,17 +148,9 @@ def _lowest_collision_z(mj: mujoco.MjModel, data: mujoco.MjData) -> float:
     return float(collision_points(mj, data, [mj.body(b).name for b in range(1, mj.nbody)])[:, 2].min())
 
 
-STAND_SETTLE_MAX_S = 5.0
-"""The longest the robot is given to come to rest for the `stand` keyframe, s."""
-STAND_REST_QVEL = 1e-2
-"""At rest: the base's and the 12 leg joints' velocities below this (m/s, rad/s) for
-STAND_REST_HOLD_S (the closed chain's 8-16 g links keep a faint vibration of their own)."""
-STAND_REST_HOLD_S = 0.2
-
-
 def _add_stand_keyframe(root: mjcf.RootElement) -> None:
     """Keyframe `stand`: the robot at rest on flat ground (z = 0) under the home keyframe's PD
-    targets, found by simulating it from `home` until it stops moving.
+    targets, found by simulating it from `home` until it stops moving (footforge.models.rest).
 
     `home` is a pose, not an equilibrium: at kp 80 N m/rad the legs give under the robot's weight
     (the base settles about 4 cm lower) and an adaptive foot's passive joints turn to their
@@ -166,24 +158,18 @@ def _add_stand_keyframe(root: mjcf.RootElement) -> None:
     Starting from `stand`, a robot holding its targets does not move (footforge.validate.stance).
 
     Raises:
-      CheckFailure: the robot did not come to rest within STAND_SETTLE_MAX_S.
+      CheckFailure: the robot did not come to rest within footforge.models.rest.SETTLE_MAX_S.
     """
+    from footforge.models.rest import SETTLE_MAX_S, NoRest, rest_pose
+
     spec = mujoco.MjSpec.from_string(root.to_xml_string(), assets=root.get_assets())
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=FLOOR_CONTYPE, conaffinity=1)
-    model = spec.compile()
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
-    still_steps, needed = 0, int(round(STAND_REST_HOLD_S / model.opt.timestep))
-    watched = np.concatenate([np.arange(6), [model.joint(j).dofadr[0] for j in C.ACTUATED_JOINTS]])
-    while still_steps < needed:
-        if data.time > STAND_SETTLE_MAX_S or not np.isfinite(data.qvel).all():
-            dof = int(watched[np.argmax(np.abs(data.qvel[watched]))])
-            raise CheckFailure(f"the robot standing at its home keyframe did not come to rest within "
-                               f"{STAND_SETTLE_MAX_S:g} s (largest velocity {np.abs(data.qvel[dof]):.3g}, joint "
-                               f"'{model.joint(model.dof_jntid[dof]).name}')",
-                               fix="check the contact settings (parameter file, `contact`) and the passive joints")
-        mujoco.mj_step(model, data)
-        still_steps = still_steps + 1 if np.abs(data.qvel[watched]).max() < STAND_REST_QVEL else 0
-    root.keyframe.add("key", name="stand", qpos=data.qpos.copy(), ctrl=data.ctrl.copy())
+    try:
+        qpos, ctrl = rest_pose(spec.compile())
+    except NoRest as e:
+        raise CheckFailure(f"the robot standing at its home keyframe did not come to rest within {SETTLE_MAX_S:g} s "
+                           f"(largest velocity {e.speed:.3g}, joint '{e.joint}')",
+                           fix="check the contact settings (parameter file, `contact`) and the passive joints") from None
+    root.keyframe.add("key", name="stand", qpos=qpos, ctrl=ctrl)
 
 

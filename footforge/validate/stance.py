@@ -128,14 +128,15 @@ the same as in the full field, which compiles far slower."""
 
 
 def env_stance_start(task: str, feet: str, build_dir: str, *, contact_model: str | None = None,
-                     float64_physics: bool = False, seed: int = 0, physics: str | None = None):
+                     float64_physics: bool = False, seed: int = 0, physics: str | None = None, **overrides):
     """(environment, start state) of issue 12's stance measurement: the task's default
     configuration (or `contact_model`), pushes off; flat: the task's own reset (the `stand`
     keyframe, joint velocities U(+-0.1) rad/s); rough: level 0 of a small field
     (STANCE_TERRAIN_FIELDS) from the `stand` keyframe (the rough reset's randomised joint angles
     off: the issue measures at the keyframe, with the actuators at its targets). float64_physics
     switches JAX's x64 mode for the whole process (envs.enable_float64_physics). `physics`:
-    the engine (EnvConfig.physics), the configuration's own if None."""
+    the engine (EnvConfig.physics), the configuration's own if None. `overrides`: other EnvConfig
+    fields (e.g. heightfield_soles)."""
     from dataclasses import replace
 
     import jax
@@ -149,6 +150,7 @@ def env_stance_start(task: str, feet: str, build_dir: str, *, contact_model: str
                      pushes=replace(config.pushes, enabled=False))
     if physics is not None:
         config = replace(config, physics=physics)
+    config = replace(config, **overrides)
     if task == "rough":
         config = replace(config, reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
                          terrain=TerrainConfig(**STANCE_TERRAIN_FIELDS))
