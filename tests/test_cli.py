@@ -251,6 +251,23 @@ def test_a_job_reports_bad_input_with_its_exit_code(capsys, tmp_path):
     assert code == 2 and f"{tmp_path / 'none'}" in text and not (tmp_path / "eval").exists()
 
 
+@pytest.mark.parametrize("job, argv", [
+    ("export", ["export", "{missing}"]),
+    ("evaluate", ["evaluate", "--policy", "{missing}", "--out", "{out}"]),
+    ("evaluate-closed-chain", ["evaluate-closed-chain", "--policy", "{missing}", "--out", "{out}"]),
+    ("play", ["play", "{missing}", "--headless"]),
+    ("train flat", ["train", "flat", "--out", "{missing}", "--resume"]),
+    ("validate", ["validate", "--variant", "aof", "--params", "{missing}"]),
+])
+def test_every_command_s_error_starts_with_its_own_name(capsys, tmp_path, job, argv):
+    """One error prefix for every command, `footforge <command>: error:`, whichever module runs it
+    (issue: `footforge: error:`, `evaluate: error:`, `play: error:`, `train_flat: error:`)."""
+    argv = [a.format(missing=tmp_path / "missing", out=tmp_path / "out") for a in argv]
+    code, text = run(capsys, *argv)
+    errors = [line for line in text.splitlines() if ": error: " in line]
+    assert code == 2 and errors and errors[0].startswith(f"footforge {job}: error: "), text
+
+
 @pytest.mark.parametrize("script, job", [("evaluate", "evaluate"), ("evaluate_closed_chain", "evaluate-closed-chain"),
                                          ("play", "play"), ("train_flat", "train flat"), ("train_rough", "train rough")])
 def test_pipeline_scripts_run_the_same_jobs(script, job):

@@ -190,7 +190,7 @@ def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, capsys, monk
         code = main(["export", *argv])
         captured = capsys.readouterr()
         assert code == 2, (argv, captured)
-        errors = [line for line in captured.err.splitlines() if line.startswith("footforge: error: ")]
+        errors = [line for line in captured.err.splitlines() if line.startswith("footforge export: error: ")]
         assert len(errors) == 1 and message in errors[0], captured.err  # then the "fix:" line
         assert "Traceback" not in captured.err and "written" not in captured.out
     assert sorted(p.name for p in tmp_path.rglob("*")) == before

@@ -350,7 +350,7 @@ def test_sigterm_during_build_cleans_up_like_ctrl_c(capsys, monkeypatch, tmp_pat
     monkeypatch.setattr("footforge.build.pipeline.load_params", terminated)
     before = signal.getsignal(signal.SIGTERM)
     code, text = run(capsys, "build", "--variant", "aff", "--out", tmp_path / "out")
-    assert code == 143 and "footforge: terminated; no output was written" in text  # 128 + SIGTERM, as shells say
+    assert code == 143 and "footforge build: terminated; no output was written" in text  # 128 + SIGTERM, as shells say
     assert list(tmp_path.iterdir()) == []
     assert signal.getsignal(signal.SIGTERM) == before  # restored
 

@@ -92,7 +92,7 @@ def test_headless_ball_policy_walks_forward_by_the_verdict(built, tmp_path):
     assert proc.returncode == 0, proc.stderr
     walking = _states(log)["walking"]
     assert walking["verdict"] == "walks", walking
-    assert f"play: verdict: {walking['line']}" in proc.stdout and walking["line"].startswith("walks: ")
+    assert f"footforge play: verdict: {walking['line']}" in proc.stdout and walking["line"].startswith("walks: ")
     assert walking["forward_error_mps"] < 0.25 and walking["uptime"] == 1.0
     assert all(0.2 <= f <= 0.9 for f in walking["stance_fraction"].values()), walking["stance_fraction"]
     vx = np.array(_states(log)["states"]["vx"])[50:]  # after the first second
@@ -188,7 +188,7 @@ def test_bad_inputs_exit_2_with_a_message(tmp_path, case, expected):
                           capture_output=True, text=True, timeout=120, cwd=REPO)
     assert proc.returncode == 2, proc.stderr
     assert expected in proc.stderr and "Traceback" not in proc.stderr
-    assert proc.stderr.startswith("play: error: ")
+    assert proc.stderr.startswith("footforge play: error: ")
     assert not (tmp_path / "walk.gif").exists() and not (tmp_path / "walk.mp4").exists()
 
 

@@ -33,3 +33,20 @@ def test_a_shipped_policy_loads_and_walks_on_its_own_feet(name):
     text = (folder / "evaluation/policy_card.md").read_text()
     line = next(l for l in text.splitlines() if l.startswith(f"- on {saved.env.feet} feet:"))
     assert "walks:" in line, line
+
+
+def test_an_evaluation_repeats_byte_for_byte(tmp_path):
+    """The same policy, seed and robots give the same metrics.json, byte for byte (the C engine in
+    float64, its results independent of its threads; every draw seeded), and another seed gives
+    other figures (so the comparison can fail). The issue's differing figures came from code that
+    changed between the card and the rerun, not from the rerun."""
+    from footforge.cli.main import main
+
+    def run(out, seed):
+        assert main(["evaluate", "--policy", str(REPO / "policies/flat_ball_B"), "--num-envs", "4", "--seconds",
+                     "2", "--seed", str(seed), "--out", str(tmp_path / out)]) == 0
+        return (tmp_path / out / "metrics.json").read_bytes()
+
+    first = run("a", 0)
+    assert run("b", 0) == first
+    assert run("c", 1) != first

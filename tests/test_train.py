@@ -610,7 +610,7 @@ def test_training_errors_go_to_stderr(written_run):
     done = subprocess.run([sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--out", str(run)],
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 2 and done.stdout == ""
-    assert "train_flat: error:" in done.stderr and "holds a training run" in done.stderr
+    assert "footforge train flat: error:" in done.stderr and "holds a training run" in done.stderr
 
 
 def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypatch, capsys):
@@ -630,7 +630,7 @@ def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypa
     code = train_cli.main("flat", "test", ["--feet", "ball", "--out", str(tmp_path / "run")])
     captured = capsys.readouterr()
     assert code == 143
-    assert "train_flat: terminated; no checkpoint was written" in captured.err
+    assert "footforge train flat: terminated; no checkpoint was written" in captured.err
     assert signal.getsignal(signal.SIGTERM) is before  # the handler is the pipeline's only while it trains
 
 
@@ -862,7 +862,7 @@ def test_an_interrupt_names_only_complete_checkpoints_and_exits_as_shells_expect
     monkeypatch.setattr(module, "train", interrupted)
     assert train_cli.main("flat", "test", ["--out", str(run), "--resume"]) == code
     err = capsys.readouterr().err
-    assert f"train_flat: {word}; {run} keeps its checkpoints up to step 32: continue with --resume" in err, err
+    assert f"footforge train flat: {word}; {run} keeps its checkpoints up to step 32: continue with --resume" in err, err
     assert train.latest_intact_checkpoint(run)[0] == 32
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 
@@ -67,12 +68,12 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate") -> int
     from footforge.cli.guard import run_guarded
 
     if args.num_envs < 1 or (args.seconds is not None and args.seconds <= 0) or (args.video is not None and args.video <= 0):
-        print("evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
+        print("footforge evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
         return 2
     from footforge.rl import compile_cache
 
     compile_cache.enable(not args.no_compile_cache)
-    return run_guarded("evaluate", lambda: _run(args))
+    return run_guarded("footforge evaluate", lambda: _run(args))
 
 
 def _run(args) -> int:
@@ -99,15 +100,22 @@ def _run(args) -> int:
         for feet in args.feet or [None]:
             feet = feet or load_policy_config(policy).feet
             build_dir = str(args.build_root / feet) if args.build_root else None
+            # evaluate() is one compiled rollout: say what runs before its minutes, and what came out.
+            started = time.perf_counter()
+            print(f"footforge evaluate: {policy} on {feet}: {args.num_envs:,} robots"
+                  + (f" x {args.seconds:g} s" if args.seconds else "") + " (compiling, then simulating) ...",
+                  file=sys.stderr, flush=True)
             results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
                                     seed=args.seed, build_dir=build_dir, physics=args.physics))
+            print(f"footforge evaluate: {policy} on {feet}: done in {time.perf_counter() - started:.0f} s, "
+                  f"{results[-1]['falls']} of {args.num_envs:,} fell", file=sys.stderr, flush=True)
             if results[-1].get("kinds_not_covered"):
                 covered, missed = results[-1]["kinds_covered"], results[-1]["kinds_not_covered"]
-                print(f"evaluate: warning: {args.num_envs} robots cover {len(covered)} of {len(covered) + len(missed)} "
+                print(f"footforge evaluate: warning: {args.num_envs} robots cover {len(covered)} of {len(covered) + len(missed)} "
                       f"terrain kinds; not measured: {', '.join(missed)} (give --num-envs {len(covered) + len(missed)} "
                       f"or more)", file=sys.stderr)
             if results[-1]["diverged"]:
-                print(f"evaluate: warning: {policy} on {feet}: the simulation of {results[-1]['diverged']} of "
+                print(f"footforge evaluate: warning: {policy} on {feet}: the simulation of {results[-1]['diverged']} of "
                       f"{args.num_envs} robots diverged (counted among the falls)", file=sys.stderr)
             if args.video:
                 i = len(results) - 1
@@ -137,9 +145,6 @@ def _run(args) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
-
 
 def _used(given):
     """The folder used for policy `given` (footforge.rl.policy_files.policy_folder), said when it is
@@ -149,5 +154,9 @@ def _used(given):
     used = policy_folder(given)
     note = folder_note(given, used)
     if note:
-        print(f"evaluate: note: {note}", file=sys.stderr)
+        print(f"footforge evaluate: note: {note}", file=sys.stderr)
     return used
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate-closed-c
 
     from footforge.cli.guard import run_guarded
 
-    return run_guarded("evaluate_closed_chain", lambda: _run(args))
+    return run_guarded("footforge evaluate-closed-chain", lambda: _run(args))
 
 
 def _run(args) -> int:
@@ -104,9 +104,6 @@ def _run(args) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
-
 
 def _used(given):
     """The folder used for policy `given` (footforge.rl.policy_files.policy_folder), said when it is
@@ -116,5 +113,9 @@ def _used(given):
     used = policy_folder(given)
     note = folder_note(given, used)
     if note:
-        print(f"evaluate_closed_chain: note: {note}", file=sys.stderr)
+        print(f"footforge evaluate-closed-chain: note: {note}", file=sys.stderr)
     return used
+
+
+if __name__ == "__main__":
+    sys.exit(main())

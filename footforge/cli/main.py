@@ -412,10 +412,10 @@ def _main(argv: list[str] | None) -> int:
     except FootforgeError as e:
         if args.verbose:
             traceback.print_exc()
-        errors.print(f"footforge: error: {e}", markup=False, highlight=False, soft_wrap=True)  # paths unbroken
+        errors.print(f"footforge {args.command}: error: {e}", markup=False, highlight=False, soft_wrap=True)  # paths unbroken
         return e.exit_code
     except KeyboardInterrupt as e:
-        errors.print(f"footforge: {interrupt_word(e)}; no output was written")
+        errors.print(f"footforge {args.command}: {interrupt_word(e)}; no output was written")
         return interrupt_exit_code(e)
 
 

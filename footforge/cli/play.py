@@ -21,7 +21,7 @@ import os
 import sys
 from pathlib import Path
 
-PROG = "play"
+PROG = "footforge play"
 
 
 def parser(prog: str = "footforge play") -> argparse.ArgumentParser:

@@ -112,7 +112,7 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
     from footforge.cli.help import console as make_console
 
     console = make_console()
-    name = prog or f"train_{task}"
+    name = f"footforge train {task}"  # messages name the command, whichever way it was started
 
     try:
         with sigterm_as_interrupt():  # a terminated run (a batch scheduler's kill) ends as an interrupted one
