@@ -34,10 +34,12 @@ ablations of 2026-11-26 ran before the defaults changed: their `position+fast` i
 - resample=X: a new command every X > 0 seconds (CommandConfig.resample_s; the flat task's default
             is 5 s since 2026-11-27, legged_gym's 10 s before: runs from before trained at 10).
 
-Prints one line per training-episode log (steps, wall s, episode length, forward error, base height),
-then one JSON line: steps, wall_s, and the final policy's walking verdict (deterministic, 32 robots x
-20 s: footforge.rl.verdict; verdict, forward_error, vx_slope, episode_length of 1,000 steps,
-base_height_m, stance_fraction per foot, gait, clipped_fraction), then the curve.
+Prints one line per evaluation and per training-episode log (steps, wall s, episode length,
+forward error, base height), then one JSON line: steps trained (the run's last checkpoint),
+wall_s, and the final policy's walking verdict (deterministic, 32 robots x 20 s:
+footforge.rl.verdict; verdict, forward_error, vx_slope, uptime (the share of robot-time up) and
+time_up_s, base_height_m, stance_fraction per foot, gait, clipped_fraction), then the curve. A
+figure that could not be measured is null.
 
     python benchmarks/learning_cpu.py --out /tmp/l --preset forward --variant position --timesteps 3000000
     python benchmarks/learning_cpu.py --out /tmp/l --timesteps 5000000 --resume   # goes on
@@ -121,7 +123,7 @@ def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))  # the first paragraph, whole
     p.add_argument("--out", type=Path, required=True, help="run folder (a new one, or the run to --resume)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint "
                    "(parameters only: Brax restarts Adam and the adaptive learning rate)")
@@ -183,6 +185,8 @@ def main(argv=None) -> int:
           flush=True)
     print("env steps | wall s | episode length (policy steps) | forward error m/s | base height m | source", flush=True)
 
+    printed = set()
+
     def progress(step, total, metrics, evaluation):
         if "eval/episode_reward" in metrics and evaluation:
             src, length = "eval", metrics["eval/avg_episode_length"]
@@ -194,6 +198,9 @@ def main(argv=None) -> int:
             height = metrics.get("episode/base_height_m_per_step", float("nan"))
         else:
             return
+        if (step, src) in printed:  # Brax reports an epoch's end more than once
+            return
+        printed.add((step, src))
         print(f"{step:>9,} | {time.time() - t0:6.0f} | {length:6.1f} | {err:.3f} | {height:.3f} | {src}", flush=True)
 
     train.train(cfg, ppo, args.out, progress=progress, resume=args.resume, evaluate=not args.no_evaluations,
@@ -212,7 +219,10 @@ def main(argv=None) -> int:
     train_s = round(time.time() - t0, 1)
     result = {"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(),
               "backend": jax.default_backend(), "jax_devices": jax.device_count(), "feet": args.feet,
-              "preset": args.preset, "variant": args.variant, "steps": curve[-1]["env_steps"] if curve else 0,
+              "preset": args.preset, "variant": args.variant,
+              # what was trained (the run's last checkpoint), not the curve's last row
+              "steps": json.loads((args.out / "progress.json").read_text()).get("global_step", 0)
+              if (args.out / "progress.json").is_file() else 0,
               "num_envs": ppo.num_envs, "wall_s": train_s, "physics": cfg.physics}
     if not args.no_verdict:  # the final policy, deterministic, 32 robots x 20 s (footforge.rl.verdict)
         from footforge.rl.evaluate import evaluate
@@ -221,12 +231,25 @@ def main(argv=None) -> int:
                      physics=cfg.physics)
         w = r["walking"]
         result |= {"verdict": w["verdict"], "verdict_line": w["line"], "forward_error": w["forward_error_mps"],
-                   "vx_slope": w["vx_slope"], "episode_length": round(w["uptime"] * 1000, 1),
+                   "vx_slope": w["vx_slope"], "uptime": w["uptime"], "time_up_s": round(w["uptime"] * 20.0, 2),
                    "base_height_m": w["base_height_m"], "stance_fraction": w["stance_fraction"],
                    "gait": w["gait"], "pair_agreement": w["pair_agreement"],
                    "clipped_fraction": r["clipped_fraction"], "falls": r["falls"], "eval_wall_s": round(time.time() - t0 - train_s, 1)}
-    print(json.dumps(result | {"curve": curve}))
+    print(json.dumps(_finite_or_none(result | {"curve": curve}), allow_nan=False))  # NaN is not JSON
     return 0
+
+
+def _finite_or_none(value):
+    """`value` with every NaN or infinite float (a figure that could not be measured) as None."""
+    import math
+
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(v) for v in value]
+    return value
 
 
 if __name__ == "__main__":

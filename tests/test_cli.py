@@ -377,3 +377,24 @@ def test_an_unknown_mujoco_gl_is_an_input_error_for_every_command(value):
             if code == 2:
                 assert "Traceback" not in done.stderr and done.stderr.count("\n") == 1, (command, done.stderr)
                 assert f"MUJOCO_GL={value!r}" in done.stderr and "'egl'" in done.stderr and "unset it" in done.stderr
+
+
+def test_the_cpu_learning_benchmark_says_whole_sentences_and_writes_valid_json():
+    """benchmarks/learning_cpu.py: its --help gives the docstring's first paragraph whole (it stopped
+    mid-sentence), and its result line is JSON whatever could not be measured (vx_slope was NaN)."""
+    import importlib.util
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, str(REPO / "benchmarks/learning_cpu.py"), "--help"], capture_output=True,
+                         text=True, cwd=REPO, timeout=120)
+    assert out.returncode == 0, out.stderr
+    description = " ".join(out.stdout.split("\n\n")[1].split())
+    assert description.endswith(".") and "a variant of the task's settings" in description, description
+    spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    row = {"vx_slope": float("nan"), "gait": {"trot": float("inf")}, "curve": [{"x": 1.5}], "steps": 3}
+    assert json.loads(json.dumps(module._finite_or_none(row), allow_nan=False)) == {
+        "vx_slope": None, "gait": {"trot": None}, "curve": [{"x": 1.5}], "steps": 3}
