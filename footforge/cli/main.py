@@ -68,7 +68,9 @@ def _add_description_options(p: argparse.ArgumentParser, params_help: str | None
     p.add_argument("--repair", action="store_true",
                    help="repair repairable description defects (reported in build_report.json)")
     p.add_argument("--max-hull-vertices", type=int, default=64, help="vertex cap per convex hull (default 64)")
-    p.add_argument("--coacd-timeout", type=float, default=120.0, help="seconds before CoACD is stopped, per mesh")
+    p.add_argument("--coacd-timeout", type=float, default=900.0,
+                   help="seconds before CoACD is stopped, per mesh: a guard against a decomposition that never ends "
+                        "(it takes minutes on a busy machine)")
     p.add_argument("--face-budget", type=int, default=DEFAULT_FACE_BUDGET,
                    help=f"simplify collision meshes above this many faces before CoACD (default {DEFAULT_FACE_BUDGET}; 0: never)")
     p.add_argument("--cache-dir", type=Path, help="CoACD cache folder (default ~/.cache/footforge/coacd)")
@@ -88,7 +90,7 @@ def _description_options(args) -> dict:
         raise InputError(f"--max-hull-vertices {args.max_hull_vertices} is below 4",
                          fix="a convex hull needs at least 4 vertices; the default is 64")
     if args.coacd_timeout <= 0:
-        raise InputError("--coacd-timeout must be positive", fix="give seconds, e.g. 120")
+        raise InputError("--coacd-timeout must be positive", fix="give seconds, e.g. 900")
     if args.face_budget < 0:
         raise InputError(f"--face-budget {args.face_budget} is negative",
                          fix=f"give a face count (default {DEFAULT_FACE_BUDGET}), or 0 to keep every face")

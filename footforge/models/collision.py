@@ -45,8 +45,12 @@ class DecompositionConfig:
     """CoACD's random seed: the same seed gives the same hulls."""
     convex_tolerance: float = 0.02
     """A mesh whose hull volume exceeds its volume by less than this fraction counts as convex."""
-    timeout_s: float = 120.0
-    """Kill CoACD after this long and report the mesh (the user's --coacd-timeout)."""
+    timeout_s: float = 900.0
+    """Kill CoACD after this long and report the mesh (the user's --coacd-timeout): a guard against a
+    decomposition that never ends, not a budget. Generous, since the time depends on the machine's
+    load: the public SoftFoot-Q's ankle.stl (13,896 faces, simplified to 1,000) finished in time
+    on quiet cores and passed 120 s (the default until 2026-11-28) with other work sharing them;
+    the whole cold build took 298 s quiet and 738 s shared."""
     face_budget: int = DEFAULT_FACE_BUDGET
     """A mesh with more faces is simplified to this many before CoACD (footforge.models.mesh_simplify;
     the user's --face-budget; 0 keeps every face)."""
