@@ -407,11 +407,12 @@ def test_the_adaptive_feet_stand_on_level_0_in_float32(built, feet):
     is outside the target (sinks 10 mm or more, or slips 8 mm or more).
 
     Why a spawn may be outside it: one spawn's result is chaotic in float32, down to the CPU that
-    runs it. Seed 3's AOF spawn held on the CPU of stop 41's CI (2026-11-27) and on this
-    project's CPU sank 19.5 mm and slid 47.5 mm (2026-11-28, in CI and here, identical to the last
-    digit at the code of both stops), while seeds 0-2 and 4-7 sank 1.5-2.0 mm and slid 3.5-6.2 mm
-    (MJX's heightfield manifold re-picking its points under a sole box, each jump a load float32
-    solves inexactly; anymal.STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE). What this guards: the
+    runs it. With the sole boxes on the heightfield, seed 3's AOF spawn held on the CPU of stop
+    41's CI (2026-11-27) and on this project's CPU sank 19.5 mm and slid 47.5 mm (2026-11-28), while
+    seeds 0-2 and 4-7 sank 1.5-2.0 mm and slid 3.5-6.2 mm (MJX's heightfield manifold re-picking its
+    points under a sole box, each jump a load float32 solves inexactly). With the sole spheres
+    (EnvConfig.heightfield_soles, since 2026-11-28) all eight AOF spawns sank 1.8-2.0 mm and slid
+    3.7-4.5 mm, AFF's 1.2-1.5 and 3.1-4.9 (benchmarks/engines_2026-11-28/stance_sole_spheres.jsonl). What this guards: the
     build's contact solref in float32 let AOF slide 8.0 mm at seed 1 and raised the others
     (benchmarks/log/2026-11-21_to_26.md), a regression of every spawn that the medians catch."""
     import jax

@@ -7,8 +7,10 @@ ground contact only ends episodes and is measured geometrically instead
 (footforge.envs.locomotion.LocomotionEnv.contact_flags). Their colliders would otherwise be the
 most of MJX's contact slots (83 of ball feet's 87 on flat ground), each of them constraint rows of
 every Newton iteration (benchmarks/step_profile.py). The feet keep theirs; on a heightfield the
-shank tubes collide as capsules (MJX has no cylinder-heightfield collision). CPU MuJoCo
-(load_robot(for_mjx=False)) keeps every collider of the build.
+shank tubes collide as capsules (MJX has no cylinder-heightfield collision) and the adaptive
+feet's sole boxes as grids of spheres, from their own rest pose (EnvConfig.heightfield_soles: the
+two engines collide boxes with a heightfield differently, spheres alike). CPU MuJoCo
+(load_robot(for_mjx=False)) keeps every other collider of the build.
 """
 
 from __future__ import annotations
