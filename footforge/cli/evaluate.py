@@ -82,13 +82,14 @@ def _run(args) -> int:
     from footforge.outputs import check_output_folder
     from footforge.rl.policy_card import card_name, policy_card
     from footforge.cli.builds import build_defaults_if_missing
-    from footforge.rl.policy_files import load_policy_config, policy_folder
+    from footforge.cli.guard import policy_in_use
+    from footforge.rl.policy_files import load_policy_config
 
     check_output_folder(args.out, force=args.force)  # before minutes of evaluation
     from footforge.envs import engine
 
     engine.check(engine.resolve(args.physics))
-    args.policy = [_used(policy) for policy in args.policy]  # a run's folder: its policy/ (or newest checkpoint)
+    args.policy = [policy_in_use(policy, "footforge evaluate") for policy in args.policy]
     if args.video:
         from footforge.rl.render import check_renderer, render_frames, write_gif, write_strip
 
@@ -145,17 +146,6 @@ def _run(args) -> int:
     return 0
 
 
-
-def _used(given):
-    """The folder used for policy `given` (footforge.rl.policy_files.policy_folder), said when it is
-    not what the user named."""
-    from footforge.rl.policy_files import folder_note, policy_folder
-
-    used = policy_folder(given)
-    note = folder_note(given, used)
-    if note:
-        print(f"footforge evaluate: note: {note}", file=sys.stderr)
-    return used
 
 
 if __name__ == "__main__":

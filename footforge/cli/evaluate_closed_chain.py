@@ -65,7 +65,8 @@ def _run(args) -> int:
     from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
     from footforge.outputs import check_output_folder
     from footforge.cli.builds import build_defaults_if_missing
-    from footforge.rl.policy_files import load_policy_config, policy_folder
+    from footforge.cli.guard import policy_in_use
+    from footforge.rl.policy_files import load_policy_config
 
     from footforge.cli.help import console as make_console
 
@@ -74,7 +75,7 @@ def _run(args) -> int:
     console = make_console()
     engine.check("mujoco")  # its robots step on the C engine's threads (FOOTFORGE_PHYSICS_THREADS)
     check_output_folder(args.out, force=args.force)  # before minutes of simulation
-    args.policy = [_used(policy) for policy in args.policy]  # a run's folder: its policy/ (or newest checkpoint)
+    args.policy = [policy_in_use(policy, "footforge evaluate-closed-chain") for policy in args.policy]
     trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder
     build_defaults_if_missing([*trained_on, "full"], args.build_root, console)
     results = []
@@ -104,17 +105,6 @@ def _run(args) -> int:
     return 0
 
 
-
-def _used(given):
-    """The folder used for policy `given` (footforge.rl.policy_files.policy_folder), said when it is
-    not what the user named."""
-    from footforge.rl.policy_files import folder_note, policy_folder
-
-    used = policy_folder(given)
-    note = folder_note(given, used)
-    if note:
-        print(f"footforge evaluate-closed-chain: note: {note}", file=sys.stderr)
-    return used
 
 
 if __name__ == "__main__":

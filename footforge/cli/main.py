@@ -372,13 +372,10 @@ def _run_check(args, console) -> int:
 
 
 def _run_export(args, console) -> int:
+    from footforge.cli.guard import policy_in_use
     from footforge.rl.export_onnx import export
-    from footforge.rl.policy_files import folder_note, policy_folder
 
-    note = folder_note(args.policy_dir, policy_folder(args.policy_dir))
-    if note:
-        print(f"footforge export: note: {note}", file=sys.stderr)
-    out = export(args.policy_dir, args.out, force=args.force)
+    out = export(policy_in_use(args.policy_dir, "footforge export"), args.out, force=args.force)
     console.print(f"policy written to {out}", markup=False, highlight=False, soft_wrap=True)
     return EXIT_OK
 

@@ -94,12 +94,9 @@ def _check_arguments(args) -> None:
         raise InputError("no such policy folder or file", file=str(args.policy),
                          fix="pass a training run's folder (or its policy/ folder), or an .onnx file from footforge "
                              "export")
-    from footforge.rl.policy_files import folder_note, policy_folder
+    from footforge.cli.guard import policy_in_use
 
-    used = policy_folder(args.policy)  # a run's folder: its policy/ (or its newest intact checkpoint)
-    if folder_note(args.policy, used):
-        print(f"{PROG}: note: {folder_note(args.policy, used)}", file=sys.stderr)
-    args.policy = used
+    args.policy = policy_in_use(args.policy, PROG)  # a run's folder: its policy/ (or its newest intact checkpoint)
     for flag, path, suffix in (("--video", args.video, ".gif"), ("--log", args.log, ".json")):
         if path is not None:
             _check_output(flag, path, suffix, args.force)
