@@ -161,7 +161,7 @@ def test_sole_boxes_become_spheres_on_the_heightfield_without_changing_the_robot
 
 def test_sole_spheres_stand_from_their_own_rest(built, monkeypatch):
     """On the sole spheres the rough task starts from their own rest on flat ground
-    (footforge.models.rest), not from the build's `stand` (the rest on its boxes): AOF at the stance
+    (footforge.rest), not from the build's `stand` (the rest on its boxes): AOF at the stance
     spawn of seed 0 on level 0, MuJoCo's C engine, zero actions for 10 s, slips less than 5 mm. The
     control, run here: the same from the build's box rest, where a foot was kicked 12 cm up within
     0.1 s and the feet slid 20 mm (measured 2026-11-28; the other seven spawns 3.1-5.2 mm)."""

@@ -268,7 +268,7 @@ def _scene_spec(folder: Path, config: EnvConfig, terrain, for_mjx: bool) -> mujo
 
 
 def _stand_on_sole_spheres(folder: Path, config: EnvConfig) -> np.ndarray | None:
-    """The `stand` pose (footforge.models.rest) of the build in `folder` with its sole boxes as
+    """The `stand` pose (footforge.rest) of the build in `folder` with its sole boxes as
     EnvConfig.heightfield_soles' spheres, on the scene's flat floor; None where no sole box is
     replaced (ball feet). The build's `stand` is the rest on its boxes: the spheres, inset from the
     box's edges, hold the loaded soles at other angles, and a robot started from the boxes' rest on
@@ -281,7 +281,7 @@ def _stand_on_sole_spheres(folder: Path, config: EnvConfig) -> np.ndarray | None
 
 @functools.lru_cache(maxsize=8)
 def _stand_on_sole_spheres_cached(scene: str, mtime_ns: int, grid: tuple[int, int], radius_m: float):
-    from footforge.models.rest import NoRest, rest_pose
+    from footforge.rest import NoRest, rest_pose
 
     spec = mujoco.MjSpec.from_file(scene)
     config = EnvConfig(heightfield_sole_grid=grid, heightfield_sole_radius_m=radius_m)

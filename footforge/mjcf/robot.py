@@ -150,7 +150,7 @@ def _lowest_collision_z(mj: mujoco.MjModel, data: mujoco.MjData) -> float:
 
 def _add_stand_keyframe(root: mjcf.RootElement) -> None:
     """Keyframe `stand`: the robot at rest on flat ground (z = 0) under the home keyframe's PD
-    targets, found by simulating it from `home` until it stops moving (footforge.models.rest).
+    targets, found by simulating it from `home` until it stops moving (footforge.rest).
 
     `home` is a pose, not an equilibrium: at kp 80 N m/rad the legs give under the robot's weight
     (the base settles about 4 cm lower) and an adaptive foot's passive joints turn to their
@@ -158,9 +158,9 @@ def _add_stand_keyframe(root: mjcf.RootElement) -> None:
     Starting from `stand`, a robot holding its targets does not move (footforge.validate.stance).
 
     Raises:
-      CheckFailure: the robot did not come to rest within footforge.models.rest.SETTLE_MAX_S.
+      CheckFailure: the robot did not come to rest within footforge.rest.SETTLE_MAX_S.
     """
-    from footforge.models.rest import SETTLE_MAX_S, NoRest, rest_pose
+    from footforge.rest import SETTLE_MAX_S, NoRest, rest_pose
 
     spec = mujoco.MjSpec.from_string(root.to_xml_string(), assets=root.get_assets())
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], contype=FLOOR_CONTYPE, conaffinity=1)
