@@ -27,6 +27,7 @@ import numpy as np
 from footforge import constants as C
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
+from footforge.variants import DERIVED
 
 FLOOR_GEOM = "floor"
 GEOM_NONE, GEOM_BASE = 0, 1
@@ -237,7 +238,7 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     passive.sort(key=lambda n: (C.LEGS.index(n.split("_")[0]), n))
     stand_qpos = model.key("stand" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand") >= 0
                            else "home").qpos.copy()
-    if terrain is not None and config.heightfield_soles == "spheres":  # the rest on the spheres, not the boxes
+    if terrain is not None and config.heightfield_soles == "spheres" and config.feet in DERIVED:  # their own rest
         on_spheres = _stand_on_sole_spheres(folder, config)
         stand_qpos = stand_qpos if on_spheres is None else on_spheres
     return Robot(
@@ -262,7 +263,7 @@ def _scene_spec(folder: Path, config: EnvConfig, terrain, for_mjx: bool) -> mujo
         add_to_spec(spec, terrain, name=FLOOR_GEOM)
         if for_mjx and config.shank_collisions:
             _shank_tubes_as_capsules(spec)
-        if config.heightfield_soles == "spheres":
+        if config.heightfield_soles == "spheres" and config.feet in DERIVED:  # the derived feet's sole boxes only
             _sole_boxes_as_spheres(spec, config)
     return spec
 
