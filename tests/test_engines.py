@@ -360,3 +360,24 @@ def test_a_blown_up_c_simulation_ends_as_diverged(built):
     assert np.all(np.isfinite(np.asarray(after.pipeline_state.qpos)))  # restarted
     calm = step(after, jp.zeros(env.action_size))
     assert float(calm.metrics["diverged"]) == 0.0
+
+
+def test_the_c_engine_s_callbacks_compute_with_numpy_only(built, monkeypatch):
+    """JAX hands a pure_callback jax.Arrays; host arithmetic on them dispatches JAX work from inside
+    the computation that waits for the callback, which hung CI once under load (the thread-count
+    test, 2026-11-28: `qpos + qpos_rest` in _initial_state waited forever). The host step and the
+    forward pass see NumPy arrays."""
+    import footforge.envs.engine_mujoco as engine_mujoco
+
+    seen = []
+    original = engine_mujoco.MujocoPhysics._initial_state
+
+    def spy(self, *arrays):
+        seen.append({type(a) for a in arrays})
+        return original(self, *arrays)
+
+    monkeypatch.setattr(engine_mujoco.MujocoPhysics, "_initial_state", spy)
+    _, env = _pair(built, "flat", "aof", "B")
+    states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 2))
+    jax.jit(jax.vmap(env.step))(states, jp.zeros((2, env.action_size)))
+    assert seen and all(kinds == {np.ndarray} for kinds in seen), seen

@@ -51,6 +51,11 @@ THREADS_ENV = "FOOTFORGE_PHYSICS_THREADS"
 Results do not depend on it."""
 
 
+def _numpy(*arrays) -> list[np.ndarray]:
+    """The host callbacks' arguments (jax.Arrays on the CPU) as NumPy arrays (views, no JAX work)."""
+    return [np.asarray(a) for a in arrays]
+
+
 @struct.dataclass
 class MujocoState:
     """One robot's physics state under the C engine (a JAX pytree; batched by Brax's vmap)."""
@@ -404,6 +409,11 @@ class MujocoPhysics:
         return self._robot_models
 
     def _host_step(self, qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart, *fields):
+        # JAX hands a callback jax.Arrays: arithmetic on them would dispatch JAX work from inside the
+        # computation that waits for this callback, which deadlocked under load (CI, 2026-11-28: a
+        # `qpos + qpos_rest` here waited forever on XLA's CPU threads). NumPy views first, then only NumPy.
+        qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = _numpy(qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart)
+        fields = _numpy(*fields)
         batch, dtype = qpos.shape[:-1], qpos.dtype
         flat = [np.reshape(x, (-1, x.shape[-1])) for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart)]
         qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = flat
@@ -422,6 +432,8 @@ class MujocoPhysics:
         return tuple(x.reshape(*batch, x.shape[-1]) for x in out)
 
     def _host_forward(self, qpos, qpos_rest, qvel, qvel_rest, ctrl, *fields):
+        qpos, qpos_rest, qvel, qvel_rest, ctrl = _numpy(qpos, qpos_rest, qvel, qvel_rest, ctrl)  # as _host_step
+        fields = _numpy(*fields)
         batch, dtype = qpos.shape[:-1], qpos.dtype
         qpos, qpos_rest, qvel, qvel_rest, ctrl = [np.reshape(x, (-1, x.shape[-1]))
                                                   for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl)]
