@@ -159,25 +159,21 @@ def test_sole_boxes_become_spheres_on_the_heightfield_without_changing_the_robot
                 np.testing.assert_array_equal(getattr(spheres, attribute)[h], getattr(boxes, attribute)[g])
 
 
-def test_sole_spheres_stand_from_their_own_rest(built, monkeypatch):
-    """On the sole spheres the rough task starts from their own rest on flat ground
-    (footforge.rest), not from the build's `stand` (the rest on its boxes): AOF at the stance
-    spawn of seed 0 on level 0, MuJoCo's C engine, zero actions for 10 s, slips less than 5 mm. The
-    control, run here: the same from the build's box rest, where a foot was kicked 12 cm up within
-    0.1 s and the feet slid 20 mm (measured 2026-11-28; the other seven spawns 3.1-5.2 mm)."""
-    from footforge.envs import anymal
+def test_sole_spheres_stand_from_their_own_rest(built):
+    """On the sole spheres the rough task starts from their own rest on flat ground (footforge.rest),
+    not from the build's `stand` (the rest on its boxes, a different pose: the spheres, inset from
+    the box's edges, hold the passive soles at other angles): AOF at the stance spawn of seed 0 on
+    level 0, MuJoCo's C engine, zero actions for 10 s, sinks and slips less than 5 mm. From the
+    box rest the same spawn once kicked a foot 12 cm up and slid 20 mm (2026-11-28, this CPU); in a
+    fresh-clone CI it slid 3.9 mm, so that chaotic case is not asserted here."""
     from footforge.validate.stance import env_stance, env_stance_start
 
-    results = []
-    for own_rest in (True, False):
-        if not own_rest:
-            monkeypatch.setattr(anymal, "_stand_on_sole_spheres", lambda folder, config: None)
-        env, start = env_stance_start("rough", "aof", str(built["aof"][0]), seed=0, physics="mujoco")
-        assert env.config.heightfield_soles == "spheres"
-        results.append(env_stance(env, start, seconds=10.0))
-    ours, control = results
+    env, start = env_stance_start("rough", "aof", str(built["aof"][0]), seed=0, physics="mujoco")
+    assert env.config.heightfield_soles == "spheres"
+    build_stand = mujoco.MjModel.from_xml_path(str(built["aof"][0] / "scene.xml")).key("stand").qpos
+    assert np.abs(env.robot.stand_qpos - build_stand).max() > 1e-3  # another pose than the boxes' rest
+    ours = env_stance(env, start, seconds=10.0)
     assert not ours.fell and ours.slip_after_settle_m < 0.005 and ours.drop_after_settle_m < 0.005, ours
-    assert control.fell or control.slip_after_settle_m > 0.010, control
 
 
 def _lowest_site_clearance(env, qpos) -> float:
