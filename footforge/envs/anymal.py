@@ -264,7 +264,7 @@ def _scene_spec(folder: Path, config: EnvConfig, terrain, for_mjx: bool) -> mujo
         if for_mjx and config.shank_collisions:
             _shank_tubes_as_capsules(spec)
         if config.heightfield_soles == "spheres" and config.feet in DERIVED:  # the derived feet's sole boxes only
-            _sole_boxes_as_spheres(spec, config)
+            _sole_boxes_as_spheres(spec, config.heightfield_sole_grid, config.heightfield_sole_radius_m)
     return spec
 
 
@@ -285,8 +285,7 @@ def _stand_on_sole_spheres_cached(scene: str, mtime_ns: int, grid: tuple[int, in
     from footforge.rest import NoRest, rest_pose
 
     spec = mujoco.MjSpec.from_file(scene)
-    config = EnvConfig(heightfield_sole_grid=grid, heightfield_sole_radius_m=radius_m)
-    if not _sole_boxes_as_spheres(spec, config):
+    if not _sole_boxes_as_spheres(spec, grid, radius_m):
         return None
     try:
         qpos, _ = rest_pose(spec.compile())
@@ -302,14 +301,15 @@ _SOLE_GEOM_ATTRIBUTES = ("contype", "conaffinity", "group", "friction", "solmix"
 """What a sole sphere takes over from the box it stands in for."""
 
 
-def _sole_boxes_as_spheres(spec: mujoco.MjSpec, config: EnvConfig) -> int:
+def _sole_boxes_as_spheres(spec: mujoco.MjSpec, grid: tuple[int, int], radius: float) -> int:
     """Each colliding sole box of the derived feet becomes a grid of spheres on its bottom face
     (EnvConfig.heightfield_soles): the same friction and contact parameters, no mass (the bodies'
     inertials are explicit), in both engines' models, so a heightfield is collided by each engine's
-    sphere-prism test, which agree. Returns the number of boxes replaced."""
+    sphere-prism test, which agree. `grid`, `radius`: EnvConfig.heightfield_sole_grid and
+    heightfield_sole_radius_m. Returns the number of boxes replaced."""
     from footforge.geometry import sole_primitives
 
-    grid, radius = tuple(config.heightfield_sole_grid), config.heightfield_sole_radius_m
+    grid = tuple(grid)
     if len(grid) != 2 or min(grid) < 1 or not radius > 0:
         raise InputError(f"heightfield_sole_grid {grid} and heightfield_sole_radius_m {radius}: give two counts of at "
                          "least 1 and a positive radius", fix="e.g. heightfield_sole_grid=(3, 2), "

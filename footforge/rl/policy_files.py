@@ -56,10 +56,9 @@ def policy_problem(run_dir: Path) -> str | None:
         return "it has no policy/ yet"
     except (OSError, ValueError, KeyError, TypeError):
         return "its policy/footforge.json is unreadable"
-    if (folder / CHECKPOINT_MANIFEST).is_file():
-        problem = checkpoint_problem(folder, read=False)
-        if problem:
-            return f"its policy/ is damaged ({problem})"
+    problem = _damaged(folder)
+    if problem:
+        return f"its policy/ is damaged ({problem})"
     if step != final[0]:
         return f"its policy/ is from step {step:,}, its newest intact checkpoint from {final[0]:,}"
     return None
@@ -114,13 +113,14 @@ def policy_folder(path: Path) -> Path:
     path = Path(path)
     if (path / "footforge.json").is_file():
         return path
-    policy, run = path / "policy", is_run_folder(path)
-    final = latest_intact_checkpoint(path) if run else None
-    if (policy / "footforge.json").is_file():
-        # A damaged policy/ of a run: its newest intact checkpoint; with none, the policy (whose
-        # damage the loader reports).
-        return final[1] if final is not None and _damaged(policy) else policy
-    return final[1] if final is not None else path
+    policy = path / "policy"
+    intact_policy = (policy / "footforge.json").is_file() and not _damaged(policy)
+    if intact_policy or not is_run_folder(path):
+        return policy if (policy / "footforge.json").is_file() else path
+    # A run without policy/, or with a damaged one: its newest intact checkpoint (hashed only here);
+    # with none, the damaged policy (whose damage the loader reports) or the run (which it names).
+    final = latest_intact_checkpoint(path)
+    return final[1] if final is not None else policy if (policy / "footforge.json").is_file() else path
 
 
 def folder_note(given: Path, used: Path) -> str | None:
