@@ -746,7 +746,7 @@ def test_a_new_run_announces_device_steps_and_rounding_before_compiling(built, t
                              str(tmp_path / "big"), "--num-envs", "1024", "--batch-size", "256"]) == 0
     out = capsys.readouterr().out
     assert "warning: 1,024 robots on a CPU: one iteration of 49,152 steps takes about" in out
-    assert "--num-envs 128 --unroll-length 24" in out
+    assert "A CPU-sized run: --preset cpu" in out
 
 
 def test_evaluation_robots_default_to_no_more_than_the_training_robots(built, tmp_path, monkeypatch):

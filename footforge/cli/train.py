@@ -31,11 +31,21 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     from footforge.cli.help import DefaultsHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=description, formatter_class=DefaultsHelpFormatter)
+    from footforge.rl import presets
+
+    p.add_argument("--preset", choices=list(presets.PRESETS[task]),
+                   help=f"a named configuration of the {task} task (footforge/rl/presets.py; default "
+                        f"{presets.DEFAULT_PRESET}): " + presets.describe(task))
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE", dest="overrides",
+                   help="override one setting of the preset, as config.json names it, e.g. --set ppo.entropy_cost=0.01 "
+                        "--set env.commands.resample_s=10 --set env.rewards.feet_air_time.scale=0 (repeatable, "
+                        "applied in order after the preset and the flags below)")
     p.add_argument("--feet", choices=FEET, help="foot variant (default aof)")
     p.add_argument("--policy", choices=TASKS[task], help="policy type (default B)")
-    p.add_argument("--num-envs", type=int, help="parallel robots (default 2048)")
-    p.add_argument("--timesteps", type=int, help=f"environment steps in total (default {default_ppo(task).num_timesteps:,}; "
-                                                 "with --resume it may extend the run, or with --shorten end it earlier)")
+    p.add_argument("--num-envs", type=int, help="parallel robots (default: the preset's; the task's 2048)")
+    p.add_argument("--timesteps", type=int, help=f"environment steps in total (default: the preset's; the task's "
+                                                 f"{default_ppo(task).num_timesteps:,}; with --resume it may extend "
+                                                 "the run, or with --shorten end it earlier)")
     p.add_argument("--shorten", action="store_true",
                    help="with --resume and --timesteps: allow a total below the run's own (refused without it)")
     p.add_argument("--seed", type=int, help="(default 0)")
@@ -48,11 +58,11 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     p.add_argument("--max-minutes", type=float,
                    help="wall-clock budget: stop at the last checkpoint that leaves no time for another epoch "
                         "(for time-limited jobs; --resume continues)")
-    p.add_argument("--unroll-length", type=int, help="policy steps per robot per iteration (default 48)")
-    p.add_argument("--batch-size", type=int, help="trajectories per minibatch (default 512)")
-    p.add_argument("--minibatches", type=int, help="minibatches per iteration (default 4)")
-    p.add_argument("--checkpoint-every", type=int, help="environment steps between checkpoints (default 5e6)")
-    p.add_argument("--eval-envs", type=int, help="robots per evaluation (default 128, or --num-envs if fewer)")
+    p.add_argument("--unroll-length", type=int, help="policy steps per robot per iteration (the task's default 48)")
+    p.add_argument("--batch-size", type=int, help="trajectories per minibatch (the task's default 512)")
+    p.add_argument("--minibatches", type=int, help="minibatches per iteration (the task's default 4)")
+    p.add_argument("--checkpoint-every", type=int, help="environment steps between checkpoints (the task's default 5e6)")
+    p.add_argument("--eval-envs", type=int, help="robots per evaluation (the task's default 128, or --num-envs if fewer)")
     p.add_argument("--no-compile-cache", action="store_true",
                    help="compile without JAX's persistent cache (footforge/rl/compile_cache.py: on a GPU on by default, "
                         "in ~/.cache/footforge/jax or $FOOTFORGE_COMPILE_CACHE; on the CPU only where "
@@ -170,11 +180,11 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
                     return 0
             evaluate = _evaluations(args, name)
             total = train.planned_steps(ppo, done)
-            _announce(console, name, env_config, ppo, done, total)
+            _announce(console, name, env_config, ppo, done, total, args.recipe)
             with _Reporter(console, task, total) as report:
                 metrics = train.train(env_config, ppo, args.out, resume=args.resume, force=args.force, progress=report,
                                       max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None,
-                                      evaluate=evaluate, init_from=args.init_from)
+                                      evaluate=evaluate, init_from=args.init_from, recipe=args.recipe)
     except FootforgeError as e:
         print(f"{name}: error: {e}", file=sys.stderr)
         return e.exit_code
@@ -224,7 +234,7 @@ def _evaluations(args, name: str) -> bool:
     return True
 
 
-def _announce(console, name: str, env_config, ppo, done: int, total: int) -> None:
+def _announce(console, name: str, env_config, ppo, done: int, total: int, recipe: dict | None = None) -> None:
     """What will train, on what, and for how many steps, before the minutes of compilation."""
     import jax
 
@@ -239,6 +249,10 @@ def _announce(console, name: str, env_config, ppo, done: int, total: int) -> Non
         line += (f" (--timesteps {ppo.num_timesteps:,} rounded up to whole PPO iterations of {iteration:,} steps: "
                  f"{ppo.batch_size} x {ppo.num_minibatches} trajectories of {ppo.unroll_length} steps)")
     console.print(line, markup=False, highlight=False, soft_wrap=True)
+    if recipe is not None:
+        console.print(f"{name}: preset {recipe['preset']}" + (f", overrides {' '.join(recipe['overrides'])}"
+                                                              if recipe["overrides"] else ""),
+                      markup=False, highlight=False, soft_wrap=True)
     from footforge.envs import engine
 
     console.print(f"{name}: physics {engine.describe(env_config.physics)}", markup=False, highlight=False,
@@ -247,7 +261,7 @@ def _announce(console, name: str, env_config, ppo, done: int, total: int) -> Non
         minutes = iteration / CPU_STEPS_PER_S / 60
         console.print(f"{name}: warning: {ppo.num_envs:,} robots on a CPU: one iteration of {iteration:,} steps takes "
                       f"about {minutes:.0f} min at a 2-core CPU's {CPU_STEPS_PER_S:,} steps/s (compilation first). "
-                      f"A CPU-sized run: --num-envs 128 --unroll-length 24 --batch-size 64 --minibatches 4",
+                      f"A CPU-sized run: --preset cpu",
                       markup=False, highlight=False, soft_wrap=True)
 
 
@@ -264,28 +278,46 @@ _SETTINGS = (("--feet", "feet", ("env", "feet")), ("--policy", "policy", ("env",
              ("--mjx-impl", "mjx_impl", ("env", "mjx_impl")))
 
 
-def _new_configs(task: str, args):
-    from footforge import envs
-    from footforge.envs import engine
-    from footforge.rl import train
+def _flag_overrides(task: str, args) -> list[str]:
+    """The settings given as flags, in --set's form (applied after the preset, before --set)."""
+    out = []
+    for flag, attr, (section, field) in _SETTINGS:
+        value = getattr(args, attr)
+        if value is None or section == "env" and field in ("feet", "policy"):
+            continue
+        out.append(f"{section}.{field}={str(value).lower() if isinstance(value, bool) else value}")
+    if args.timesteps is not None:
+        out.append(f"ppo.num_timesteps={args.timesteps}")
+    if task == "rough":
+        out += [f"env.terrain.{text.strip()}" for text in args.terrain]
+    return out
 
-    env_config = envs.default_config(task, args.feet or "aof", args.policy or "B", args.contact_model)
+
+def _recipe(task: str, args) -> tuple[str, list[str]]:
+    """(preset, overrides) of a new run: the preset, its flags, then --set."""
+    from footforge import envs
+    from footforge.rl import presets
+
+    if task == "rough" and args.terrain:  # --terrain's own messages first (FIELD one of ...)
+        _override(envs.default_config(task, args.feet or "aof", args.policy or "P").terrain, args.terrain)
+    return args.preset or presets.DEFAULT_PRESET, _flag_overrides(task, args) + list(args.overrides)
+
+
+def _new_configs(task: str, args):
+    from footforge.envs import engine
+    from footforge.rl import presets
+
+    name, overrides = _recipe(task, args)
+    feet, policy = args.feet or "aof", args.policy or "B"
+    env_config, ppo = presets.resolve(task, feet, policy, name, overrides)
+    if (args.eval_envs is None and args.num_envs is not None and ppo.num_eval_envs > args.num_envs
+            and not any(o.startswith("ppo.num_eval_envs=") for o in args.overrides)):
+        overrides.append(f"ppo.num_eval_envs={args.num_envs}")  # evaluations no larger than the training batch
+        env_config, ppo = presets.resolve(task, feet, policy, name, overrides)
+    args.recipe = {"preset": name, "overrides": overrides}
     if args.build_root or args.build_dir:
         env_config = replace(env_config, build_dir=str(args.build_dir or args.build_root / env_config.feet))
-    if task == "rough":
-        env_config = replace(env_config, terrain=_override(env_config.terrain, args.terrain))
-    if args.float64_physics:
-        env_config = envs.with_float64_physics(env_config)
-    if args.mjx_impl:
-        env_config = replace(env_config, mjx_impl=args.mjx_impl)
-    env_config = replace(env_config, physics=engine.resolve(args.physics or "auto"))
-    overrides = {field: getattr(args, attr) for _, attr, (section, field) in _SETTINGS
-                 if section == "ppo" and getattr(args, attr) is not None}
-    if args.timesteps is not None:
-        overrides["num_timesteps"] = args.timesteps
-    if args.eval_envs is None and args.num_envs is not None:  # evaluations no larger than the training batch
-        overrides["num_eval_envs"] = min(train.PPOConfig.num_eval_envs, args.num_envs)
-    return env_config, train.default_ppo(task, **overrides)
+    return replace(env_config, physics=engine.resolve(args.physics or "auto")), ppo
 
 
 MULTI_PROCESS_UNSUPPORTED = (
@@ -307,6 +339,9 @@ def _resumed_configs(task: str, args):
     if env_config.task != task:
         raise InputError(f"--out {args.out}: is a {env_config.task}-terrain run",
                          fix=f"resume it with footforge train {env_config.task}")
+    args.recipe = None  # the run's own, kept by train()
+    if args.preset or args.overrides:  # the whole configuration they resolve to must be the run's
+        _same_configuration(task, args, env_config, ppo)
     saved = {"env": env_config, "ppo": ppo}
     for flag, attr, (section, field) in _SETTINGS:
         given, value = getattr(args, attr), getattr(saved[section], field)
@@ -340,6 +375,26 @@ def _resumed_configs(task: str, args):
     from footforge.envs import engine
 
     return replace(env_config, physics=engine.resolve(args.physics or "auto")), ppo
+
+
+def _same_configuration(task: str, args, env_config, ppo) -> None:
+    """Raises InputError where --preset and --set (with the run's feet and policy type) resolve to
+    another configuration than the run's config.json (its total of steps and run-time choices aside)."""
+    from footforge.rl import presets
+    from footforge.rl.config import config_differences, to_dict
+
+    name, overrides = _recipe(task, args)
+    wanted_env, wanted_ppo = presets.resolve(task, env_config.feet, env_config.policy, name, overrides)
+    keep = {"physics": env_config.physics, "build_dir": env_config.build_dir}
+    wanted = {"env": to_dict(replace(wanted_env, **keep)),
+              "ppo": to_dict(replace(wanted_ppo, num_timesteps=ppo.num_timesteps))}
+    differences = config_differences({"env": to_dict(env_config), "ppo": to_dict(ppo)}, wanted)
+    if differences:
+        raise InputError(f"--resume: --preset {name} with these overrides is not the run's configuration "
+                         f"({len(differences)} difference{'s' if len(differences) > 1 else ''}): "
+                         + "; ".join(differences),
+                         file=str(args.out / "config.json"),
+                         fix="leave out --preset and --set to continue the run with its own settings")
 
 
 class _Reporter:

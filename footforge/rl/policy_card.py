@@ -35,12 +35,15 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
     progress_file = policy_dir.resolve().parent / "progress.json"
     progress = json.loads(progress_file.read_text()) if progress_file.is_file() else {}
     config_file = policy_dir.resolve().parent / "config.json"
-    try:  # a run started with --init-from records its source there
-        origin = json.loads(config_file.read_text()).get("initialised_from") if config_file.is_file() else None
+    try:  # a run records its recipe there (rl.presets), and a run started with --init-from its source
+        run_config = json.loads(config_file.read_text()) if config_file.is_file() else {}
+        origin, recipe = run_config.get("initialised_from"), run_config.get("recipe")
     except (OSError, ValueError, AttributeError):
-        origin = None
+        origin = recipe = None
     if origin:
         progress = progress | {"initialised_from": origin}
+    if recipe:
+        progress = progress | {"recipe": recipe}
     name = policy_dir.resolve().parent.name if policy_dir.resolve().name == "policy" else policy_dir.name
     lines = [f"# Policy card: {name}", "",
              f"`{policy_dir}`: {env['task']} task, {env['feet']} feet, policy type {env['policy']}", ""]
@@ -70,6 +73,16 @@ def _training_rows(meta: dict, progress: dict) -> list[tuple[str, str]]:
     step = int(meta.get("global_step", 0))
     rows = [("steps trained", f"{step:,} of {int(ppo['num_timesteps']):,}"
              + (" (freshly initialised, untrained)" if step == 0 else ""))]
+    recipe = progress.get("recipe")
+    if recipe:  # rl.presets: the preset and the overrides that give this configuration
+        from footforge.rl.presets import command_line
+
+        overrides = recipe.get("overrides", [])
+        rows.append(("recipe", f"preset `{recipe['preset']}`, "
+                               + (f"overrides {', '.join(f'`{o}`' for o in overrides)}" if overrides else "no overrides")
+                               + f": `{command_line(env, (recipe['preset'], overrides))}`"))
+    else:
+        rows.append(("recipe", "not recorded (a run from before footforge train's presets)"))
     origin = progress.get("initialised_from")
     if origin:  # fine-tuned: train --init-from
         rows.append(("started from", f"step {int(origin['step']):,} of {origin['run']} (--init-from): "

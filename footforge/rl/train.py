@@ -216,7 +216,8 @@ def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, 
 
 def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False, force: bool = False,
           progress: Callable[[int, int, dict, bool], None] | None = None, max_wall_s: float | None = None,
-          notice: Callable[[str], None] | None = None, evaluate: bool = True, init_from: Path | None = None) -> dict:
+          notice: Callable[[str], None] | None = None, evaluate: bool = True, init_from: Path | None = None,
+          recipe: dict | None = None) -> dict:
     """Trains a policy; writes checkpoints, TensorBoard logs and the final policy into run_dir.
 
     Returns the final metrics. `progress(global_step, total_steps, metrics, evaluation)` is called
@@ -237,6 +238,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     normaliser, policy and value parameters, the policy's exploration deviation included), with
     settings of its own: fine-tuning with other PPO settings, rewards or feet. Its step count
     starts at 0; config.json records the source as "initialised_from". Brax starts Adam afresh.
+    `recipe`: {"preset": name, "overrides": [...]} that resolve to these configs (rl.presets), kept in
+    config.json; a resume keeps the run's own.
 
     Raises:
       InputError: bad hyperparameters; a run folder that needs --resume or --force; --resume
@@ -277,7 +280,9 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     if resume:
         offset, restore, resumes, wall_s_before = _resume_state(run_dir, env_config, ppo, notice, primary)
         origin = {k: v for k, v in json.loads((run_dir / "config.json").read_text()).items()
-                  if k == "initialised_from"}
+                  if k in ("initialised_from", "recipe")}
+    elif recipe is not None:
+        origin["recipe"] = recipe
     if primary:
         write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo), "evaluations": evaluate}
                     | origin)
