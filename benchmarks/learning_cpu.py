@@ -1,49 +1,46 @@
-"""Does PPO learn to walk? One flat-ground training with a preset of commands and a variant of
-the task's settings (an ablation), on whatever JAX device is present.
+"""Does PPO learn to walk? One flat-ground training of a footforge preset with a variant of its
+settings (an ablation), on whatever JAX device is present, then the final policy's walking verdict.
 
-Presets (the commands a robot is trained and judged on):
-- forward: vx fixed at 0.6 m/s, vy 0, heading 0 (no yaw), pushes off: the easiest walking task.
-- full:    vx U(-1, 1), vy U(-0.5, 0.5) m/s, heading-driven yaw rate, pushes on (the task's
-           heading range, gain and push schedule).
+A thin benchmark over `footforge train`'s configurations (footforge/rl/presets.py): --preset is
+one of the flat task's presets (default `cpu`: 128 robots x 24 steps, the `fast` contact, commands
+vx U(-1, 1), vy U(-0.5, 0.5) m/s, no feet-air-time term, entropy 0.001), or `full`, the name this
+benchmark gave until 2026-11-28 to the task's defaults with those commands and that CPU batch.
+(Its `forward` was the defaults with one forward command; the preset `forward` of that name is the
+`cpu` preset's with one forward command: `--preset forward --variant stance+airtime=1+entropy=0.01`
+is the old one.) The variant's tokens, joined by '+', are shorthands for overrides applied after the
+preset, each an absolute setting, and --set gives any other (`--set ppo.learning_rate=3e-4`); the
+run's config.json records the whole recipe. The H100 ablations of 2026-11-26 ran before the
+defaults changed: their `position+fast` is today's `position+paper_ppo+paper_rewards+fast`.
 
-Variants: tokens joined by '+', applied in order to the flat task's defaults (envs.default_config);
-each token sets absolute values, so a variant means the same whatever the defaults. The H100
-ablations of 2026-11-26 ran before the defaults changed: their `position+fast` is today's
-`position+paper_ppo+paper_rewards+fast`.
-- today:    nothing (the defaults as they stand);
+Tokens (TOKENS below gives each one's overrides):
+- today:    nothing (the preset as it stands);
 - position: position actions, target = default + 0.5 a (OmniIsaacGymEnvs' AnymalTerrain, legged_gym,
             Playground), PD targets not observed (they are a function of the last action);
 - velocity: velocity actions, target += 13.5 a dt, PD targets observed (OmniIsaacGymEnvs' Anymal);
 - ppo:      rsl_rl's settings as legged_gym uses them (learning rate 1e-3 with the adaptive-KL
-            schedule at KL 0.01, entropy 0.01) and the policy's output layer initialised at 0.01x
-            (PPOConfig's defaults since 2026-11-26);
+            schedule at KL 0.01, entropy 0.01) and the policy's output layer initialised at 0.01x;
 - paper_ppo: the paper's baseline's (3e-4, KL 0.008, entropy 0.001, output layer as Brax makes it);
 - bound:    the policy mean bounded to +-1.5 (Brax's softsign mean_clip_scale);
-- rewards:  tracking lin_vel_xy 2, yaw_rate 1 (Playground's Go1 weighs tracking 3 and 1.5 against
-            similar penalties) and base height -2 (unpublished in the paper; -10 was a guess):
-            envs.FLAT_TUNED_REWARDS, the flat task's default since 2026-11-26;
+- rewards:  tracking lin_vel_xy 2, yaw_rate 1 and base height -2 (envs.FLAT_TUNED_REWARDS);
 - paper_rewards: the baseline's tracking 1 and 0.5 and base height -10;
 - noclip:   the summed reward not clipped at zero;
-- airtime:  legged_gym's feet-air-time term at its scale 1.0 (RewardConfig.feet_air_time; not among
-            the paper's terms, off by default);
+- airtime:  legged_gym's feet-air-time term at its scale 1.0;
 - stance / fast: the contact model (EnvConfig.contact_model) with its own physics step;
-- airtime=X: the feet-air-time scale X (airtime=0: off, as runs from before the term trained);
-- entropy=X: PPO's entropy cost alone (e.g. entropy=0.001).
-- height=X: the base-height penalty's weight alone (height=10: scale -10, the paper's guess; the
-            tuned flat task's is 2).
-- resample=X: a new command every X > 0 seconds (CommandConfig.resample_s; the flat task's default
-            is 5 s since 2026-11-27, legged_gym's 10 s before: runs from before trained at 10).
+- airtime=X: the feet-air-time scale X (airtime=0: off);
+- entropy=X: PPO's entropy cost alone (e.g. entropy=0.001);
+- height=X: the base-height penalty's weight alone (height=10: scale -10);
+- resample=X: a new command every X > 0 seconds (CommandConfig.resample_s).
 
 Prints one line per evaluation and per training-episode log (steps, wall s, episode length,
 forward error, base height), then one JSON line: steps trained (the run's last checkpoint),
-wall_s, and the final policy's walking verdict (deterministic, 32 robots x 20 s:
+wall_s, the recipe, and the final policy's walking verdict (deterministic, 32 robots x 20 s:
 footforge.rl.verdict; verdict, forward_error, vx_slope, uptime (the share of robot-time up) and
 time_up_s, base_height_m, stance_fraction per foot, gait, clipped_fraction), then the curve. A
 figure that could not be measured is null.
 
-    python benchmarks/learning_cpu.py --out /tmp/l --preset forward --variant position --timesteps 3000000
-    python benchmarks/learning_cpu.py --out /tmp/l --timesteps 5000000 --resume   # goes on
-    python benchmarks/learning_cpu.py --out /tmp/m --variant today+entropy=0.001 --init-from /tmp/l  # fine-tunes
+    python benchmarks/learning_cpu.py --out /tmp/l --feet aof --timesteps 10000000 --max-minutes 60
+    python benchmarks/learning_cpu.py --out /tmp/l --timesteps 12000000 --resume   # goes on
+    python benchmarks/learning_cpu.py --out /tmp/m --variant entropy=0.0005 --init-from /tmp/l  # fine-tunes
 """
 
 from __future__ import annotations
@@ -59,67 +56,61 @@ from pathlib import Path
 
 from footforge.variants import FEET
 
-PRESETS = ("forward", "full")
-TOKENS = ("today", "position", "velocity", "ppo", "paper_ppo", "bound", "rewards", "paper_rewards", "noclip",
-          "airtime", "airtime=X", "stance", "fast", "entropy=X", "height=X", "resample=X")
+LEGACY_PRESETS = {"full": ("default", ("ppo.num_envs=128", "ppo.unroll_length=24", "ppo.batch_size=64",
+                                          "ppo.num_minibatches=4", "ppo.num_eval_envs=64",
+                                          "env.commands.lin_vel_x_range=-1,1", "env.commands.lin_vel_y_range=-0.5,0.5"))}
+"""This benchmark's own name from before the presets: (the preset, the overrides) it stands for."""
+
+TOKENS = {
+    "today": (),
+    "position": ("env.action=position", "env.action_scale=0.5", "env.observations.pd_targets=false"),
+    "velocity": ("env.action=velocity", "env.action_scale=13.5", "env.observations.pd_targets=true"),
+    "ppo": ("ppo.learning_rate=0.001", "ppo.adaptive_kl=0.01", "ppo.entropy_cost=0.01",
+            "ppo.policy_output_init_scale=0.01"),
+    "paper_ppo": ("ppo.learning_rate=0.0003", "ppo.adaptive_kl=0.008", "ppo.entropy_cost=0.001",
+                  "ppo.policy_output_init_scale=1.0"),
+    "bound": ("ppo.policy_mean_clip=1.5",),
+    "rewards": ("env.rewards.lin_vel_xy.scale=2.0", "env.rewards.yaw_rate.scale=1.0", "env.rewards.base_height.scale=-2.0"),
+    "paper_rewards": ("env.rewards.lin_vel_xy.scale=1.0", "env.rewards.yaw_rate.scale=0.5",
+                      "env.rewards.base_height.scale=-10.0"),
+    "noclip": ("env.rewards.clip_total_at_zero=false",),
+    "airtime": ("env.rewards.feet_air_time.scale=1.0",),
+    "stance": ("env.contact_model=stance",),
+    "fast": ("env.contact_model=fast",),
+}
+"""Each variant token's overrides (footforge.rl.presets' form)."""
+VALUED = {"airtime": lambda x: f"env.rewards.feet_air_time.scale={x}", "entropy": lambda x: f"ppo.entropy_cost={x}",
+          "height": lambda x: f"env.rewards.base_height.scale={-x}", "resample": lambda x: f"env.commands.resample_s={x}"}
+"""NAME=X tokens: the override of X (X >= 0; X > 0 for resample)."""
 
 
 def _valued_token(token: str) -> bool:
     """A NAME=X token (airtime=X, entropy=X, ...) with a number for X: X >= 0, and X > 0 for resample."""
     name, _, value = token.partition("=")
     try:
-        return f"{name}=X" in TOKENS and (float(value) > 0 if name == "resample" else float(value) >= 0)
+        return name in VALUED and (float(value) > 0 if name == "resample" else float(value) >= 0)
     except ValueError:
         return False
 
 
-def configure(feet: str, preset: str, variant: str, ppo_overrides: dict):
-    """(EnvConfig, PPOConfig) of a preset and a '+'-joined variant (see the module's docstring)."""
-    from footforge import envs
-    from footforge.rl import train
-
-    cfg = envs.default_config("flat", feet, "B")
-    if preset == "forward":
-        cfg = replace(cfg, commands=replace(cfg.commands, lin_vel_x_range=(0.6, 0.6), lin_vel_y_range=(0.0, 0.0),
-                                            heading_range=(0.0, 0.0)),
-                      pushes=replace(cfg.pushes, enabled=False))
-    else:
-        cfg = replace(cfg, commands=replace(cfg.commands, lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-0.5, 0.5)))
-    ppo = train.default_ppo("flat", **ppo_overrides)
+def variant_overrides(variant: str) -> list[str]:
+    """The overrides of a '+'-joined variant, in order."""
+    out = []
     for token in variant.split("+"):
-        if token == "position":
-            cfg = replace(cfg, action="position", action_scale=0.5,
-                          observations=replace(cfg.observations, pd_targets=False))
-        elif token == "velocity":
-            cfg = replace(cfg, action="velocity", action_scale=13.5,
-                          observations=replace(cfg.observations, pd_targets=True))
-        elif token == "ppo":
-            ppo = replace(ppo, learning_rate=1e-3, adaptive_kl=0.01, entropy_cost=0.01, policy_output_init_scale=0.01)
-        elif token == "paper_ppo":
-            ppo = replace(ppo, learning_rate=3e-4, adaptive_kl=0.008, entropy_cost=0.001, policy_output_init_scale=1.0)
-        elif token == "bound":
-            ppo = replace(ppo, policy_mean_clip=1.5)
-        elif token == "rewards":
-            cfg = replace(cfg, rewards=cfg.rewards.with_scales(**envs.FLAT_TUNED_REWARDS))
-        elif token == "paper_rewards":
-            cfg = replace(cfg, rewards=cfg.rewards.with_scales(lin_vel_xy=1.0, yaw_rate=0.5, base_height=-10.0))
-        elif token == "airtime":
-            cfg = replace(cfg, rewards=cfg.rewards.with_scales(feet_air_time=1.0))
-        elif token == "noclip":
-            cfg = replace(cfg, rewards=replace(cfg.rewards, clip_total_at_zero=False))
-        elif token.startswith("airtime="):  # the feet-air-time scale, e.g. airtime=0 (off)
-            cfg = replace(cfg, rewards=cfg.rewards.with_scales(feet_air_time=float(token.split("=", 1)[1])))
-        elif token.startswith("height="):  # the base-height penalty's weight: height=10 is scale -10
-            cfg = replace(cfg, rewards=cfg.rewards.with_scales(base_height=-float(token.split("=", 1)[1])))
-        elif token.startswith("resample="):  # seconds between commands, e.g. resample=5
-            cfg = replace(cfg, commands=replace(cfg.commands, resample_s=float(token.split("=", 1)[1])))
-        elif token.startswith("entropy="):  # PPO's entropy cost alone, e.g. entropy=0.001
-            ppo = replace(ppo, entropy_cost=float(token.split("=", 1)[1]))
-        elif token in ("stance", "fast"):
-            cfg = envs.with_contact_model(replace(cfg, **envs.physics(feet, token)), token)
-        elif token != "today":
-            raise SystemExit(f"learning_cpu: unknown variant token '{token}' (known: {', '.join(TOKENS)})")
-    return cfg, ppo
+        name, _, value = token.partition("=")
+        out += [VALUED[name](float(value))] if value and name in VALUED else list(TOKENS[token])
+    return out
+
+
+def configure(feet: str, preset: str, variant: str, flags: list[str], sets: list[str] = ()):
+    """(EnvConfig, PPOConfig, recipe) of a preset, this benchmark's flags (as overrides), a variant
+    and --set overrides, in that order; recipe = {"preset", "overrides"} as config.json records it."""
+    from footforge.rl import presets
+
+    name, base = LEGACY_PRESETS.get(preset, (preset, ()))
+    overrides = list(base) + list(flags) + variant_overrides(variant) + list(sets)
+    env, ppo = presets.resolve("flat", feet, "B", name, overrides)
+    return env, ppo, {"preset": name, "overrides": overrides}
 
 
 def main(argv=None) -> int:
@@ -128,19 +119,25 @@ def main(argv=None) -> int:
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint "
                    "(parameters only: Brax restarts Adam and the adaptive learning rate)")
     p.add_argument("--feet", default="ball", choices=FEET)
-    p.add_argument("--preset", default="full", choices=PRESETS, help="commands (default full)")
-    p.add_argument("--variant", default="today", help=f"'+'-joined tokens among {', '.join(TOKENS)} (default today)")
-    p.add_argument("--timesteps", type=int, default=5_000_000)
-    p.add_argument("--num-envs", type=int, default=128)
-    p.add_argument("--unroll-length", type=int, default=24)
-    p.add_argument("--batch-size", type=int, help="trajectories per minibatch (default num_envs / 2)")
-    p.add_argument("--minibatches", type=int, default=4)
-    p.add_argument("--eval-every", type=int, default=500_000, help="env steps between checkpoints (and evaluations)")
-    p.add_argument("--eval-envs", type=int, default=64)
+    from footforge.rl.presets import PRESETS
+
+    p.add_argument("--preset", default="cpu", choices=list(PRESETS["flat"]) + list(LEGACY_PRESETS),
+                   help="footforge's flat preset (default cpu), or full (this benchmark's name before presets)")
+    p.add_argument("--variant", default="today",
+                   help=f"'+'-joined tokens among {', '.join(TOKENS)}, {', '.join(f'{k}=X' for k in VALUED)} (default today)")
+    p.add_argument("--set", action="append", default=[], dest="overrides", metavar="SECTION.FIELD=VALUE",
+                   help="any other override, after the variant (footforge train's --set)")
+    p.add_argument("--timesteps", type=int, help="(default: the preset's; full: 5,000,000)")
+    p.add_argument("--num-envs", type=int, help="(default: the preset's, 128 for cpu)")
+    p.add_argument("--unroll-length", type=int)
+    p.add_argument("--batch-size", type=int, help="trajectories per minibatch (default: the preset's)")
+    p.add_argument("--minibatches", type=int)
+    p.add_argument("--eval-every", type=int, help="env steps between checkpoints (and evaluations; default: the preset's)")
+    p.add_argument("--eval-envs", type=int)
     p.add_argument("--no-evaluations", action="store_true",
                    help="no deterministic evaluations (the curve is the training episodes'; on a GPU one costs "
                         "about 20 PPO iterations)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, help="(default: the preset's, 0)")
     p.add_argument("--physics", default="auto", choices=["auto", "mjx", "mujoco"],
                    help="the engine (EnvConfig.physics; auto: MuJoCo's C engine on a CPU, MJX elsewhere); "
                         "the verdict's evaluation uses the same")
@@ -167,14 +164,23 @@ def main(argv=None) -> int:
 
     from footforge.rl import train
 
-    cfg, ppo = configure(args.feet, args.preset, args.variant, dict(
-        num_envs=args.num_envs, num_timesteps=args.timesteps, unroll_length=args.unroll_length,
-        batch_size=args.batch_size or args.num_envs // 2, num_minibatches=args.minibatches,
-        checkpoint_every_steps=args.eval_every, num_eval_envs=args.eval_envs, seed=args.seed))
-    if args.resume:  # the run's own settings; --feet, --preset and --variant are not read
+    flags = [f"ppo.{field}={value}" for field, value in (
+        ("num_timesteps", args.timesteps if args.timesteps is not None else 5_000_000 if args.preset == "full" else None),
+        ("num_envs", args.num_envs), ("unroll_length", args.unroll_length),
+        ("batch_size", args.batch_size), ("num_minibatches", args.minibatches),
+        ("checkpoint_every_steps", args.eval_every), ("num_eval_envs", args.eval_envs), ("seed", args.seed))
+        if value is not None]
+    from footforge.errors import InputError
+
+    try:
+        cfg, ppo, recipe = configure(args.feet, args.preset, args.variant, flags, args.overrides)
+        ppo.check()
+    except InputError as e:
+        p.error(str(e))
+    if args.resume:  # the run's own settings; --feet, --preset, --variant and --set are not read
         cfg, saved = train.load_run_config(args.out)
-        ppo = replace(saved, num_timesteps=args.timesteps)
-        args.feet, args.preset, args.variant = cfg.feet, "(the run's)", "(the run's)"
+        ppo = replace(saved, num_timesteps=args.timesteps or saved.num_timesteps)
+        args.feet, args.preset, args.variant, recipe = cfg.feet, "(the run's)", "(the run's)", None
     if args.build_dir:  # where the feet are built is this machine's, not the run's
         cfg = replace(cfg, build_dir=str(args.build_dir))
     from footforge.envs import engine
@@ -204,7 +210,8 @@ def main(argv=None) -> int:
         print(f"{step:>9,} | {time.time() - t0:6.0f} | {length:6.1f} | {err:.3f} | {height:.3f} | {src}", flush=True)
 
     train.train(cfg, ppo, args.out, progress=progress, resume=args.resume, evaluate=not args.no_evaluations,
-                max_wall_s=args.max_minutes * 60 if args.max_minutes else None, init_from=args.init_from)
+                max_wall_s=args.max_minutes * 60 if args.max_minutes else None, init_from=args.init_from,
+                recipe=recipe)
     curve = []
     for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines()):
         key = "eval/" if "eval/episode_reward" in e else "episode/" if "episode/length" in e else None
@@ -220,6 +227,7 @@ def main(argv=None) -> int:
     result = {"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(),
               "backend": jax.default_backend(), "jax_devices": jax.device_count(), "feet": args.feet,
               "preset": args.preset, "variant": args.variant,
+              "recipe": json.loads((args.out / "config.json").read_text()).get("recipe"),
               # what was trained (the run's last checkpoint), not the curve's last row
               "steps": json.loads((args.out / "progress.json").read_text()).get("global_step", 0)
               if (args.out / "progress.json").is_file() else 0,
@@ -227,7 +235,7 @@ def main(argv=None) -> int:
     if not args.no_verdict:  # the final policy, deterministic, 32 robots x 20 s (footforge.rl.verdict)
         from footforge.rl.evaluate import evaluate
 
-        r = evaluate(args.out / "policy", num_envs=32, seconds=20.0, seed=args.seed, build_dir=cfg.build_dir,
+        r = evaluate(args.out / "policy", num_envs=32, seconds=20.0, seed=ppo.seed, build_dir=cfg.build_dir,
                      physics=cfg.physics)
         w = r["walking"]
         result |= {"verdict": w["verdict"], "verdict_line": w["line"], "forward_error": w["forward_error_mps"],

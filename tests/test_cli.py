@@ -391,7 +391,7 @@ def test_the_cpu_learning_benchmark_says_whole_sentences_and_writes_valid_json()
                          text=True, cwd=REPO, timeout=120)
     assert out.returncode == 0, out.stderr
     description = " ".join(out.stdout.split("\n\n")[1].split())
-    assert description.endswith(".") and "a variant of the task's settings" in description, description
+    assert description.endswith(".") and "a variant of its settings" in description, description
     spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -201,3 +201,23 @@ def test_a_resume_with_another_recipe_names_the_differences(built, tmp_path, mon
     assert main("flat", "", ["--out", str(run), "--resume", "--preset", "cpu", "--set", "ppo.num_envs=8",
                              "--set", "ppo.batch_size=8", "--set", "ppo.num_minibatches=1"]) == 0
     assert seen["ppo"] == ppo
+
+
+def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_configurations():
+    """benchmarks/learning_cpu.py is presets + overrides: the variant that trained flat_aof_B's last stage
+    (RESULTS.md: `--preset full --variant today+fast+airtime=0+resample=10+entropy=0.001`, 258,048 steps
+    per checkpoint) gives its config.json, and today's `cpu` preset is the same with commands every 5 s."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    saved = json.loads((REPO / "policies/flat_aof_B/config.json").read_text())
+    env, ppo, recipe = module.configure("aof", "full", "today+fast+airtime=0+resample=10+entropy=0.001",
+                                        ["ppo.num_timesteps=3870720", "ppo.checkpoint_every_steps=258048"])
+    shipped_env = env_config_from_dict(saved["env"])
+    assert replace(env, physics=shipped_env.physics, build_dir=shipped_env.build_dir) == shipped_env
+    assert ppo == from_dict(PPOConfig, saved["ppo"])
+    assert presets.resolve("flat", "aof", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
+    cpu_env, cpu_ppo, _ = module.configure("aof", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])
+    assert (cpu_env, cpu_ppo) == (env, ppo)

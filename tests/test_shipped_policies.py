@@ -50,3 +50,20 @@ def test_an_evaluation_repeats_byte_for_byte(tmp_path):
     first = run("a", 0)
     assert run("b", 0) == first
     assert run("c", 1) != first
+
+
+def test_the_tables_of_shipped_policies_are_their_recorded_evaluations():
+    """README.md's and policies/README.md's tables are what scripts/shipped_evaluations.py writes from
+    the committed evaluations (so a regenerated evaluation cannot leave a stale caption behind)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("shipped_evaluations", REPO / "scripts/shipped_evaluations.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    expected = module.table(module.shipped())
+    for path in module.TABLES:
+        text = path.read_text()
+        block = text.split(module.START, 1)[1].split(module.END, 1)[0]
+        assert block.strip() == expected.strip(), f"{path}: run python scripts/shipped_evaluations.py --tables-only"
+    for name in SHIPPED:
+        assert f"`policies/{name}`" in expected
