@@ -5,9 +5,8 @@ A thin benchmark over `footforge train`'s configurations (footforge/rl/presets.p
 one of the flat task's presets (default `cpu`: 128 robots x 24 steps, the `fast` contact, commands
 vx U(-1, 1), vy U(-0.5, 0.5) m/s, no feet-air-time term, entropy 0.001), or `full`, the name this
 benchmark gave until 2026-11-28 to the task's defaults with those commands and that CPU batch.
-(Its `forward` was the defaults with one forward command; the preset `forward` of that name is the
-`cpu` preset's with one forward command: `--preset forward --variant stance+airtime=1+entropy=0.01`
-is the old one.) The variant's tokens, joined by '+', are shorthands for overrides applied after the
+(Its `forward`, the defaults with one forward command, is the preset `forward` with the `stance`
+contact: `--preset forward --variant stance`; its `forward` with `+fast` is the preset as it is.) The variant's tokens, joined by '+', are shorthands for overrides applied after the
 preset, each an absolute setting, and --set gives any other (`--set ppo.learning_rate=3e-4`); the
 run's config.json records the whole recipe. The H100 ablations of 2026-11-26 ran before the
 defaults changed: their `position+fast` is today's `position+paper_ppo+paper_rewards+fast`.

@@ -12,7 +12,7 @@ of the ground) and the policies' footforge.json (steps, wall time, machine).
     python scripts/shipped_evaluations.py --policies flat_aof_B --no-video
     python scripts/shipped_evaluations.py --tables-only              # the tables from the committed metrics
 
-The same policy, machine, seed and robot count give the same JSON (tests/test_evaluate.py); on
+The same policy, machine, seed and robot count give the same JSON (tests/test_shipped_policies.py); on
 another machine the falls of 32 robots move by a few (docs/policies.md).
 """
 

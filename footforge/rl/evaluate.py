@@ -40,6 +40,23 @@ trained before 2026-11-27), whatever schedule the policy trained with (the flat 
 Command ranges, pushes and physics stay the policy's own."""
 
 
+def foot_slip(feet_xy_before, feet_xy, touching_before, touching):
+    """One step's foot slip, m: the summed horizontal displacement of the feet that touch the
+    ground at both ends of the step (Catalano et al. 2022's slippage numerator). `feet_xy*`: (feet,
+    2) positions; `touching*`: (feet,) contact flags."""
+    import jax.numpy as jp
+
+    return jp.sum(jp.linalg.norm(feet_xy - feet_xy_before, axis=-1) * (touching & touching_before), axis=-1)
+
+
+def slippage_index(slip, travel, alive) -> float:
+    """The slippage index: the feet's slip summed over every step of every standing robot, over the
+    horizontal distance their bases travelled in those steps (NaN where they did not travel).
+    `slip`, `travel`, `alive`: (robots, steps)."""
+    travel_m = float(np.where(alive, travel, 0.0).sum())  # a fallen robot's NaN x 0 would be NaN: select
+    return float(np.where(alive, slip, 0.0).sum() / travel_m) if travel_m > 0 else float("nan")
+
+
 def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, build_dir: str | None,
                     physics: str = "auto"):
     """(policy, its training EnvConfig, feet, seconds, an environment of `feet` whose episodes
@@ -117,7 +134,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
                "yaw_rate_error": m["error/yaw_rate_per_step"], "action_rate": jp.linalg.norm(action - last_action),
                "joint_vel_rate": jp.linalg.norm(qd - prev_qd), "torques": jp.linalg.norm(d.actuator_force),
                "base_height": m["base_height_m_per_step"], "alive": alive,
-               "slip": jp.sum(jp.linalg.norm(xy - feet_xy, axis=1) * (touching & touched)),
+               "slip": foot_slip(feet_xy, xy, touched, touching),
                "travel": jp.linalg.norm(new_base_xy - base_xy), "contacts": touching,
                "base_vx_error": state.info["command"][0] - lin[0], "diverged": diverged,
                "command_vx": state.info["command"][0], "vx": lin[0],
@@ -140,8 +157,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     alive = rows["alive"]
     indices = {name: {"mean": float(rows[name][alive].mean()), "std": float(rows[name][alive].std())}
                for name in INDICES}
-    travel = float(np.where(alive, rows["travel"], 0.0).sum())  # NaN x 0 would be NaN: select
-    slippage = float(np.where(alive, rows["slip"], 0.0).sum() / travel) if travel > 0 else float("nan")
+    slippage = slippage_index(rows["slip"], rows["travel"], alive)
     vx_error = np.where(alive, rows["base_vx_error"], np.nan)
     walking = judge(rows["contacts"], alive, rows["base_height"], rows["command_vx"], rows["vx"], rows["command_speed"])
     falls = fall_times(alive, env_config.policy_dt)
