@@ -38,10 +38,11 @@ from mujoco import mjx
 
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
+from footforge.envs.stability import VELOCITY_ACTION_SCALE
 from footforge.variants import FEET
 
-FLAT = EnvConfig()
-"""The flat task's velocity action model: target += action_scale x a x policy_dt (a clipped)."""
+FLAT = EnvConfig(action="velocity", action_scale=VELOCITY_ACTION_SCALE)
+"""The flat baseline's velocity action model: target += action_scale x a x policy_dt (a clipped)."""
 POLICY_DT = FLAT.policy_dt
 
 

@@ -221,3 +221,20 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
     assert presets.resolve("flat", "aof", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
     cpu_env, cpu_ppo, _ = module.configure("aof", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])
     assert (cpu_env, cpu_ppo) == (env, ppo)
+
+
+def test_envconfig_on_its_own_is_coherent():
+    """EnvConfig() alone is a configuration that trains: position actions at the position scale the
+    tasks use (it paired position actions with the velocity scale, 13.5 rad per unit, until
+    2026-11-28), the PD targets unobserved (position targets are the observed last action), the
+    contact model's own physics step and iterations on its feet, and the 50 Hz policy step."""
+    from footforge.envs.config import EnvConfig
+    from footforge.envs.stability import VELOCITY_ACTION_SCALE
+
+    config = EnvConfig()
+    assert config.action == "position" and not config.observations.pd_targets
+    assert config.action_scale == envs.default_config("flat", config.feet, "B").action_scale \
+        == envs.default_config("rough", config.feet, "P").action_scale < VELOCITY_ACTION_SCALE
+    physics = envs.physics(config.feet, config.contact_model)
+    assert {k: getattr(config, k) for k in physics} == physics
+    assert config.sim_dt * config.decimation == pytest.approx(0.02)

@@ -263,8 +263,11 @@ class EnvConfig:
       baseline's form, under which a zero action holds the pose, is the one followed.
     - position (rough task): target = default + action_scale x a (OmniIsaacGymEnvs'
       AnymalTerrain and legged_gym)."""
-    action_scale: float = 13.5
-    """rad/s per unit action (velocity) or rad per unit action (position)."""
+    action_scale: float = 0.5
+    """rad per unit action under position actions (the default: OmniIsaacGymEnvs' AnymalTerrain and
+    legged_gym's 0.5), rad/s per unit under velocity actions (the flat baseline's 13.5,
+    envs.stability.VELOCITY_ACTION_SCALE). Until 2026-11-28 the default was 13.5, so EnvConfig()
+    alone paired position actions with 13.5 rad per unit; saved configs carry their own."""
     action_clip: float = 1.0
     """Policy outputs are clipped to +-this before they are used (rewards and the last-action
     observation see the clipped value): rl_games clips to the baselines' action space [-1, 1]."""
