@@ -42,8 +42,9 @@ def test_commands_are_uniform_in_their_ranges_with_a_dead_zone(env):
     """vx ~ U(-2, 2), vy ~ U(-1, 1): the planar command is zeroed with the probability that a
     uniform point of the 4 x 2 m/s rectangle lies within the 0.5 m/s disc, pi 0.5^2 / 8 = 0.0982;
     every kept command is faster than 0.5 m/s; the yaw slot is left to the heading controller."""
-    commands, headings = jax.vmap(env.sample_command)(jax.random.split(jax.random.PRNGKey(0), DRAWS))
+    commands, headings, standing = jax.vmap(env.sample_command)(jax.random.split(jax.random.PRNGKey(0), DRAWS))
     commands, headings = np.asarray(commands), np.asarray(headings)
+    assert not np.asarray(standing).any()  # standing_fraction 0: no standing command
     speed = np.hypot(commands[:, 0], commands[:, 1])
     zeroed = speed == 0.0
     p = math.pi * 0.5 ** 2 / 8.0
@@ -63,8 +64,27 @@ def test_commands_are_uniform_in_their_ranges_with_a_dead_zone(env):
 
 def test_without_a_dead_zone_no_command_is_zero(built):
     env = _env(built, commands=CommandConfig(zero_below=0.0))
-    commands, _ = jax.vmap(env.sample_command)(jax.random.split(jax.random.PRNGKey(1), 500))
+    commands, _, _ = jax.vmap(env.sample_command)(jax.random.split(jax.random.PRNGKey(1), 500))
     assert (np.hypot(commands[:, 0], commands[:, 1]) > 0).all()
+
+
+def test_a_share_of_standing_commands_is_all_zero_and_holds_the_heading(built):
+    """standing_fraction 0.25 (Isaac Lab's rel_standing_envs): a quarter of the draws (within 4
+    sigma) are standing commands, zero in vx and vy and zero in yaw rate whatever the heading error;
+    the other draws are the same numbers as without standing commands (their own random stream)."""
+    env = _env(built, commands=CommandConfig(zero_below=0.0, standing_fraction=0.25))
+    plain = _env(built, commands=CommandConfig(zero_below=0.0))
+    keys = jax.random.split(jax.random.PRNGKey(3), DRAWS)
+    commands, headings, standing = map(np.asarray, jax.vmap(env.sample_command)(keys))
+    reference, reference_headings, _ = map(np.asarray, jax.vmap(plain.sample_command)(keys))
+    assert standing.mean() == pytest.approx(0.25, abs=4 * math.sqrt(0.25 * 0.75 / DRAWS))
+    assert (commands[standing] == 0.0).all() and (np.hypot(commands[~standing, 0], commands[~standing, 1]) > 0).all()
+    np.testing.assert_array_equal(commands[~standing], reference[~standing])
+    np.testing.assert_array_equal(headings, reference_headings)
+    data = SimpleNamespace(qpos=jp.concatenate([jp.array([0.0, 0.0, 0.5]), _yaw_quat(0.0)]))
+    for flag, yaw_rate in ((True, 0.0), (False, 0.5)):  # a heading error of 1 rad at gain 0.5
+        info = {"command": jp.zeros(3), "heading_target": jp.float32(1.0), "standing": jp.array(flag)}
+        assert float(env.heading_command(info, data)[2]) == pytest.approx(yaw_rate)
 
 
 @pytest.mark.parametrize("yaw, heading, expected", [
@@ -77,7 +97,7 @@ def test_without_a_dead_zone_no_command_is_zero(built):
 ])
 def test_heading_controller_turns_the_short_way_within_the_limit(env, yaw, heading, expected):
     data = SimpleNamespace(qpos=jp.concatenate([jp.array([0.0, 0.0, 0.5]), _yaw_quat(yaw)]))
-    info = {"command": jp.array([0.3, -0.2, 0.7]), "heading_target": jp.float32(heading)}
+    info = {"command": jp.array([0.3, -0.2, 0.7]), "heading_target": jp.float32(heading), "standing": jp.array(False)}
     command = np.asarray(env.heading_command(info, data))
     np.testing.assert_allclose(command, [0.3, -0.2, expected], atol=1e-5)
 
@@ -88,10 +108,10 @@ def test_commands_are_redrawn_every_resample_period(env):
     every = round(10.0 / env.config.policy_dt)
     assert every == 500
     data = SimpleNamespace(qpos=jp.concatenate([jp.array([0.0, 0.0, 0.5]), _yaw_quat(0.0)]))
-    info = {"command": jp.array([1.0, 0.0, 0.0]), "heading_target": jp.float32(0.4)}
+    info = {"command": jp.array([1.0, 0.0, 0.0]), "heading_target": jp.float32(0.4), "standing": jp.array(False)}
     new, new_heading = jp.array([-0.5, 0.6, 0.0]), jp.float32(-0.8)
     for step, redrawn in ((499, False), (500, True), (501, False), (999, False), (1000, True)):
-        out = env.next_command(info, data, step, new, new_heading)
+        out = env.next_command(info, data, step, new, new_heading, jp.array(False))
         heading = -0.8 if redrawn else 0.4
         planar = [-0.5, 0.6] if redrawn else [1.0, 0.0]
         assert float(out["heading_target"]) == pytest.approx(heading), step

@@ -150,9 +150,13 @@ def test_reward_terms_on_known_states():
     # Each term is declared once, in RewardConfig: its function is the one above, its scale a number.
     terms = rewards.terms(cfg)
     assert list(terms) == ["lin_vel_xy", "yaw_rate", "lin_vel_z", "ang_vel_xy", "orientation", "base_height",
-                           "torques", "joint_acc", "action_rate", "hip", "feet_air_time"]
+                           "torques", "joint_acc", "action_rate", "hip", "feet_air_time", "stand_still"]
     assert all(term.compute is getattr(rewards, name) and isinstance(term.scale, float) for name, term in terms.items())
-    assert cfg.feet_air_time.scale == 0.0  # not among the paper's terms: off unless asked for
+    assert cfg.feet_air_time.scale == cfg.stand_still.scale == 0.0  # not among the paper's terms: off unless asked for
+    # stand_still: |q - default| summed, only under a planar command below 0.1 m/s.
+    offset = jp.array([0.1, -0.2, 0.0] * 4)
+    assert float(rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.05, 0.05, 0.8])), cfg)) == pytest.approx(1.2)
+    assert float(rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.3, 0.0, 0.0])), cfg)) == 0.0
 
 
 def test_feet_air_time_pays_touchdowns_after_long_enough_steps():

@@ -39,6 +39,11 @@ class CommandConfig:
     """Planar commands slower than this (m/s) are set to zero (the rough baseline uses 0.25)."""
     resample_s: float = 10.0
     """Commands are redrawn this often within an episode, s."""
+    standing_fraction: float = 0.0
+    """Share of drawn commands that are standing commands: zero planar velocity and zero yaw rate
+    (the heading is not steered to). Isaac Lab's velocity tasks draw 2 % (rel_standing_envs 0.02);
+    the paper's baselines none, so off by default: a lever for policies that stay up when a command
+    changes or stops (the flat issue's measurements say which share helps)."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +76,10 @@ class RewardConfig:
     pays for steps long enough to lift every foot. Not among the paper's terms, so off (0) here and
     on the rough task; the flat task sets legged_gym's 1.0 (envs.FLAT_FEET_AIR_TIME; Playground's
     Go1 uses 0.8): without it a flat policy walked on three legs (docs/defaults.md)."""
+    stand_still: RewardTerm = RewardTerm(rewards.stand_still, 0.0)
+    """sum |q - default| over the actuated joints, rad, under a planar command below 0.1 m/s
+    (legged_gym's stand_still term, off there too by default). Not among the paper's terms, so off:
+    a lever, with CommandConfig.standing_fraction, for policies that hold still when told to."""
     feet_air_time_target_s: float = 0.5
     """Air time a step must last to pay, s (legged_gym's 0.5)."""
     tracking_sigma: float = 0.25

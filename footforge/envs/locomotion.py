@@ -199,10 +199,10 @@ class LocomotionEnv(Env):
         """(info, the policy's observation) at an episode's start: the first command, drawn with
         keys.command, its yaw rate steering to the drawn heading (`command`, vx vy yaw rate, where
         not NaN, replaces it); no previous action or joint velocity; PD targets `target`."""
-        drawn, heading = self.sample_command(keys.command)
+        drawn, heading, standing = self.sample_command(keys.command)
         rng, key_obs = jax.random.split(keys.rng)
         info = info | {"rng": rng, "step": jp.zeros((), jp.int32), "target": target, "command": drawn,
-                       "heading_target": heading, "last_action": jp.zeros(N_ACTUATED),
+                       "heading_target": heading, "standing": standing, "last_action": jp.zeros(N_ACTUATED),
                        "last_joint_vel": jp.zeros(N_ACTUATED)}
         info["command"] = _given(command, self.heading_command(info, data))
         return info, self.observe(data, info, key_obs)
@@ -220,7 +220,7 @@ class LocomotionEnv(Env):
 
     def policy_command(self, info: dict, data, keys: StepKeys, command=None):
         """After the physics: (info with the command and heading target of the next step, the fresh
-        draw (command, heading) that episodes restarting now take). The command is redrawn every
+        draw (command, heading, standing) that episodes restarting now take). The command is redrawn every
         resample_s, its yaw rate steering to the heading; `command`, where not NaN, replaces it."""
         fresh = self.sample_command(keys.command)
         info = info | self.next_command(info, data, info["step"], *fresh)
@@ -235,7 +235,8 @@ class LocomotionEnv(Env):
                        "last_joint_vel": jp.where(ended, 0.0, data.qvel[self.robot.actuated_dof])}
         if fresh is not None:
             info |= {"command": jp.where(ended, fresh[0], info["command"]),
-                     "heading_target": jp.where(ended, fresh[1], info["heading_target"])}
+                     "heading_target": jp.where(ended, fresh[1], info["heading_target"]),
+                     "standing": jp.where(ended, fresh[2], info["standing"])}
         obs = self.observe(data, info, keys.observation)
         return info, jp.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
 
@@ -259,13 +260,15 @@ class LocomotionEnv(Env):
         velocity = jax.random.uniform(key, (2,), minval=-p.max_speed, maxval=p.max_speed)
         return p.enabled & (step % self._push_every == 0), velocity
 
-    def next_command(self, info, data, step, new_command, new_heading):
-        """info's command and heading target after policy step `step`: redrawn every
-        resample_s, the yaw-rate command steering to the heading."""
+    def next_command(self, info, data, step, new_command, new_heading, new_standing):
+        """info's command, heading target and standing flag after policy step `step`: redrawn
+        every resample_s, the yaw-rate command steering to the heading."""
         resample = step % self._command_every == 0
         info = info | {"command": jp.where(resample, new_command, info["command"]),
-                       "heading_target": jp.where(resample, new_heading, info["heading_target"])}
-        return {"command": self.heading_command(info, data), "heading_target": info["heading_target"]}
+                       "heading_target": jp.where(resample, new_heading, info["heading_target"]),
+                       "standing": jp.where(resample, new_standing, info["standing"])}
+        return {"command": self.heading_command(info, data), "heading_target": info["heading_target"],
+                "standing": info["standing"]}
 
     # Where episodes start: flat ground always at the home pose; RoughEnv overrides these hooks.
     def _first_spawn_info(self, key) -> dict:
@@ -335,20 +338,24 @@ class LocomotionEnv(Env):
 
     # Pieces --------------------------------------------------------------------------------
     def sample_command(self, key):
-        """A command (vx, vy, 0) and a target heading drawn from CommandConfig's ranges."""
+        """A command (vx, vy, 0), a target heading and whether it is a standing command (all zero,
+        yaw rate too: CommandConfig.standing_fraction), drawn from CommandConfig's ranges."""
         c = self.config.commands
         kx, ky, kh = jax.random.split(key, 3)
         vx = jax.random.uniform(kx, minval=c.lin_vel_x_range[0], maxval=c.lin_vel_x_range[1])
         vy = jax.random.uniform(ky, minval=c.lin_vel_y_range[0], maxval=c.lin_vel_y_range[1])
         heading = jax.random.uniform(kh, minval=c.heading_range[0], maxval=c.heading_range[1])
-        keep = jp.hypot(vx, vy) > c.zero_below
-        return jp.array([vx, vy, 0.0]) * keep, heading
+        # Its own stream (fold_in), so that the other draws are those of configurations without it.
+        standing = (jax.random.uniform(jax.random.fold_in(key, 3)) < c.standing_fraction) if c.standing_fraction \
+            else jp.zeros((), bool)
+        keep = (jp.hypot(vx, vy) > c.zero_below) & ~standing
+        return jp.array([vx, vy, 0.0]) * keep, heading, standing
 
     def heading_command(self, info, data):
         """The yaw-rate command steers the base toward the target heading."""
         c = self.config.commands
         error = _wrap(info["heading_target"] - _yaw(data.qpos[3:7]))
-        yaw_rate = jp.clip(c.heading_gain * error, -c.yaw_rate_limit, c.yaw_rate_limit)
+        yaw_rate = jp.clip(c.heading_gain * error, -c.yaw_rate_limit, c.yaw_rate_limit) * ~info["standing"]
         return info["command"].at[2].set(yaw_rate.astype(info["command"].dtype))  # float64 physics: f32 command
 
     def base_state(self, data):
@@ -445,7 +452,8 @@ class LocomotionEnv(Env):
             command=info["command"], lin_vel=lin, ang_vel=ang, gravity=gravity, base_height=self.base_height(data),
             torques=data.actuator_force[self._ctrl_order], joint_vel=data.qvel[r.actuated_dof],
             last_joint_vel=info["last_joint_vel"], action=action, last_action=info["last_action"],
-            haa_offset=data.qpos[r.actuated_qpos][r.haa] - self.default_q[r.haa], touchdown_air_time=touchdown_air_time)
+            haa_offset=data.qpos[r.actuated_qpos][r.haa] - self.default_q[r.haa], touchdown_air_time=touchdown_air_time,
+            joint_offset=data.qpos[r.actuated_qpos] - self.default_q)
         terms = {name: term.compute(q, self.config.rewards) for name, term in rewards.terms(self.config.rewards).items()}
         command = q.command
         errors = {"error/lin_vel_x_per_step": jp.abs(command[0] - lin[0]), "error/lin_vel_y_per_step": jp.abs(command[1] - lin[1]),

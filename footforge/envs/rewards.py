@@ -1,4 +1,4 @@
-"""The paper's ten reward terms (and an optional gait term) as pure functions of what they penalise or reward.
+"""The paper's ten reward terms (and two optional terms of legged_gym's: feet air time, standing still) as pure functions of what they penalise or reward.
 
 Each term is declared once, as a field of RewardConfig (envs.config): its function (here), unit
 and scale (a RewardTerm, envs.terms). The environment measures a step's Quantities once; each function returns its
@@ -41,6 +41,8 @@ class Quantities(NamedTuple):
     """The previous step's."""
     haa_offset: jax.Array = None
     """Hip abduction/adduction angles minus their defaults, rad."""
+    joint_offset: jax.Array = None
+    """The 12 actuated joints' angles minus their defaults, rad."""
     touchdown_air_time: jax.Array = None
     """Per foot (LF, RF, LH, RH): how long it was in the air, s, on the step it touches down
     again; zero on every other step."""
@@ -111,6 +113,14 @@ def feet_air_time(q: Quantities, cfg: RewardParameters) -> jax.Array:
     landed = q.touchdown_air_time > 0
     moving = jp.linalg.norm(q.command[:2]) > 0.1
     return jp.where(landed, q.touchdown_air_time - cfg.feet_air_time_target_s, 0.0).sum() * moving
+
+
+def stand_still(q: Quantities, cfg: RewardParameters) -> jax.Array:
+    """sum |q - default| over the actuated joints, rad, while the planar command is below 0.1 m/s
+    (legged_gym's stand_still: under a zero command, hold the default pose; nothing otherwise)."""
+    import jax.numpy as jp
+
+    return abs(q.joint_offset).sum() * (jp.linalg.norm(q.command[:2]) < 0.1)
 
 
 def terms(cfg) -> dict[str, RewardTerm]:

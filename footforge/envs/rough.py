@@ -57,7 +57,7 @@ class RoughEnv(LocomotionEnv):
         xy, yaw = self._spawn(level, column, key)
         info = state.info | {"level": level, "column": column, "spawn_xy": xy, "spawn_yaw": yaw}
         if forward_mps is not None:
-            info |= {"command": jp.array([forward_mps, 0.0, 0.0]), "heading_target": yaw}
+            info |= {"command": jp.array([forward_mps, 0.0, 0.0]), "heading_target": yaw, "standing": jp.zeros((), bool)}
         data = self.physics.forward(self.mjx_model, self._place(state.pipeline_state,
                                                                 *self._start_state(info, jax.random.fold_in(rng, 2))))
         info |= {"target": data.ctrl[self._ctrl_order], "command": self.heading_command(info, data)}
