@@ -76,7 +76,7 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
                    help="with --resume of a run started with --no-evaluations: evaluate again from now on")
     p.add_argument("--contact-model", choices=["stance", "fast"],
                    help="the MJX contact model (EnvConfig.contact_model) with the step and solver iterations it "
-                        "needs: stance (default) holds a standing robot (2.5 ms step); fast is 2-3x cheaper on the "
+                        "needs (default: the preset's; default stance, cpu and forward fast): stance holds a standing robot (2.5 ms step); fast is 2-3x cheaper on the "
                         "CPU but a robot at rest sinks and slides 150-180 mm in 10 s (5 ms step)")
     p.add_argument("--physics", choices=["auto", "mjx", "mujoco"],
                    help="the engine that steps the robots (EnvConfig.physics): mujoco, MuJoCo's C engine "
