@@ -2,11 +2,11 @@
 settings (an ablation), on whatever JAX device is present, then the final policy's walking verdict.
 
 A thin benchmark over `footforge train`'s configurations (footforge/rl/presets.py): --preset is
-one of the flat task's presets (default `cpu`: 128 robots x 24 steps, the `fast` contact, commands
-vx U(-1, 1), vy U(-0.5, 0.5) m/s, no feet-air-time term, entropy 0.001), or `full`, the name this
-benchmark gave until 2026-11-28 to the task's defaults with those commands and that CPU batch.
-(Its `forward`, the defaults with one forward command, is the preset `forward` with the `stance`
-contact: `--preset forward --variant stance`; its `forward` with `+fast` is the preset as it is.) The variant's tokens, joined by '+', are shorthands for overrides applied after the
+this benchmark's `full` (default) or `forward`, kept as they were so that recorded commands mean
+what they meant (LEGACY_PRESETS: footforge presets with overrides), or footforge's flat `default`,
+`cpu` (128 robots x 24 steps, the `fast` contact, commands vx U(-1, 1), vy U(-0.5, 0.5) m/s, no
+feet-air-time term, entropy 0.001) or `paper`.
+The variant's tokens, joined by '+', are shorthands for overrides applied after the
 preset, each an absolute setting, and --set gives any other (`--set ppo.learning_rate=3e-4`); the
 run's config.json records the whole recipe. The H100 ablations of 2026-11-26 ran before the
 defaults changed: their `position+fast` is today's `position+paper_ppo+paper_rewards+fast`.
@@ -37,7 +37,7 @@ footforge.rl.verdict; verdict, forward_error, vx_slope, uptime (the share of rob
 time_up_s, base_height_m, stance_fraction per foot, gait, clipped_fraction), then the curve. A
 figure that could not be measured is null.
 
-    python benchmarks/learning_cpu.py --out /tmp/l --feet aof --timesteps 10000000 --max-minutes 60
+    python benchmarks/learning_cpu.py --out /tmp/l --feet aof --preset cpu --max-minutes 60
     python benchmarks/learning_cpu.py --out /tmp/l --timesteps 12000000 --resume   # goes on
     python benchmarks/learning_cpu.py --out /tmp/m --variant entropy=0.0005 --init-from /tmp/l  # fine-tunes
 """
@@ -55,10 +55,17 @@ from pathlib import Path
 
 from footforge.variants import FEET
 
-LEGACY_PRESETS = {"full": ("default", ("ppo.num_envs=128", "ppo.unroll_length=24", "ppo.batch_size=64",
-                                          "ppo.num_minibatches=4", "ppo.num_eval_envs=64",
-                                          "env.commands.lin_vel_x_range=-1,1", "env.commands.lin_vel_y_range=-0.5,0.5"))}
-"""This benchmark's own name from before the presets: (the preset, the overrides) it stands for."""
+_LEGACY_SIZE = ("ppo.num_envs=128", "ppo.unroll_length=24", "ppo.batch_size=64", "ppo.num_minibatches=4",
+                "ppo.num_eval_envs=64", "ppo.checkpoint_every_steps=500000", "ppo.num_timesteps=5000000")
+LEGACY_PRESETS = {
+    "full": ("default", _LEGACY_SIZE + ("env.commands.lin_vel_x_range=-1,1", "env.commands.lin_vel_y_range=-0.5,0.5")),
+    "forward": ("forward", ("env.contact_model=stance",) + _LEGACY_SIZE),
+}
+"""This benchmark's own presets from before footforge's, as (footforge preset, overrides), so that
+the commands recorded in RESULTS.md mean what they meant: `full`, the task's defaults with commands
+vx U(-1, 1), vy U(-0.5, 0.5) m/s; `forward`, one command 0.6 m/s ahead, no pushes, the `stance`
+contact unless the variant names another; both 128 robots x 24 steps, batch 64 x 4, a checkpoint
+every 500,000 steps, 5 M steps."""
 
 TOKENS = {
     "today": (),
@@ -120,13 +127,14 @@ def main(argv=None) -> int:
     p.add_argument("--feet", default="ball", choices=FEET)
     from footforge.rl.presets import PRESETS
 
-    p.add_argument("--preset", default="cpu", choices=list(PRESETS["flat"]) + list(LEGACY_PRESETS),
-                   help="footforge's flat preset (default cpu), or full (this benchmark's name before presets)")
+    p.add_argument("--preset", default="full", choices=sorted(set(PRESETS["flat"]) | set(LEGACY_PRESETS)),
+                   help="this benchmark's full or forward (LEGACY_PRESETS; default full), or footforge's flat "
+                        "preset default, cpu or paper")
     p.add_argument("--variant", default="today",
                    help=f"'+'-joined tokens among {', '.join(TOKENS)}, {', '.join(f'{k}=X' for k in VALUED)} (default today)")
     p.add_argument("--set", action="append", default=[], dest="overrides", metavar="SECTION.FIELD=VALUE",
                    help="any other override, after the variant (footforge train's --set)")
-    p.add_argument("--timesteps", type=int, help="(default: the preset's; full: 5,000,000)")
+    p.add_argument("--timesteps", type=int, help="(default: the preset's; full and forward: 5,000,000)")
     p.add_argument("--num-envs", type=int, help="(default: the preset's, 128 for cpu)")
     p.add_argument("--unroll-length", type=int)
     p.add_argument("--batch-size", type=int, help="trajectories per minibatch (default: the preset's)")
@@ -164,9 +172,11 @@ def main(argv=None) -> int:
     from footforge.rl import train
 
     flags = [f"ppo.{field}={value}" for field, value in (
-        ("num_timesteps", args.timesteps if args.timesteps is not None else 5_000_000 if args.preset == "full" else None),
+        ("num_timesteps", args.timesteps),
         ("num_envs", args.num_envs), ("unroll_length", args.unroll_length),
-        ("batch_size", args.batch_size), ("num_minibatches", args.minibatches),
+        # As before presets: half the robots per minibatch where --num-envs is given alone.
+        ("batch_size", args.batch_size if args.batch_size is not None or args.num_envs is None else args.num_envs // 2),
+        ("num_minibatches", args.minibatches),
         ("checkpoint_every_steps", args.eval_every), ("num_eval_envs", args.eval_envs), ("seed", args.seed))
         if value is not None]
     from footforge.errors import InputError

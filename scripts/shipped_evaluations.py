@@ -69,11 +69,17 @@ def reduce_gif(path: Path) -> None:
     frames = [f.resize((f.width // 2, f.height // 2), Image.LANCZOS) for f in frames]
     palette = frames[len(frames) // 2].quantize(colors=64)
     frames = [f.quantize(palette=palette, dither=Image.Dither.NONE) for f in frames]
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".gif", delete=False) as tmp:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".gif")
+    os.close(fd)
+    try:  # every frame of footforge's videos lasts the same (1 / fps): two of them per kept frame
         extra = {"comment": comment} if comment else {}
-        frames[0].save(tmp.name, format="GIF", save_all=True, append_images=frames[1:], duration=duration * 2,
+        frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=duration * 2,
                        loop=0, optimize=True, **extra)
-    os.replace(tmp.name, path)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
 
 
 def _steps(n: int) -> str:
@@ -143,6 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-video", action="store_true", help="no GIFs (also where MUJOCO_GL is unset)")
     p.add_argument("--tables-only", action="store_true", help="only rewrite the tables from the committed metrics")
     args = p.parse_args(argv)
+    os.chdir(REPO)  # the evaluations are recorded with paths relative to the repository
     runs = shipped()
     if args.policies:
         unknown = set(args.policies) - {r.name for r in runs}

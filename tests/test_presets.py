@@ -238,3 +238,65 @@ def test_envconfig_on_its_own_is_coherent():
     physics = envs.physics(config.feet, config.contact_model)
     assert {k: getattr(config, k) for k in physics} == physics
     assert config.sim_dt * config.decimation == pytest.approx(0.02)
+
+
+@pytest.mark.parametrize("override, read", [
+    ("env.observations.base_lin_vel.noise=0.2", lambda e, p: e.observations.base_lin_vel.noise == 0.2),
+    ("env.observations.command.scale=1,1,0.5", lambda e, p: e.observations.command.scale == (1.0, 1.0, 0.5)),
+    ("ppo.seed=12345678901234567891", lambda e, p: p.seed == 12345678901234567891),
+])
+def test_observation_groups_and_exact_integers_are_overridden(override, read):
+    """An observation group's scale and noise (fields typed for type checkers only) take overrides, and
+    a whole number is read exactly, not through a float."""
+    assert read(*presets.resolve("flat", "aof", "B", "cpu", [override]))
+
+
+@pytest.mark.parametrize("override, words", [("ppo.learning_rate=nan", "finite"),
+                                             ("env.terrain.seed=3", "rough task's"),
+                                             ("env.curriculum.initial_max_level=2", "rough task's")])
+def test_overrides_that_would_do_nothing_or_poison_training_are_refused(override, words):
+    with pytest.raises(InputError, match=words):
+        presets.resolve("flat", "aof", "B", "cpu", [override])
+    if "terrain" in override:  # the rough task takes it
+        assert presets.resolve("rough", "aof", "P", "cpu", [override])[0].terrain.seed == 3
+
+
+def test_a_resume_with_set_alone_compares_with_the_run_s_own_preset(built, tmp_path, monkeypatch, capsys):
+    """--set without --preset on --resume is read over the run's recorded preset (not the default), and
+    the total is --timesteps' to change (a --set of it is refused: it would be ignored)."""
+    from footforge.cli.train import main
+    from footforge.rl import train
+
+    cfg, ppo = presets.resolve("flat", "ball", "B", "cpu", ["ppo.num_envs=8", "ppo.batch_size=8",
+                                                            "ppo.num_minibatches=1"])
+    run = train.prepare_run_dir(tmp_path / "run")
+    (run / "config.json").write_text(json.dumps({
+        "env": to_dict(replace(cfg, build_dir=str(built["ball"][0]))), "ppo": to_dict(ppo),
+        "recipe": {"preset": "cpu", "overrides": ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1"]}}))
+    seen = _capture_train(monkeypatch)
+    assert main("flat", "", ["--out", str(run), "--resume", "--set", "ppo.num_envs=8", "--set", "ppo.batch_size=8",
+                             "--set", "ppo.num_minibatches=1"]) == 0
+    assert seen["ppo"] == ppo
+    assert main("flat", "", ["--out", str(run), "--resume", "--set", "ppo.num_timesteps=20000000"]) == 2
+    assert "with --timesteps" in capsys.readouterr().err
+
+
+def test_a_resume_that_extends_the_run_records_the_new_total_in_its_recipe(built, tmp_path, monkeypatch):
+    """After --resume --timesteps N the recorded recipe still resolves to config.json."""
+    from footforge.rl import train
+
+    cfg, ppo = presets.resolve("flat", "ball", "B", "cpu", ["ppo.num_envs=8", "ppo.batch_size=8",
+                                                            "ppo.num_minibatches=1", "ppo.checkpoint_every_steps=32"])
+    recipe = {"preset": "cpu", "overrides": ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1",
+                                             "ppo.checkpoint_every_steps=32"]}
+    cfg = replace(cfg, build_dir=str(built["ball"][0]))
+    monkeypatch.setattr(train, "_resume_state", lambda *a: (64, None, 0, 0.0))
+    monkeypatch.setattr(train, "_run_ppo", lambda *a, **k: {})
+    run = train.prepare_run_dir(tmp_path / "run")
+    (run / "config.json").write_text(json.dumps({"env": to_dict(cfg), "ppo": to_dict(ppo), "recipe": recipe}))
+    longer = replace(ppo, num_timesteps=ppo.num_timesteps * 2)
+    train.train(cfg, longer, run, resume=True, notice=lambda text: None)
+    saved = json.loads((run / "config.json").read_text())
+    name, overrides = presets.recipe_of(saved)
+    assert presets.resolve("flat", "ball", "B", name, overrides)[1] == longer
+    assert overrides[-1] == f"ppo.num_timesteps={longer.num_timesteps}"

@@ -293,27 +293,30 @@ def _flag_overrides(task: str, args) -> list[str]:
     return out
 
 
-def _recipe(task: str, args) -> tuple[str, list[str]]:
-    """(preset, overrides) of a new run: the preset, its flags, then --set."""
+def _recipe(task: str, args, feet: str, policy: str, preset_name: str | None = None) -> tuple[str, list[str]]:
+    """(preset, overrides) the options give: the preset (--preset, else `preset_name`, else the
+    default), its flags, then --set; evaluations no larger than --num-envs unless set."""
     from footforge import envs
     from footforge.rl import presets
 
     if task == "rough" and args.terrain:  # --terrain's own messages first (FIELD one of ...)
-        _override(envs.default_config(task, args.feet or "aof", args.policy or "P").terrain, args.terrain)
-    return args.preset or presets.DEFAULT_PRESET, _flag_overrides(task, args) + list(args.overrides)
+        _override(envs.default_config(task, feet, policy).terrain, args.terrain)
+    name = args.preset or preset_name or presets.DEFAULT_PRESET
+    overrides = _flag_overrides(task, args) + list(args.overrides)
+    if (args.eval_envs is None and args.num_envs is not None
+            and not any(o.startswith("ppo.num_eval_envs=") for o in args.overrides)
+            and presets.resolve(task, feet, policy, name, overrides)[1].num_eval_envs > args.num_envs):
+        overrides.append(f"ppo.num_eval_envs={args.num_envs}")  # evaluations no larger than the training batch
+    return name, overrides
 
 
 def _new_configs(task: str, args):
     from footforge.envs import engine
     from footforge.rl import presets
 
-    name, overrides = _recipe(task, args)
     feet, policy = args.feet or "aof", args.policy or "B"
+    name, overrides = _recipe(task, args, feet, policy)
     env_config, ppo = presets.resolve(task, feet, policy, name, overrides)
-    if (args.eval_envs is None and args.num_envs is not None and ppo.num_eval_envs > args.num_envs
-            and not any(o.startswith("ppo.num_eval_envs=") for o in args.overrides)):
-        overrides.append(f"ppo.num_eval_envs={args.num_envs}")  # evaluations no larger than the training batch
-        env_config, ppo = presets.resolve(task, feet, policy, name, overrides)
     args.recipe = {"preset": name, "overrides": overrides}
     if args.build_root or args.build_dir:
         env_config = replace(env_config, build_dir=str(args.build_dir or args.build_root / env_config.feet))
@@ -380,10 +383,19 @@ def _resumed_configs(task: str, args):
 def _same_configuration(task: str, args, env_config, ppo) -> None:
     """Raises InputError where --preset and --set (with the run's feet and policy type) resolve to
     another configuration than the run's config.json (its total of steps and run-time choices aside)."""
+    import json
+
     from footforge.rl import presets
     from footforge.rl.config import config_differences, to_dict
 
-    name, overrides = _recipe(task, args)
+    if any(o.split("=", 1)[0].strip() == "ppo.num_timesteps" for o in args.overrides):
+        raise InputError("--resume: a run's total is changed with --timesteps, not --set ppo.num_timesteps",
+                         fix="give --timesteps N (with --shorten to end it earlier)")
+    try:  # the run's own preset where --preset is left out
+        recorded = presets.recipe_of(json.loads((args.out / "config.json").read_text()))
+    except (OSError, ValueError):
+        recorded = None
+    name, overrides = _recipe(task, args, env_config.feet, env_config.policy, recorded[0] if recorded else None)
     wanted_env, wanted_ppo = presets.resolve(task, env_config.feet, env_config.policy, name, overrides)
     keep = {"physics": env_config.physics, "build_dir": env_config.build_dir}
     wanted = {"env": to_dict(replace(wanted_env, **keep)),

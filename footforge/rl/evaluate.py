@@ -77,7 +77,9 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
     seconds = seconds or SECONDS[env_config.task]
     config = on_feet(env_config, feet)
     # One schedule of new commands for every policy, whatever it trained with (EVALUATION_COMMAND_EVERY_S).
-    config = replace(config, commands=replace(config.commands, resample_s=EVALUATION_COMMAND_EVERY_S))
+    # No standing commands either (CommandConfig.standing_fraction): every policy is judged walking.
+    config = replace(config, commands=replace(config.commands, resample_s=EVALUATION_COMMAND_EVERY_S,
+                                              standing_fraction=0.0))
     from footforge.envs import engine
 
     env = from_config(replace(config, build_dir=build_dir, episode_length_s=seconds + 1.0,

@@ -26,6 +26,8 @@ the configuration is reproducible from the two (tests/test_presets.py checks eve
 from __future__ import annotations
 
 import difflib
+import math
+import types
 import typing
 from dataclasses import dataclass, fields, is_dataclass, replace
 
@@ -92,6 +94,10 @@ PRESETS: dict[str, dict[str, Preset]] = {"flat": {p.name: p for p in FLAT_PRESET
 
 DEFAULT_PRESET = "default"
 
+ROUGH_ONLY = ("terrain", "curriculum", "height_scan", "heightfield_soles", "heightfield_sole_grid",
+              "heightfield_sole_radius_m")
+"""EnvConfig fields only the rough task reads: refused as overrides of the flat task (they would do nothing)."""
+
 RUN_TIME_FIELDS = {"task": "the task is the command's: footforge train flat|rough",
                    "feet": "--feet", "policy": "--policy", "physics": "--physics",
                    "build_dir": "--build-root"}
@@ -142,6 +148,9 @@ def apply_overrides(env, ppo, overrides, *, source: str = "--set"):
             continue
         if len(path) == 2 and path[1] in RUN_TIME_FIELDS:
             raise InputError(f"{source} {text}: env.{path[1]} is not an override", fix=RUN_TIME_FIELDS[path[1]])
+        if env.task != "rough" and path[1] in ROUGH_ONLY:
+            raise InputError(f"{source} {text}: env.{path[1]} is the rough task's; the {env.task} task has no "
+                             "terrain", fix="leave it out, or train the rough task")
         if path[1:] == ("contact_model",):  # the contact model with the physics it needs (--contact-model)
             model = _parsed(value_text, env.contact_model, _hint(type(env), "contact_model"), text, source)
             env = envs.with_contact_model(replace(env, **envs.physics(env.feet, model)), model)
@@ -186,11 +195,30 @@ def _assign(config, path: tuple[str, ...], value_text: str, text: str, source: s
         leaves = [f.name for f in fields(current) if f.metadata.get("saved", True)]
         raise InputError(f"{source} {text}: '{name}' is a section", fix=f"set one of its fields: {name}."
                          + f", {name}.".join(leaves))
-    return replace(config, **{name: _parsed(value_text, current, _hint(type(config), name), text, source)})
+    return replace(config, **{name: _parsed(value_text, current, _hint(type(config), name, current), text, source)})
 
 
-def _hint(cls, name: str):
-    return typing.get_type_hints(cls)[name]
+def _hint(cls, name: str, current=None):
+    """The field's type hint, or (where its module names types only for type checkers, as
+    envs.terms does) the type of its current value."""
+    try:
+        hint = typing.get_type_hints(cls)[name]
+    except NameError:
+        return _type_of(current)
+    # A union of a number and a tuple (an observation group's scale): the form the field holds now.
+    is_union = typing.get_origin(hint) in (typing.Union, types.UnionType)
+    args = [a for a in typing.get_args(hint) if a is not type(None)] if is_union else []
+    if len(args) > 1 and current is not None:
+        return _type_of(current) if type(None) not in typing.get_args(hint) else _type_of(current) | None
+    return hint
+
+
+def _type_of(value):
+    if isinstance(value, bool):
+        return bool
+    if isinstance(value, tuple):
+        return tuple[int, ...] if value and all(isinstance(v, int) for v in value) else tuple[float, ...]
+    return type(value)
 
 
 def _parsed(value_text: str, current, hint, text: str, source: str):
@@ -224,10 +252,17 @@ def _converted(value_text: str, kind):
     """`value_text` as `kind` (a field's type); _NotA names what it should be, TypeError a type no
     override sets."""
     def number(text: str, as_int: bool):
+        if as_int:
+            try:
+                return int(text)  # exactly, however large
+            except ValueError:
+                pass
         try:
             value = float(text)
         except ValueError:
             raise _NotA("a whole number" if as_int else "a number") from None
+        if not math.isfinite(value):
+            raise _NotA("a finite number")
         if as_int:
             if value != int(value):
                 raise _NotA("a whole number")
@@ -310,7 +345,14 @@ def overrides_between(env, ppo, preset_name: str) -> list[str]:
 def closest_recipe(env, ppo) -> tuple[str, list[str]]:
     """(preset, overrides) that give (env, ppo) with the fewest overrides: the recipe of a run
     trained before presets (or outside footforge train)."""
-    recipes = [(name, overrides_between(env, ppo, name)) for name in PRESETS[env.task]]
+    recipes = []
+    for name in PRESETS[env.task]:
+        try:
+            recipes.append((name, overrides_between(env, ppo, name)))
+        except InputError:
+            continue  # a difference this preset's overrides cannot express: another may
+    if not recipes:
+        raise InputError("no preset and overrides give this configuration")
     return min(recipes, key=lambda recipe: len(recipe[1]))
 
 

@@ -279,8 +279,13 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     state_file = run_dir / "progress.json"
     if resume:
         offset, restore, resumes, wall_s_before = _resume_state(run_dir, env_config, ppo, notice, primary)
-        origin = {k: v for k, v in json.loads((run_dir / "config.json").read_text()).items()
-                  if k in ("initialised_from", "recipe")}
+        saved = json.loads((run_dir / "config.json").read_text())
+        origin = {k: v for k, v in saved.items() if k in ("initialised_from", "recipe")}
+        if "recipe" in origin and saved.get("ppo", {}).get("num_timesteps") != ppo.num_timesteps:
+            # --timesteps moved the run's total: its recipe says so (rl.presets), so that it still
+            # resolves to config.json.
+            kept = [o for o in origin["recipe"].get("overrides", []) if not o.startswith("ppo.num_timesteps=")]
+            origin["recipe"] = origin["recipe"] | {"overrides": kept + [f"ppo.num_timesteps={ppo.num_timesteps}"]}
     elif recipe is not None:
         origin["recipe"] = recipe
     if primary:
