@@ -11,6 +11,12 @@ of the ground) and the policies' footforge.json (steps, wall time, machine).
     MUJOCO_GL=egl python scripts/shipped_evaluations.py              # every shipped policy
     python scripts/shipped_evaluations.py --policies flat_aof_B --no-video
     python scripts/shipped_evaluations.py --tables-only              # the tables from the committed metrics
+    python scripts/shipped_evaluations.py --closed-chain             # also closed_chain/ and the play caption
+
+With --closed-chain, each policy that has a `closed_chain/` record is evaluated again on the 34-joint
+closed chain (`footforge evaluate-closed-chain`, 8 robots x 20 s, about 4 minutes each) and the
+README's caption of the AOF policy playing on the closed chain (between `<!-- closed-chain-play -->`
+markers) is measured again with `footforge play`'s own headless run.
 
 The same policy, machine, seed and robot count give the same JSON (tests/test_shipped_policies.py); on
 another machine the falls of 32 robots move by a few (docs/policies.md).
@@ -82,6 +88,45 @@ def reduce_gif(path: Path) -> None:
             os.remove(tmp)
 
 
+def evaluate_closed_chain(run: Path) -> int:
+    """`footforge evaluate-closed-chain` of one shipped policy into its closed_chain/ (8 robots x 20 s)."""
+    from footforge.cli.evaluate_closed_chain import main as closed_chain_main
+
+    argv = ["--policy", str(run.relative_to(REPO)), "--seconds", "20", "--robots", "8", "--seed", "0",
+            "--out", str((run / "closed_chain").relative_to(REPO)), "--force"]
+    print("footforge evaluate-closed-chain " + " ".join(argv), flush=True)
+    return closed_chain_main(argv)
+
+
+PLAY_POLICY = "policies/flat_aof_B/policy"
+PLAY_START, PLAY_END = "<!-- closed-chain-play:start -->", "<!-- closed-chain-play:end -->"
+
+
+def play_caption() -> str:
+    """The README's caption of the AOF policy on the closed chain: `footforge play`'s headless run
+    (seed 0, 4 s at 0.6 m/s forward), its mean forward speed and verdict."""
+    from footforge.rl.play import Player, PlayConfig, load_policy, play_headless
+
+    player = Player(load_policy(REPO / PLAY_POLICY), PlayConfig(feet="full", seed=0))
+    player.warm_up()
+    result = play_headless(player, seconds=4.0, command=(0.6, 0.0, 0.0))
+    vx = result["states"]["vx"]
+    return (f"The AOF policy on the 34-joint closed chain, commanded 0.6 m/s forward (`MUJOCO_GL=egl footforge play "
+            f"{PLAY_POLICY} --feet full --headless --seconds 4 --command 0.6 0 0 --width 320 --height 180 --video "
+            f"walk.gif`, every other frame kept): mean forward speed {sum(vx) / len(vx):.2f} m/s over the 4 s, "
+            f"{result['falls']} falls, verdict \"{result['walking']['line']}\".")
+
+
+def _replace_block(path: Path, start: str, end: str, text: str) -> None:
+    old = path.read_text()
+    if start not in old or end not in old:
+        raise SystemExit(f"{path}: no {start} ... {end} block to write into")
+    new = re.sub(re.escape(start) + ".*?" + re.escape(end), lambda _: f"{start}\n{text}\n{end}", old, flags=re.S)
+    if new != old:
+        path.write_text(new)
+        print(f"wrote {path.relative_to(REPO)}")
+
+
 def _steps(n: int) -> str:
     return f"{n / 1e6:.1f} M"
 
@@ -134,13 +179,7 @@ def table(runs: list[Path]) -> str:
 def write_tables(runs: list[Path]) -> None:
     text = table(runs)
     for path in TABLES:
-        old = path.read_text()
-        if START not in old or END not in old:
-            raise SystemExit(f"{path}: no {START} ... {END} block to write the table into")
-        new = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: f"{START}\n{text}\n{END}", old, flags=re.S)
-        if new != old:
-            path.write_text(new)
-            print(f"wrote the table in {path.relative_to(REPO)}")
+        _replace_block(path, START, END, text)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -148,6 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--policies", nargs="+", metavar="NAME", help="only these (default: every shipped policy)")
     p.add_argument("--no-video", action="store_true", help="no GIFs (also where MUJOCO_GL is unset)")
     p.add_argument("--tables-only", action="store_true", help="only rewrite the tables from the committed metrics")
+    p.add_argument("--closed-chain", action="store_true",
+                   help="also the closed-chain records (closed_chain/) and the README's closed-chain play caption")
     args = p.parse_args(argv)
     os.chdir(REPO)  # the evaluations are recorded with paths relative to the repository
     runs = shipped()
@@ -164,6 +205,12 @@ def main(argv: list[str] | None = None) -> int:
             code = evaluate(run, video)
             if code:
                 return code
+            if args.closed_chain and (run / "closed_chain").is_dir():
+                code = evaluate_closed_chain(run)
+                if code:
+                    return code
+        if args.closed_chain:
+            _replace_block(REPO / "README.md", PLAY_START, PLAY_END, play_caption())
     write_tables(runs)
     return 0
 
