@@ -2,6 +2,7 @@
 every second frame (12.5 fps) on one 64-colour palette, so that a 4 s clip stays under 1 MB.
 
     MUJOCO_GL=egl python scripts/readme_gif.py policies/flat_aof_B docs/images/walk_aof.gif
+    MUJOCO_GL=egl python scripts/readme_gif.py policies/flat_aof_B docs/images/walk_aof_closed_chain.gif --feet full
 """
 
 from __future__ import annotations
@@ -13,10 +14,10 @@ from pathlib import Path
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 2:
+    if len(argv) not in (2, 4) or len(argv) == 4 and argv[2] != "--feet":
         print(__doc__, file=sys.stderr)
         return 2
-    policy, out = argv
+    policy, out, feet = argv[0], argv[1], argv[3:]
     from PIL import Image, ImageSequence
 
     from footforge.cli.play import main as play
@@ -24,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         raw = Path(tmp) / "raw.gif"
         code = play([policy, "--headless", "--seconds", "4", "--command", "0.6", "0", "0", "--video", str(raw),
-                     "--width", "320", "--height", "180"])
+                     "--width", "320", "--height", "180", *(["--feet", *feet] if feet else [])])
         if code:
             return code
         with Image.open(raw) as gif:

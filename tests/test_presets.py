@@ -204,40 +204,29 @@ def test_a_resume_with_another_recipe_names_the_differences(built, tmp_path, mon
 
 
 def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_configurations():
-    """benchmarks/learning_cpu.py is presets + overrides: the variant that trained flat_aof_B's last stage
-    (RESULTS.md: `--preset full --variant today+fast+airtime=0+resample=10+entropy=0.001`, 258,048 steps
-    per checkpoint) gives its config.json, and today's `cpu` preset is the same with commands every 5 s."""
+    """benchmarks/learning_cpu.py is presets + overrides: the variant that trained flat_aff_B's last stage
+    (policies/README.md: `--preset full --variant today+fast+airtime=0+entropy=0.001`, 258,048 steps per
+    checkpoint) gives its config.json, which is the `cpu` preset with commands every 10 s; and the command
+    that trained flat_aof_B gives that preset exactly."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    saved = json.loads((REPO / "policies/flat_aof_B/config.json").read_text())
-    env, ppo, recipe = module.configure("aof", "full", "today+fast+airtime=0+resample=10+entropy=0.001",
+
+    def shipped(name):
+        saved = json.loads((REPO / "policies" / name / "config.json").read_text())
+        env = env_config_from_dict(saved["env"])
+        return replace(env, physics="mjx", build_dir=None), from_dict(PPOConfig, saved["ppo"])
+
+    env, ppo, recipe = module.configure("aff", "full", "today+fast+airtime=0+resample=10+entropy=0.001",
                                         ["ppo.num_timesteps=3870720", "ppo.checkpoint_every_steps=258048"])
-    shipped_env = env_config_from_dict(saved["env"])
-    assert replace(env, physics=shipped_env.physics, build_dir=shipped_env.build_dir) == shipped_env
-    assert ppo == from_dict(PPOConfig, saved["ppo"])
-    assert presets.resolve("flat", "aof", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
-    cpu_env, cpu_ppo, _ = module.configure("aof", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])
-    assert (cpu_env, cpu_ppo) == (env, ppo)
-
-
-def test_envconfig_on_its_own_is_coherent():
-    """EnvConfig() alone is a configuration that trains: position actions at the position scale the
-    tasks use (it paired position actions with the velocity scale, 13.5 rad per unit, until
-    2026-11-28), the PD targets unobserved (position targets are the observed last action), the
-    contact model's own physics step and iterations on its feet, and the 50 Hz policy step."""
-    from footforge.envs.config import EnvConfig
-    from footforge.envs.stability import VELOCITY_ACTION_SCALE
-
-    config = EnvConfig()
-    assert config.action == "position" and not config.observations.pd_targets
-    assert config.action_scale == envs.default_config("flat", config.feet, "B").action_scale \
-        == envs.default_config("rough", config.feet, "P").action_scale < VELOCITY_ACTION_SCALE
-    physics = envs.physics(config.feet, config.contact_model)
-    assert {k: getattr(config, k) for k in physics} == physics
-    assert config.sim_dt * config.decimation == pytest.approx(0.02)
+    assert (env, ppo) == shipped("flat_aff_B")
+    assert presets.resolve("flat", "aff", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
+    assert module.configure("aff", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])[:2] == (env, ppo)
+    env, ppo, _ = module.configure("aof", "full", "today+fast+airtime=0+entropy=0.001",
+                                   ["ppo.num_timesteps=10000000", "ppo.checkpoint_every_steps=258048"])
+    assert (env, ppo) == shipped("flat_aof_B") == presets.resolve("flat", "aof", "B", "cpu")
 
 
 @pytest.mark.parametrize("override, read", [
