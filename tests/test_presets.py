@@ -138,15 +138,10 @@ def test_each_shipped_run_is_its_recorded_recipe(config_file):
 # --- footforge train --preset/--set ---
 
 def _capture_train(monkeypatch):
-    from footforge.rl import train
+    """footforge train's call of rl.train.train recorded instead of made (test_train's helper)."""
+    from test_train import _capture_train as capture
 
-    seen = {}
-
-    def fake(env_config, ppo, run_dir, **kwargs):
-        seen.update(env=env_config, ppo=ppo, kwargs=kwargs)
-        return {"eval/episode_reward": 0.0}
-    monkeypatch.setattr(train, "train", fake)
-    return seen
+    return capture(monkeypatch)
 
 
 def test_train_resolves_preset_flags_and_sets_in_order_and_records_them(built, tmp_path, monkeypatch, capsys):
