@@ -377,6 +377,10 @@ def test_an_unknown_mujoco_gl_is_an_input_error_for_every_command(value):
             if code == 2:
                 assert "Traceback" not in done.stderr and done.stderr.count("\n") == 1, (command, done.stderr)
                 assert f"MUJOCO_GL={value!r}" in done.stderr and "'egl'" in done.stderr and "unset it" in done.stderr
+                # One prefix: the command's own words (`footforge evaluate: error:`), `footforge:` for the bare one.
+                words = [w for w in command[2:] if not w.startswith("-")] if command[0] == "-m" else []
+                prefix = " ".join(["footforge", *words]) if command[0] == "-m" else "footforge train rough"
+                assert done.stderr.startswith(f"{prefix}: error: "), (prefix, done.stderr)
 
 
 def test_the_cpu_learning_benchmark_says_whole_sentences_and_writes_valid_json():

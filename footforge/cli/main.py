@@ -380,6 +380,15 @@ def _run_export(args, console) -> int:
     return EXIT_OK
 
 
+def _prog(argv: list[str]) -> str:
+    """`footforge JOB` (with train's task) as the command's errors name it, or `footforge`."""
+    words = [a for a in argv if not a.startswith("-")][:2]
+    if not words or words[0] not in ("build", "validate", "check", "export", *DELEGATED):
+        return "footforge"
+    return f"footforge {words[0]} {words[1]}" if words[0] == "train" and words[1:] in (["flat"], ["rough"]) \
+        else f"footforge {words[0]}"
+
+
 def main(argv: list[str] | None = None) -> int:
     from footforge.processes import sigterm_as_interrupt
 
@@ -388,9 +397,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    if footforge.gl_setting_refused("footforge"):  # before `import mujoco` raises on it
-        return EXIT_INPUT_ERROR
     argv = sys.argv[1:] if argv is None else list(argv)
+    if footforge.gl_setting_refused(_prog(argv)):  # before `import mujoco` raises on it
+        return EXIT_INPUT_ERROR
     first = next((i for i, a in enumerate(argv) if not a.startswith("-")), None)
     if first is not None and argv[first] in DELEGATED and all(a == "--verbose" for a in argv[:first]):
         try:
