@@ -1,9 +1,10 @@
 """Regenerates every shipped policy's recorded evaluation and the tables that quote it, in one command.
 
 For each `policies/<name>/` with a `policy/`: `footforge evaluate` on its own feet and zero-shot on
-the others (32 robots x 20 s, seed 0, the deterministic policy; with MUJOCO_GL set, a 4-s video per
-feet) into `policies/<name>/evaluation/` (policy card, metrics, plots), the GIFs then reduced as the
-repository keeps them (every other frame, 320 x 180, one 64-colour palette); then the table of
+the others (32 robots x 20 s, seed 0, the deterministic policy; with MUJOCO_GL set, a 3-s video per
+feet) into `policies/<name>/evaluation/` (policy card, metrics, plots), then lightened as the repository
+keeps it: the video on the policy's own feet alone, shrunk to at most 300 KB (footforge.rl.render's
+shrink_gif), no frame strips (light()); then the table of
 shipped policies between the `<!-- shipped-policies -->` markers of README.md and policies/README.md,
 written from those metrics (footforge/rl/verdict.py's verdict, falls, base height, each foot's share
 of the ground) and the policies' footforge.json (steps, wall time, machine).
@@ -29,7 +30,6 @@ import json
 import os
 import re
 import sys
-import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -46,7 +46,8 @@ def shipped() -> list[Path]:
 
 
 def evaluate(run: Path, video: bool) -> int:
-    """`footforge evaluate` of one shipped policy on its feet and the others, into its evaluation/."""
+    """`footforge evaluate` of one shipped policy on its feet and the others, into its evaluation/,
+    then lightened as the repository keeps it (light())."""
     from footforge.cli.evaluate import main as evaluate_main
 
     meta = json.loads((run / "policy" / "footforge.json").read_text())
@@ -55,37 +56,35 @@ def evaluate(run: Path, video: bool) -> int:
     argv = ["--policy", str(run.relative_to(REPO)), "--feet", *feet, "--num-envs", "32", "--seconds", "20",
             "--seed", "0", "--out", str((run / "evaluation").relative_to(REPO)), "--force"]
     if video:
-        argv += ["--video", "4"]
+        argv += ["--video", str(VIDEO_S)]
     print("footforge evaluate " + " ".join(argv), flush=True)
     code = evaluate_main(argv)
-    if code == 0 and video:
-        for gif in sorted((run / "evaluation").glob("video_*.gif")):
-            reduce_gif(gif)
+    if code == 0:
+        light(run / "evaluation")
     return code
 
 
-def reduce_gif(path: Path) -> None:
-    """The GIF in place at every other frame, half size and one 64-colour palette (its comment kept)."""
-    from PIL import Image, ImageSequence
+VIDEO_S = 3
+"""Seconds of video recorded on the policy's own feet (the GIF the repository keeps)."""
 
-    with Image.open(path) as gif:
-        comment = gif.info.get("comment")
-        duration = gif.info.get("duration", 40)
-        frames = [f.convert("RGB") for f in ImageSequence.Iterator(gif)][::2]
-    frames = [f.resize((f.width // 2, f.height // 2), Image.LANCZOS) for f in frames]
-    palette = frames[len(frames) // 2].quantize(colors=64)
-    frames = [f.quantize(palette=palette, dither=Image.Dither.NONE) for f in frames]
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".gif")
-    os.close(fd)
-    try:  # every frame of footforge's videos lasts the same (1 / fps): two of them per kept frame
-        extra = {"comment": comment} if comment else {}
-        frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=duration * 2,
-                       loop=0, optimize=True, **extra)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+
+def light(folder: Path) -> None:
+    """An evaluation folder as a policy folder keeps it: the metrics, the card, the comparison and
+    the small plots, and one GIF, the policy on its own feet (video_0.gif, within
+    footforge.rl.render.GIF_MAX_BYTES); the frame strips and the zero-shot videos are removed
+    (`footforge evaluate --video` writes them again) and the card's links to them with them."""
+    from footforge.rl.render import shrink_gif
+
+    removed = sorted(p.name for p in folder.glob("strip_*.png")) + sorted(
+        p.name for p in folder.glob("video_*.gif") if p.name != "video_0.gif")
+    for name in removed:
+        (folder / name).unlink()
+    card = folder / "policy_card.md"
+    lines = card.read_text().splitlines(keepends=True)
+    card.write_text("".join(line for line in lines if not any(f"]({name})" in line for name in removed)))
+    if (folder / "video_0.gif").exists():
+        width, colours, size = shrink_gif(folder / "video_0.gif")
+        print(f"{folder.relative_to(REPO)}/video_0.gif: {width} px, {colours} colours, {size / 1e3:.0f} KB")
 
 
 def evaluate_closed_chain(run: Path) -> int:
@@ -112,8 +111,8 @@ def play_caption() -> str:
     result = play_headless(player, seconds=4.0, command=(0.6, 0.0, 0.0))
     vx = result["states"]["vx"]
     return (f"The AOF policy on the 34-joint closed chain, commanded 0.6 m/s forward (`MUJOCO_GL=egl footforge play "
-            f"{PLAY_POLICY} --feet full --headless --seconds 4 --command 0.6 0 0 --width 320 --height 180 --video "
-            f"walk.gif`, every other frame kept): mean forward speed {sum(vx) / len(vx):.2f} m/s over the 4 s, "
+            f"{PLAY_POLICY} --feet full --headless --seconds 4 --command 0.6 0 0`; the GIF: `python scripts/readme_gif.py "
+            f"policies/flat_aof_B docs/images/walk_aof_closed_chain.gif --feet full`, its first 3 s): mean forward speed {sum(vx) / len(vx):.2f} m/s over the 4 s, "
             f"{result['falls']} falls, verdict \"{result['walking']['line']}\".")
 
 

@@ -199,10 +199,10 @@ def test_a_resume_with_another_recipe_names_the_differences(built, tmp_path, mon
 
 
 def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_configurations():
-    """benchmarks/learning_cpu.py is presets + overrides: the variant that trained flat_aff_B's last stage
-    (policies/README.md: `--preset full --variant today+fast+airtime=0+entropy=0.001`, 258,048 steps per
-    checkpoint) gives its config.json, which is the `cpu` preset with commands every 10 s; and the command
-    that trained flat_aof_B gives that preset exactly."""
+    """benchmarks/learning_cpu.py is presets + overrides: the variant that trained flat_ball_B_cpu's last
+    stage (policies/README.md: `--preset full --variant today+fast+airtime=0+entropy=0.001`, 258,048 steps
+    per checkpoint) gives its config.json, which is the `cpu` preset with commands every 10 s; the command
+    that trained flat_aof_B gives that preset exactly; flat_aff_B, trained by `footforge train`, is it too."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
@@ -214,11 +214,12 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
         env = env_config_from_dict(saved["env"])
         return replace(env, physics="mjx", build_dir=None), from_dict(PPOConfig, saved["ppo"])
 
-    env, ppo, recipe = module.configure("aff", "full", "today+fast+airtime=0+resample=10+entropy=0.001",
+    env, ppo, recipe = module.configure("ball", "full", "today+fast+airtime=0+resample=10+entropy=0.001",
                                         ["ppo.num_timesteps=3870720", "ppo.checkpoint_every_steps=258048"])
-    assert (env, ppo) == shipped("flat_aff_B")
-    assert presets.resolve("flat", "aff", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
-    assert module.configure("aff", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])[:2] == (env, ppo)
+    assert (env, ppo) == shipped("flat_ball_B_cpu")
+    assert presets.resolve("flat", "ball", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
+    assert module.configure("ball", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])[:2] == (env, ppo)
+    assert shipped("flat_aff_B") == presets.resolve("flat", "aff", "B", "cpu")
     env, ppo, _ = module.configure("aof", "full", "today+fast+airtime=0+entropy=0.001",
                                    ["ppo.num_timesteps=10000000", "ppo.checkpoint_every_steps=258048"])
     assert (env, ppo) == shipped("flat_aof_B") == presets.resolve("flat", "aof", "B", "cpu")

@@ -115,3 +115,38 @@ def test_importing_footforge_leaves_mujoco_gl_as_the_user_has_it():
         run = subprocess.run([sys.executable, "-c", probe.format(module=module)], env=env, capture_output=True,
                              text=True, timeout=300)
         assert run.returncode == 0 and run.stdout.strip().splitlines()[-1] == expected, (module, run.stdout, run.stderr)
+
+
+def test_shrink_gif_fits_the_budget_keeps_the_comment_or_leaves_the_file(tmp_path):
+    """A followed robot's GIF (the floor moves in every frame: here a checkerboard scrolling under a
+    fixed square) shrinks to the budget: its first 3 s at half the frame rate, narrower and fewer
+    colours until it fits; the comment kept. A budget no setting meets raises and leaves the file
+    as it was."""
+    from footforge.rl.render import shrink_gif, write_gif
+
+    yy, xx = np.mgrid[0:180, 0:320]
+    frames = []
+    for t in range(100):  # 4 s at 25 fps
+        shade = (((xx + 7 * t) // 20 + yy // 20) % 2) * 90 + 40 + (xx + yy) // 8  # lit checker, scrolling
+        frame = np.stack([shade // 3, shade // 2, shade], axis=-1).astype(np.uint8)
+        frame[70:110, 140:180] = (220, 30, 30)
+        frames.append(frame)
+    path = tmp_path / "walk.gif"
+    write_gif(frames, path, fps=25, comment="footforge play")
+    before = path.stat().st_size
+    width, colours, size = shrink_gif(path, max_bytes=before // 8)
+    assert size == path.stat().st_size <= before // 8 and width < 320
+    with Image.open(path) as gif:
+        assert (gif.n_frames, gif.info["duration"], gif.size) == (37, 80, (width, round(width * 180 / 320)))
+        assert gif.info["comment"] == b"footforge play"
+        gif.seek(18)
+        middle = np.asarray(gif.convert("RGB")).astype(int)
+    r, g, b = middle[middle.shape[0] // 2, middle.shape[1] // 2]
+    assert r > g + 50 and r > b + 50  # still the red square in the middle
+    shrink_gif(path, max_bytes=before // 8)  # already 12.5 fps and 3 s: every frame kept
+    with Image.open(path) as gif:
+        assert (gif.n_frames, gif.info["duration"]) == (37, 80)
+    kept = path.read_bytes()
+    with pytest.raises(ValueError, match="do not fit 1,000 bytes"):
+        shrink_gif(path, max_bytes=1000)
+    assert path.read_bytes() == kept and sorted(p.name for p in tmp_path.iterdir()) == ["walk.gif"]

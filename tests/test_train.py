@@ -372,6 +372,33 @@ def test_resume_skips_a_damaged_checkpoint_and_says_so(written_run, monkeypatch,
     assert train.checkpoint_problem(run / "policy", read=False) is None
 
 
+def test_a_shipped_run_without_checkpoints_resumes_from_its_policy(written_run, monkeypatch, capsys):
+    """A shipped policy's folder keeps its weights once: policy/ (the newest checkpoint's files and
+    footforge.json), no checkpoints/. --resume then continues from policy/, with its parameters and
+    step, and the extended run writes its checkpoints and a new policy/ as any run does; a damaged
+    policy/ is refused as a damaged checkpoint is."""
+    import shutil
+
+    from footforge.rl import train
+
+    run, cfg, ppo = written_run
+    train.write_policy(run, cfg, ppo, {})
+    shutil.rmtree(run / "checkpoints")
+    assert train.latest_intact_checkpoint(run) == (64, run / "policy") and train.policy_problem(run) is None
+    calls = []
+    monkeypatch.setattr(train, "_run_ppo", _fake_ppo(calls))
+    train.train(cfg, ppo, run, resume=True)
+    assert calls[0]["remaining"] == 96 - 64 and calls[0]["resumes"] == 1
+    np.testing.assert_array_equal(_kernel(calls[0]["restore"]), _kernel(_params(64, ppo)))
+    assert [s for s, _ in train.checkpoints(run)] == [96]
+    assert json.loads((run / "policy" / "footforge.json").read_text())["global_step"] == 96
+    shutil.rmtree(run / "checkpoints")
+    _truncate_data(run / "policy")
+    with pytest.raises(train.InputError, match="no intact checkpoint to resume"):
+        train.train(cfg, ppo, run, resume=True)
+    assert "skipping checkpoint policy" in capsys.readouterr().err and (run / "policy").is_dir()
+
+
 def test_resume_with_every_checkpoint_damaged_is_an_input_error(written_run, capsys):
     from footforge.rl import train
     from footforge.cli.train import main

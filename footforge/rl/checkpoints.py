@@ -41,6 +41,21 @@ def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
     return found
 
 
+def _resumable(run_dir: Path) -> list[tuple[int, Path]]:
+    """The run's checkpoints, or, where it has none, its policy/ as the checkpoint of its step: a
+    shipped policy's folder keeps its weights once (policy/ is a copy of the newest checkpoint's
+    files, plus footforge.json), and resumes from them."""
+    found = checkpoints(run_dir)
+    if found:
+        return found
+    policy = Path(run_dir) / "policy"
+    try:
+        step = int(json.loads((policy / "footforge.json").read_text())["global_step"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    return [(step, policy)] if (policy / CHECKPOINT_MANIFEST).is_file() else []
+
+
 def latest_checkpoint(run_dir: Path) -> tuple[int, Path] | None:
     """The newest checkpoint, intact or not (latest_intact_checkpoint checks)."""
     found = checkpoints(run_dir)
@@ -113,9 +128,9 @@ def load_parameters(folder: Path):
 
 
 def latest_intact_checkpoint(run_dir: Path, *, read: bool = False) -> tuple[int, Path] | None:
-    """The newest checkpoint that passes checkpoint_problem."""
+    """The newest checkpoint that passes checkpoint_problem (without checkpoints/, policy/: _resumable)."""
     legacy = legacy_run(run_dir)
-    for step, path in reversed(checkpoints(run_dir)):
+    for step, path in reversed(_resumable(run_dir)):
         if checkpoint_problem(path, read=read, legacy=legacy) is None:
             return step, path
     return None
@@ -128,9 +143,9 @@ def resume_point(run_dir: Path, notice: Callable[[str], None], set_aside: bool):
     Raises:
       InputError: no checkpoint, or none intact.
     """
-    found = checkpoints(run_dir)
+    found = _resumable(run_dir)
     if not found:
-        raise InputError(f"nothing to resume: no checkpoints in {run_dir / 'checkpoints'}", file=str(run_dir),
+        raise InputError(f"nothing to resume: no checkpoints in {run_dir / 'checkpoints'} and no policy/", file=str(run_dir),
                          fix="start without --resume (with --force to start this run over), or give another run")
     skipped = []
     legacy = legacy_run(run_dir)

@@ -1,4 +1,5 @@
-"""Offscreen rendering of a recorded trajectory: frames, an animated GIF and a frame strip.
+"""Offscreen rendering of a recorded trajectory: frames, an animated GIF and a frame strip; GIFs
+shrunk to the repository's budget (shrink_gif).
 
 MuJoCo chooses its OpenGL backend from the environment variable MUJOCO_GL when `mujoco` is first
 imported (egl: headless, GPU or Mesa; osmesa: software; glfw: needs a display; disable: none),
@@ -123,3 +124,48 @@ def write_strip(frames: Sequence[np.ndarray], path: Path, count: int = 6) -> Non
     strip = Image.fromarray(np.concatenate([frames[i] for i in picks], axis=1))
     with atomic_file(path) as tmp:
         strip.save(tmp, format="PNG")
+
+
+GIF_MAX_BYTES = 300_000
+"""A committed GIF's budget (the repository's size rule): 300 KB."""
+
+
+def shrink_gif(path: Path, max_bytes: int = GIF_MAX_BYTES, max_seconds: float = 3.0, max_fps: float = 12.5
+               ) -> tuple[int, int, int]:
+    """Rewrites the GIF at `path` in place to fit `max_bytes`: its first `max_seconds` at most
+    `max_fps` (every other frame of footforge's 25-fps videos; a GIF already that slow keeps every
+    frame, so shrinking twice does not halve it twice), then the largest width (320 px down to 160 px) and palette (32 or
+    16 colours, one for the whole clip, no dithering; Pillow's maximum-coverage quantiser, which
+    keeps a small object's own colour where median cut merges it into the floor) whose file fits. A camera that follows the
+    robot moves the checkered floor in every frame, so a GIF's size grows with its frames and pixels
+    and little else helps. Keeps the GIF's comment. Returns (width px, colours, bytes).
+
+    Raises:
+      ValueError: not even 160 px and 16 colours fit `max_bytes`.
+    """
+    import io
+
+    from PIL import Image, ImageSequence
+
+    with Image.open(path) as gif:
+        comment = gif.info.get("comment")
+        frame_ms = gif.info.get("duration", 40)
+        every = max(1, round(1000 / max_fps / frame_ms))
+        keep = max(1, int(max_seconds * 1000 / (frame_ms * every)))
+        frames = [f.convert("RGB") for i, f in enumerate(ImageSequence.Iterator(gif)) if i % every == 0][:keep]
+    extra = {"comment": comment} if comment else {}
+    for width in (320, 288, 256, 224, 192, 160):
+        for colours in (32, 16):
+            if width > frames[0].width:
+                continue
+            sized = [f.resize((width, round(width * f.height / f.width)), Image.LANCZOS) for f in frames]
+            palette = sized[len(sized) // 2].quantize(colors=colours, method=Image.Quantize.MAXCOVERAGE)
+            images = [f.quantize(palette=palette, dither=Image.Dither.NONE) for f in sized]
+            buffer = io.BytesIO()
+            images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:], duration=frame_ms * every,
+                           loop=0, optimize=True, **extra)
+            if buffer.tell() <= max_bytes:
+                with atomic_file(path) as tmp:
+                    Path(tmp).write_bytes(buffer.getvalue())
+                return width, colours, buffer.tell()
+    raise ValueError(f"{path}: {len(frames)} frames do not fit {max_bytes:,} bytes even at 160 px and 16 colours")
