@@ -20,8 +20,12 @@ def build_defaults_if_missing(variants: Iterable[str], build_root: Path | None, 
         folder = DEFAULT_BUILD_ROOT / variant
         if (folder / "scene.xml").is_file():
             continue
-        # Only now: the build's packages (lxml, xacro, coacd, pinocchio) are not on the offline
-        # GPU machine, which trains from builds made beforehand (scripts/device).
+        # Only now: the build's packages (footforge's build extra) are not on the offline GPU
+        # machine, which trains from builds made beforehand (scripts/device), nor in a core install.
+        from footforge.extras import require_build_extra
+
+        require_build_extra(f"{folder} holds no model, and building it",
+                            alternative="give --build-root with models built by footforge build elsewhere")
         from footforge.build import BuildOptions, build
 
         message = f"building {variant} into {folder} (footforge build --variant {variant} --format mjcf)"

@@ -139,6 +139,9 @@ DELEGATED = {
 }
 """Subcommands with their own argument parsers: footforge <name> ARGS runs run(ARGS)."""
 
+BUILD_EXTRA_COMMANDS = ("build", "validate", "check")
+"""The jobs that read descriptions and build models: they need the build extra (footforge.extras)."""
+
 
 def parsers() -> dict[str, argparse.ArgumentParser]:
     """Every job's argument parser by its command words ("build", ..., "train flat", "train rough"):
@@ -161,8 +164,8 @@ def parsers() -> dict[str, argparse.ArgumentParser]:
 
 
 def _parser() -> argparse.ArgumentParser:
-    from footforge.build import VARIANTS
-    from footforge.validate.scenarios import QUICK, SCENARIOS
+    from footforge.validate.scenarios import QUICK, SCENARIOS  # names only: no build extra needed
+    from footforge.variants import VARIANTS
 
     p = _Parser(prog="footforge", description=__doc__.splitlines()[0])
     p.add_argument("--verbose", action="store_true", help="print tracebacks on errors")
@@ -416,6 +419,10 @@ def _main(argv: list[str] | None) -> int:
     try:
         run = {"build": _run_build, "validate": _run_validate, "check": _run_check,
                "export": _run_export}[args.command]
+        if args.command in BUILD_EXTRA_COMMANDS:
+            from footforge.extras import require_build_extra
+
+            require_build_extra(f"footforge {args.command}")
         return run(args, console_out)
     except FootforgeError as e:
         if args.verbose:

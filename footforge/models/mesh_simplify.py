@@ -15,7 +15,6 @@ meaningful.
 from __future__ import annotations
 
 import numpy as np
-import trimesh
 
 DEFAULT_FACE_BUDGET = 1000
 """Faces a collision mesh keeps before CoACD (0: no simplification). At this budget the public
@@ -32,6 +31,8 @@ def simplify_to_budget(vertices: np.ndarray, faces: np.ndarray,
     faces = np.asarray(faces, dtype=np.int64)
     if face_budget <= 0 or len(faces) <= face_budget:
         return vertices, faces
+    import trimesh  # here: the command line reads DEFAULT_FACE_BUDGET for every command
+
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     simplified = mesh.simplify_quadric_decimation(face_count=face_budget)
     return np.asarray(simplified.vertices, dtype=float), np.asarray(simplified.faces, dtype=np.int64)

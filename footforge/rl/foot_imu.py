@@ -38,7 +38,6 @@ from collections.abc import Sequence
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 
 from footforge import constants as C
 from footforge.errors import InputError
@@ -61,6 +60,19 @@ def _angle_about_y(rotation: np.ndarray) -> float:
 def _roll(rotation: np.ndarray) -> float:
     """rho of a rotation R_x(rho) R_y(beta) (3x3)."""
     return float(np.arctan2(rotation[2, 1], rotation[1, 1]))
+
+
+def _rotation_x(angle: float) -> np.ndarray:
+    """R_x(angle) (3x3), as pinocchio.utils.rotate("x", angle): numpy alone, so evaluating and
+    playing on the closed chain need no model-building package."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rotation_y(angle: float) -> np.ndarray:
+    """R_y(angle) (3x3), as pinocchio.utils.rotate("y", angle)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 class FootImuEstimator:
@@ -111,9 +123,9 @@ class FootImuEstimator:
         oriented = [mount.T @ data.xmat[b].reshape(3, 3) for b in self._bodies[leg, 1:]]  # in the mount's frame
         turned = [r @ ref.T for r, ref in zip(oriented, self._reference[leg])]  # since the reference pose
         pitch = 0.5 * (_angle_about_y(turned[0]) + _angle_about_y(turned[1]))
-        pitched = pin.utils.rotate("y", pitch)  # P
+        pitched = _rotation_y(pitch)  # P
         roll = float(np.mean([_roll(pitched.T @ link) for link in turned[2:]]))
-        sole = pitched @ pin.utils.rotate("x", roll)  # V, in the mount's frame
+        sole = pitched @ _rotation_x(roll)  # V, in the mount's frame
         z = [r[:, 2] for r in oriented[2:]]  # the links' lengths (local z, front to back)
         halves = (slice(0, n_front), slice(n_front, None))
         front, back = (sole.T @ np.sum(z[h], axis=0) for h in halves)

@@ -46,7 +46,7 @@ def _rotation(q: Gf.Quatf | Gf.Quatd) -> np.ndarray:
 
 def read_stage(stage: Usd.Stage) -> dict:
     """Bodies and joints as UsdPhysics parses them, with world poses and mass properties."""
-    parsed = UsdPhysics.LoadUsdPhysicsFromRange(stage, [str(stage.GetDefaultPrim().GetPath())])
+    parsed = UsdPhysics.UsdPhysicsLoadStageFromPrimRange(stage, [str(stage.GetDefaultPrim().GetPath())])
     cache = UsdGeom.XformCache()
     out = {"bodies": {}, "joints": {}, "articulation_roots": []}
     for kind, (paths, descs) in parsed.items():

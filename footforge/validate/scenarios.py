@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from dm_control import mjcf
 
 from footforge.errors import InputError
+
+if TYPE_CHECKING:  # the names alone: footforge --help lists the scenarios without dm_control (footforge[build])
+    from dm_control import mjcf
 
 ObstacleKind = Literal["flat", "slope", "step", "cylinder", "rock", "rough"]
 
