@@ -77,8 +77,7 @@ def main(argv=None) -> int:
         return 2
 
     import jax
-    from brax.training.agents.ppo import networks as ppo_networks
-    from brax.training.agents.ppo import train as ppo
+    from brax.training.agents.ppo import networks as ppo_networks, train as ppo
     from mujoco_playground import registry, wrapper
     from mujoco_playground.config import locomotion_params
 

@@ -44,9 +44,9 @@ def main(argv=None) -> int:
     if args.seconds <= 0.5:
         p.error("--seconds must exceed the 0.5 s the robot is given to settle")
 
-    from footforge.validate.stance import env_stance, env_stance_start
-
     import jax
+
+    from footforge.validate.stance import env_stance, env_stance_start
 
     overrides = {"heightfield_soles": args.heightfield_soles} if args.heightfield_soles else {}
     steps = {}

@@ -31,6 +31,7 @@ from mujoco.mjx._src import collision_driver, constraint, forward, sensor, smoot
 
 from footforge import envs
 
+
 def _stages():
     """mjx.forward and the Euler step, cut at the boundaries the profile reports."""
     def position(m, d):

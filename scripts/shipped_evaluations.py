@@ -105,7 +105,7 @@ PLAY_START, PLAY_END = "<!-- closed-chain-play:start -->", "<!-- closed-chain-pl
 def play_caption() -> str:
     """The README's caption of the AOF policy on the closed chain: `footforge play`'s headless run
     (seed 0, 4 s at 0.6 m/s forward), its mean forward speed and verdict."""
-    from footforge.rl.play import Player, PlayConfig, load_policy, play_headless
+    from footforge.rl.play import PlayConfig, Player, load_policy, play_headless
 
     player = Player(load_policy(REPO / PLAY_POLICY), PlayConfig(feet="full", seed=0))
     player.warm_up()

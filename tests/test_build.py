@@ -192,14 +192,14 @@ def test_mjcf_on_disk_equals_model_in_memory(tmp_path):
     build(BuildOptions(variant="aof", out_dir=out, cache_dir=tmp_path / "cache"))
     disk = mujoco.MjModel.from_xml_path(str(out / "robot.xml"))
     # Rebuild in memory from the same inputs.
-    from footforge.models import kinematics
-    from footforge.models.collision import DecompositionConfig
     from footforge.inputs.description import default_foot_description
     from footforge.inputs.params import load_params
     from footforge.inputs.sidecar import default_sidecar_path, load_sidecar
+    from footforge.mjcf.writing import compile_model
+    from footforge.models import kinematics
+    from footforge.models.collision import DecompositionConfig
     from footforge.models.foot_source import FootSource, decompose_collision_meshes
     from footforge.models.urdf import parse_urdf
-    from footforge.mjcf.writing import compile_model
 
     desc = load_description(default_foot_description())
     parsed = parse_urdf(desc, floating=True)

@@ -6,23 +6,27 @@ from dataclasses import replace
 
 import jax
 import jax.numpy as jp
+import mujoco
 import numpy as np
 import pytest
-import mujoco
 from mujoco import mjx
 
-from conftest import REPO
-
-from footforge import constants as C
-from footforge import envs
-from footforge.rl import train
-from footforge.rl.evaluate_closed_chain import (TERRAIN_TILES, Controller, comparison_markdown, cpu_robot,
-                                                evaluate_closed_chain, place_at_start)
-from footforge.envs import observation_layout
-from footforge.envs import terrain as terrain_lib
+from footforge import constants as C, envs
+from footforge.envs import observation_layout, terrain as terrain_lib
 from footforge.envs.config import ObservationConfig
 from footforge.errors import InputError
+from footforge.rl import train
+from footforge.rl.evaluate_closed_chain import (
+    TERRAIN_TILES,
+    Controller,
+    comparison_markdown,
+    cpu_robot,
+    evaluate_closed_chain,
+    place_at_start,
+)
 from footforge.rl.verdict import VERDICTS
+
+from conftest import REPO
 
 NOISELESS = ObservationConfig(noise=False)
 TILE = terrain_lib.TerrainConfig(num_levels=1, num_columns=1, tile_size_m=2.0, border_m=1.0, platform_m=0.5,

@@ -8,9 +8,10 @@ import sys
 import tarfile
 
 import pytest
-from conftest import REPO
 
 from footforge.rl.train import write_checkpoint_manifest
+
+from conftest import REPO
 
 sys.path.insert(0, str(REPO / "scripts/device"))
 import kit  # noqa: E402

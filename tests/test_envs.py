@@ -9,7 +9,6 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from conftest import float64_stance
 from footforge import envs
 from footforge.envs import anymal, observation_layout, rewards
 from footforge.envs.anymal import GEOM_BASE
@@ -17,6 +16,8 @@ from footforge.envs.config import EnvConfig, ObservationConfig, ObservationTerm,
 from footforge.envs.contacts import ground_contacts
 from footforge.envs.locomotion import LocomotionEnv
 from footforge.errors import InputError
+
+from conftest import float64_stance
 
 
 def test_registry_and_its_errors():
@@ -201,8 +202,9 @@ def test_base_and_knee_contacts_are_measured_on_flat_ground(rollouts):
     """The base's and thighs' colliders are off in MJX (they only end episodes, and were most of
     the contact slots every Newton iteration solves): their ground contact is geometric. Checked
     against CPU MuJoCo's own collisions on the build's full model, pose by pose."""
-    import mujoco
     from types import SimpleNamespace
+
+    import mujoco
 
     from footforge.envs.anymal import GEOM_FOOT, load_robot
 

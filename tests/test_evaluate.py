@@ -2,6 +2,7 @@
 
 import pytest
 
+
 def test_the_slippage_index_measures_a_foot_moved_by_a_known_distance():
     """A stance foot dragged 3 cm over a step in which the base travels 0.5 m counts 0.03 / 0.5; a foot
     that lifts off or lands within the step (in the air at one end) does not count; a fallen robot's

@@ -13,11 +13,10 @@ import onnx
 import onnxruntime
 import pytest
 
-from footforge import constants as C
-from footforge import envs
-from footforge.rl import train
+from footforge import constants as C, envs
 from footforge.cli.main import main
 from footforge.envs import observation_layout
+from footforge.rl import train
 from footforge.rl.train import PPOConfig, load_policy
 
 TOLERANCE = 1e-5

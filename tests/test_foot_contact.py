@@ -2,9 +2,8 @@
 the sole as a box or as spheres or capsules on the box's bottom face, with or without the parts
 above the sole colliding."""
 
-from pathlib import Path
-
 import json
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -12,8 +11,8 @@ import pytest
 import yaml
 
 from footforge.errors import InputError
-from footforge.mjcf.foot import collision_points, sole_primitives
 from footforge.inputs.params import FootContact, default_params_path, load_params
+from footforge.mjcf.foot import collision_points, sole_primitives
 
 SHAPES = {"box": {"sole": "box", "upper_collisions": True},
           "box_sole_only": {"sole": "box", "upper_collisions": False},
@@ -95,7 +94,7 @@ def test_only_the_sole_collides_and_mass_is_unchanged(builds, shape):
         assert report["foot"]["contact"]["sole"] == SHAPES[shape]["sole"]
         assert report["foot"]["contact"]["upper_collisions"] is False
         # The leg's own colliders (shanks, thighs, base) are those of the box build.
-        legs = lambda m: sorted(m.geom(g).name for g in range(m.ngeom)
+        legs = lambda m: sorted(m.geom(g).name for g in range(m.ngeom)  # noqa: E731
                                 if (m.geom_contype[g] or m.geom_conaffinity[g]) and "_foot/" not in m.geom(g).name)
         assert legs(new) == legs(box)
 

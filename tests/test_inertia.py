@@ -34,7 +34,7 @@ ANKLE_TYPO = 1e-6 * np.array([[4.4972, -0.0012, -0.0027],
                               [-0.0027, 0.0005, 1.0468]])
 
 
-def from_moments(moments, rotation=np.eye(3)):
+def from_moments(moments, rotation=np.eye(3)):  # noqa: B008  (read, never changed)
     return rotation @ np.diag(moments) @ rotation.T
 
 

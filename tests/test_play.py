@@ -10,12 +10,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import REPO
 from PIL import Image
 
 import footforge
 from footforge import envs
 from footforge.errors import InputError
+
+from conftest import REPO
 
 POLICY = REPO / "policies/flat_ball_B/policy"
 """A ball-feet flat B policy, 12.4 M steps on an H100 under commands of up to 1 m/s: it walks
@@ -199,7 +200,7 @@ def test_viewer_loop_takes_keys_and_steps(built, monkeypatch):
     import mujoco
     import mujoco.viewer
 
-    from footforge.rl.play import Player, PlayConfig, load_policy, play_interactive
+    from footforge.rl.play import PlayConfig, Player, load_policy, play_interactive
 
     player = Player(load_policy(POLICY), PlayConfig(build_root=built["ball"][0].parent))
     seen = []

@@ -5,15 +5,15 @@ shipped run is its recorded recipe."""
 
 import json
 from dataclasses import replace
-from pathlib import Path
 
 import pytest
-from conftest import REPO
 
 from footforge import envs
 from footforge.errors import InputError
 from footforge.rl import presets
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict, to_dict
+
+from conftest import REPO
 
 
 @pytest.mark.parametrize("task, name", [(t, n) for t in presets.PRESETS for n in presets.PRESETS[t]])

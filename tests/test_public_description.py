@@ -16,12 +16,12 @@ import trimesh
 import yaml
 
 from footforge.cli.main import main
-from footforge.models.collision import DecompositionConfig, decompose
-from footforge.inputs.description import load_description
 from footforge.errors import InputError
+from footforge.inputs.description import load_description
 from footforge.inputs.foot_root import select_foot_root
-from footforge.models.mesh_simplify import simplify_to_budget
 from footforge.inputs.urdf_lint import check_urdf
+from footforge.models.collision import DecompositionConfig, decompose
+from footforge.models.mesh_simplify import simplify_to_budget
 
 from conftest import REPO
 
@@ -190,7 +190,7 @@ def test_progress_names_each_mesh(tmp_path, public_pkg):
                                 foot_description=robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
                                 package_paths=(public_pkg,), repair=True, cache_dir=tmp_path / "c"),
                    progress=lines.append)
-    per_mesh = [l for l in lines if l.startswith("decompose collision meshes: ")]
+    per_mesh = [line for line in lines if line.startswith("decompose collision meshes: ")]
     assert per_mesh[0] == "decompose collision meshes: 1/6 ankle.stl"
     assert len(per_mesh) == 6 and per_mesh[-1].startswith("decompose collision meshes: 6/6 ")
     assert all(m["seconds"] >= 0 for m in report["collision"]["meshes"])

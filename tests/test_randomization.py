@@ -8,8 +8,7 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from footforge import constants as C
-from footforge import envs
+from footforge import constants as C, envs
 from footforge.envs.config import RandomizationConfig
 from footforge.envs.randomization import randomizer
 

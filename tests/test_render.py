@@ -8,8 +8,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO
 from PIL import Image
+
+from conftest import REPO
 
 # A red box on a checkered floor; an offscreen buffer smaller than the frames asked for below.
 RENDER = """

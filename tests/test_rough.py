@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 from brax.envs.base import Env, State
 from mujoco import mjx
-from conftest import REPO, float64_stance
 
 from footforge import envs
 from footforge.envs import curriculum, observation_layout
@@ -24,6 +23,8 @@ from footforge.envs.config import CurriculumConfig
 from footforge.envs.contacts import foot_contacts, ground_contacts
 from footforge.envs.terrain import TerrainConfig, column_kinds
 from footforge.envs.wrappers import wrap_for_training
+
+from conftest import REPO, float64_stance
 
 # 3 levels x 6 columns of 4 m tiles: every kind, a terrain of 161 x 281 samples.
 SMALL = TerrainConfig(num_levels=3, num_columns=6, tile_size_m=4.0, border_m=2.0, platform_m=1.5)

@@ -5,10 +5,11 @@ feet and walks there by the verdict its evaluation recorded."""
 import json
 
 import pytest
-from conftest import REPO
 
 from footforge.rl.checkpoints import checkpoint_problem
 from footforge.rl.policy_files import load_policy_parameters
+
+from conftest import REPO
 
 SHIPPED = sorted(p.name for p in (REPO / "policies").iterdir() if (p / "policy").is_dir())
 
@@ -31,7 +32,7 @@ def test_a_shipped_policy_loads_and_walks_on_its_own_feet(name):
     (own,) = [r for r in evaluated if r["feet"] == saved.env.feet]
     assert own["walking"]["verdict"] == "walks" and own["num_envs"] >= 32 and own["seconds"] >= 20
     text = (folder / "evaluation/policy_card.md").read_text()
-    line = next(l for l in text.splitlines() if l.startswith(f"- on {saved.env.feet} feet:"))
+    line = next(t for t in text.splitlines() if t.startswith(f"- on {saved.env.feet} feet:"))
     assert "walks:" in line, line
 
 

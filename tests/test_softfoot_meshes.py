@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 import trimesh  # noqa: E402  (a hard dependency: its absence is a failure, not a skip)
 
 MESH_DIR = Path(__file__).parents[1] / "descriptions/softfoot_q/meshes"

@@ -13,7 +13,6 @@ import jax
 import jax.numpy as jp
 import numpy as np
 import pytest
-from conftest import REPO
 
 from footforge import envs
 from footforge.envs import observation_layout, rewards
@@ -27,6 +26,8 @@ from footforge.rl.train import (
     load_policy,
     to_dict,
 )
+
+from conftest import REPO
 
 TINY = ["--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
         "--eval-envs", "4", "--checkpoint-every", "32"]
@@ -373,8 +374,8 @@ def test_resume_skips_a_damaged_checkpoint_and_says_so(written_run, monkeypatch,
 
 
 def test_resume_with_every_checkpoint_damaged_is_an_input_error(written_run, capsys):
-    from footforge.rl import train
     from footforge.cli.train import main
+    from footforge.rl import train
 
     run, _, _ = written_run
     for _, folder in train.checkpoints(run):
@@ -406,6 +407,7 @@ def test_several_processes_are_refused_before_any_work(task, tmp_path, capsys):
     (footforge.cli.train.MULTI_PROCESS_UNSUPPORTED says how it fails); the command says so at once,
     exit 2, and writes nothing (JAX's distributed service is never started)."""
     import jax
+
     from footforge.cli.train import main
 
     out = tmp_path / "run"
@@ -466,8 +468,8 @@ def test_init_from_hands_the_source_s_newest_parameters_to_brax(written_run, tmp
 
 
 def test_force_removes_only_what_footforge_wrote(written_run):
-    from footforge.rl import train
     from footforge.outputs import MARKER
+    from footforge.rl import train
 
     run, _, _ = written_run
     (run / "notes.txt").write_text("mine")
@@ -617,8 +619,8 @@ def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypa
     """SIGTERM (a batch scheduler's kill) during training: no traceback, exit 143 (128 + 15, as a
     shell reports a terminated process), and stderr says what the run folder keeps and how to
     continue."""
-    from footforge.rl import train as train_lib
     from footforge.cli import train as train_cli
+    from footforge.rl import train as train_lib
 
     def terminated(*args, **kwargs):
         os.kill(os.getpid(), signal.SIGTERM)
@@ -651,9 +653,8 @@ def test_contact_model_flag_sets_the_model_s_physics_and_resume_keeps_it(written
     """Training uses contact_model 'stance' by default, with the step and solver iterations it
     needs on the chosen feet; --contact-model fast sets fast's own physics (ball feet back at
     5 ms x 4, 4/8 iterations; envs.physics); a resumed run names a differing --contact-model."""
-    from footforge.cli.train import main
-
     from footforge import envs as envs_module
+    from footforge.cli.train import main
 
     seen = _capture_train(monkeypatch)
     switched = []  # x64 is process-wide: recorded here, not switched in the test process

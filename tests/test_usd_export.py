@@ -8,11 +8,9 @@ import shutil
 import mujoco
 import numpy as np
 import pytest
-from conftest import REPO
 from pxr import Usd, UsdGeom, UsdPhysics, UsdShade
 
-from footforge import constants as C
-from footforge import units
+from footforge import constants as C, units
 from footforge.build import BuildOptions, build
 from footforge.cli.main import main
 from footforge.errors import CheckFailure
@@ -25,6 +23,8 @@ from footforge.usd import (
 )
 from footforge.usd.checks import FLOAT32_RTOL
 from footforge.usd.joints import axis_frame
+
+from conftest import REPO
 
 VARIANTS = ["full", "aof", "aff", "ball"]
 MODELS = [("robot", "home"), ("foot_rig", "reference")]

@@ -5,7 +5,6 @@ import shutil
 
 import numpy as np
 import pytest
-from conftest import REPO
 
 from footforge.cli.main import main
 from footforge.errors import InputError
@@ -20,6 +19,8 @@ from footforge.validate.runner import (
     validate,
 )
 from footforge.validate.scenarios import QUICK, SCENARIOS, select
+
+from conftest import REPO
 
 PARAMS = REPO / "descriptions/softfoot_q/config/variant_params.yaml"
 

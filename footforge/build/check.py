@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 
-from footforge.models import kinematics
-from footforge.inputs.description import load_description
 from footforge.errors import CheckFailure
+from footforge.inputs.description import load_description
 from footforge.inputs.foot_root import select_foot_root
 from footforge.inputs.sidecar import load_sidecar
 from footforge.inputs.urdf_lint import Finding, check_urdf, has_errors
+from footforge.models import kinematics
 from footforge.models.urdf import parse_urdf
 
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import json
 import platform
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping
 
 import mujoco
 
@@ -39,7 +39,6 @@ from footforge.outputs import check_output_folder
 from footforge.provenance import json_default, sha256_file, versions
 from footforge.timing import StageTimer
 from footforge.variants import DERIVED, VARIANTS, Variant  # noqa: F401  (VARIANTS, Variant re-exported: footforge.build)
-
 
 FORMATS = ("mjcf", "usd")
 

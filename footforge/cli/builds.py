@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from footforge.envs.anymal import DEFAULT_BUILD_ROOT
 
@@ -31,4 +31,4 @@ def build_defaults_if_missing(variants: Iterable[str], build_root: Path | None, 
             continue
         with console.status(message) as status:
             build(BuildOptions(variant=variant, out_dir=folder, formats=("mjcf",)),
-                  progress=lambda stage: status.update(f"{message}: {stage}"))
+                  progress=lambda stage: status.update(f"{message}: {stage}"))  # noqa: B023  (called within this iteration)

@@ -29,9 +29,8 @@ from pathlib import Path
 
 def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
     """The options of `footforge evaluate`."""
-    from footforge.envs import FEET
-
     from footforge.cli.help import DocstringHelpFormatter
+    from footforge.envs import FEET
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
     p.add_argument("--policy", type=Path, nargs="+", required=True, help="training runs' folders (each its policy/, or without an intact one its newest intact "
@@ -78,11 +77,11 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate") -> int
 
 def _run(args) -> int:
     from footforge.atomic import atomic_directory
-    from footforge.rl.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
-    from footforge.outputs import check_output_folder
-    from footforge.rl.policy_card import card_name, policy_card
     from footforge.cli.builds import build_defaults_if_missing
     from footforge.cli.guard import policy_in_use
+    from footforge.outputs import check_output_folder
+    from footforge.rl.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
+    from footforge.rl.policy_card import card_name, policy_card
     from footforge.rl.policy_files import load_policy_config
 
     check_output_folder(args.out, force=args.force)  # before minutes of evaluation

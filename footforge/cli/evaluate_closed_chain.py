@@ -62,15 +62,13 @@ def _run(args) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from footforge.atomic import atomic_directory
-    from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
-    from footforge.outputs import check_output_folder
     from footforge.cli.builds import build_defaults_if_missing
     from footforge.cli.guard import policy_in_use
-    from footforge.rl.policy_files import load_policy_config
-
     from footforge.cli.help import console as make_console
-
     from footforge.envs import engine
+    from footforge.outputs import check_output_folder
+    from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
+    from footforge.rl.policy_files import load_policy_config
 
     console = make_console()
     engine.check("mujoco")  # its robots step on the C engine's threads (FOOTFORGE_PHYSICS_THREADS)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from typing import Callable
+from collections.abc import Callable
 
 from footforge.errors import FootforgeError, interrupt_exit_code, interrupt_word
 from footforge.processes import sigterm_as_interrupt

@@ -20,9 +20,15 @@ import footforge
 
 footforge.headless_by_default()  # before any import of MuJoCo
 
-from footforge.errors import (EXIT_CHECK_FAILED, EXIT_INPUT_ERROR, EXIT_OK, FootforgeError, interrupt_exit_code,
-                              interrupt_word)
-from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET
+from footforge.errors import (  # noqa: E402  (after headless_by_default)
+    EXIT_CHECK_FAILED,
+    EXIT_INPUT_ERROR,
+    EXIT_OK,
+    FootforgeError,
+    interrupt_exit_code,
+    interrupt_word,
+)
+from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET  # noqa: E402
 
 if TYPE_CHECKING:
     from footforge.validate.results import ValidationReport
@@ -82,9 +88,9 @@ def _description_options(args) -> dict:
     Raises:
       InputError: a hull vertex cap below 4, a non-positive CoACD timeout, a negative face budget.
     """
-    from footforge.models.collision import DecompositionConfig
-    from footforge.inputs.description import parse_args
     from footforge.errors import InputError
+    from footforge.inputs.description import parse_args
+    from footforge.models.collision import DecompositionConfig
 
     if args.max_hull_vertices < 4:
         raise InputError(f"--max-hull-vertices {args.max_hull_vertices} is below 4",
@@ -326,7 +332,7 @@ def _run_validate(args, console) -> int:
 def _print_validation(report: ValidationReport, out: Path, console) -> None:
     from rich.table import Table
 
-    from footforge.validate.report import METRICS, format_value, failing_metrics
+    from footforge.validate.report import METRICS, failing_metrics, format_value
 
     ref = report.reference
     table = Table(title=f"footforge validate -> {out}/report.md")

@@ -59,7 +59,6 @@ def main(argv: list[str] | None = None, prog: str = "footforge play") -> int:
     args = parser(prog).parse_args(argv)
 
     from footforge.errors import FootforgeError, interrupt_exit_code, interrupt_word
-
     from footforge.processes import sigterm_as_interrupt
 
     try:
@@ -143,7 +142,7 @@ def _run(args) -> int:
     import time
 
     from footforge.cli.builds import build_defaults_if_missing
-    from footforge.rl.play import Player, PlayConfig, check_feet, key_map_text, load_policy, play_headless
+    from footforge.rl.play import PlayConfig, Player, check_feet, key_map_text, load_policy, play_headless
 
     started = time.perf_counter()
     policy = load_policy(args.policy)

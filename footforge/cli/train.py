@@ -12,8 +12,7 @@ import footforge
 
 footforge.headless_by_default()  # before any import of MuJoCo
 
-from footforge.errors import EXIT_INPUT_ERROR, InputError, interrupt_exit_code, interrupt_word
-
+from footforge.errors import EXIT_INPUT_ERROR, InputError, interrupt_exit_code, interrupt_word  # noqa: E402
 
 DESCRIPTIONS = {
     "flat": "Train an ANYmal C flat-ground policy with Brax PPO on MuJoCo (MJX on a GPU, its C engine on a CPU; the paper's flat task).",
@@ -25,10 +24,9 @@ DESCRIPTIONS = {
 
 def parser(task: str, description: str, prog: str | None = None) -> argparse.ArgumentParser:
     """The options of `footforge train TASK`."""
+    from footforge.cli.help import DefaultsHelpFormatter
     from footforge.envs import FEET, TASKS
     from footforge.rl.config import default_ppo
-
-    from footforge.cli.help import DefaultsHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=description, formatter_class=DefaultsHelpFormatter)
     from footforge.rl import presets
@@ -115,11 +113,10 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
     args = parser(task, description, prog).parse_args(argv)
 
 
-    from footforge.rl import train
+    from footforge.cli.help import console as make_console
     from footforge.errors import FootforgeError
     from footforge.processes import sigterm_as_interrupt
-
-    from footforge.cli.help import console as make_console
+    from footforge.rl import train
 
     console = make_console()
     name = f"footforge train {task}"  # messages name the command, whichever way it was started
@@ -154,8 +151,8 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
 
             build_defaults_if_missing([env_config.feet], Path(env_config.build_dir).parent if env_config.build_dir else None,
                                       console)
-            from footforge.rl import compile_cache
             from footforge.envs import enable_float64_physics
+            from footforge.rl import compile_cache
 
             enable_float64_physics(env_config)  # before any JAX array
             from footforge.envs.anymal import check_mjx_impl
@@ -281,7 +278,7 @@ _SETTINGS = (("--feet", "feet", ("env", "feet")), ("--policy", "policy", ("env",
 def _flag_overrides(task: str, args) -> list[str]:
     """The settings given as flags, in --set's form (applied after the preset, before --set)."""
     out = []
-    for flag, attr, (section, field) in _SETTINGS:
+    for _flag, attr, (section, field) in _SETTINGS:
         value = getattr(args, attr)
         if value is None or section == "env" and field in ("feet", "policy"):
             continue
@@ -335,8 +332,8 @@ MULTI_PROCESS_UNSUPPORTED = (
 def _resumed_configs(task: str, args):
     """The run's saved configs (--timesteps may change the total); every other option given must
     equal the saved setting, or the error names it."""
-    from footforge.rl import train
     from footforge.envs.anymal import build_dir
+    from footforge.rl import train
 
     env_config, ppo = train.load_run_config(args.out)
     if env_config.task != task:

@@ -11,8 +11,14 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import get_args
 
-from footforge.envs.config import (CommandConfig, ContactModel, EnvConfig, ResetConfig,
-                                   RewardConfig, check_feet_and_policy)
+from footforge.envs.config import (
+    CommandConfig,
+    ContactModel,
+    EnvConfig,
+    ResetConfig,
+    RewardConfig,
+    check_feet_and_policy,
+)
 from footforge.errors import InputError
 from footforge.variants import FEET, HAPTIC, TASKS
 

@@ -24,8 +24,7 @@ from mujoco import mjx
 
 from footforge import constants as C
 from footforge.envs import contacts, engine, observation_layout, rewards
-from footforge.envs.anymal import (GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
-                                   load_robot)
+from footforge.envs.anymal import GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids, load_robot
 from footforge.envs.config import EnvConfig, check_feet_and_policy
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError

@@ -25,8 +25,8 @@ from footforge.envs import curriculum
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 from footforge.envs.locomotion import LocomotionEnv
-from footforge.envs.wrappers import policy_side
 from footforge.envs.terrain import generate, surface_height
+from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
 
 
@@ -102,5 +102,5 @@ class RoughEnv(LocomotionEnv):
         the distribution of robots over the levels)."""
         level = info["level"]
         return {"terrain/level_per_step": level.astype(jp.float32)} | {
-            f"terrain/at_level_{l}_per_step": (level == l).astype(jp.float32)
-            for l in range(self.config.terrain.num_levels)}
+            f"terrain/at_level_{k}_per_step": (level == k).astype(jp.float32)
+            for k in range(self.config.terrain.num_levels)}

@@ -19,7 +19,6 @@ import numpy as np
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 
-
 VELOCITY_ACTION_SCALE = 13.5
 """rad/s per unit action of OmniIsaacGymEnvs' flat Anymal (the stress of divergence_times)."""
 

@@ -12,9 +12,9 @@ import contextlib
 import io
 import os
 import xml.parsers.expat
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, Mapping, Sequence
 
 from lxml import etree
 

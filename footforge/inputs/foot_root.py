@@ -19,8 +19,8 @@ from pathlib import Path
 
 from lxml import etree
 
-from footforge.inputs.description import Description, descriptions_dir
 from footforge.errors import InputError
+from footforge.inputs.description import Description, descriptions_dir
 
 WORLD_LINK = "world"
 """MuJoCo's world body: a foot's root link cannot have this name."""
@@ -39,7 +39,7 @@ def _is_empty_link(link: etree._Element) -> bool:
 def _detect_root(root: etree._Element, description: Description, sidecar_path: Path | None) -> str:
     joints = root.findall("joint")
     children = {j.find("child").get("link") for j in joints}
-    links = {l.get("name"): l for l in root.findall("link")}
+    links = {e.get("name"): e for e in root.findall("link")}
     tops = [name for name in links if name not in children]
     if len(tops) != 1:
         return tops[0] if tops else ""  # parse_urdf reports a forest or a cycle
@@ -75,7 +75,7 @@ def select_foot_root(description: Description, root_link: str | None, *,
       InputError: the named link does not exist, is `world`, or the root cannot be detected.
     """
     root = description.root()
-    links = [l.get("name") for l in root.findall("link")]
+    links = [e.get("name") for e in root.findall("link")]
     if not links:  # a file of macros only, e.g. the public package's model/softfoot_thing.urdf.xacro
         raise InputError(
             "the description expands to no links: it only defines xacro macros",
@@ -116,7 +116,7 @@ def select_foot_root(description: Description, root_link: str | None, *,
             continue
         keep.add(link)
         stack += [j.find("child").get("link") for j in below.get(link, [])]
-    dropped_links = [l for l in links if l not in keep]
+    dropped_links = [name for name in links if name not in keep]
     if not dropped_links:
         return description, []
     dropped_joints = []
@@ -124,9 +124,9 @@ def select_foot_root(description: Description, root_link: str | None, *,
         if j.find("parent").get("link") not in keep or j.find("child").get("link") not in keep:
             dropped_joints.append(j.get("name"))
             root.remove(j)
-    for l in root.findall("link"):
-        if l.get("name") not in keep:
-            root.remove(l)
+    for e in root.findall("link"):
+        if e.get("name") not in keep:
+            root.remove(e)
     for g in root.findall("gazebo"):  # Gazebo extensions of dropped links would name nothing
         if g.get("reference") in dropped_links:
             root.remove(g)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-
 FLAT_MESH_THICKNESS_M = 1e-6
 """A collision mesh thinner than this across its thinnest direction encloses no volume: it has
 no convex hull (qhull fails on coplanar points) and no mass properties."""

@@ -8,9 +8,9 @@ documented field by field in descriptions/softfoot_q/urdf/softfoot_q.sidecar.yam
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 from footforge.inputs.yaml_reader import YamlReader, read_yaml
 

@@ -38,7 +38,7 @@ class YamlReader:
                              "write it as 'key: value' lines")
         return self.data
 
-    def check_keys(self, allowed: set[str]) -> "YamlReader":
+    def check_keys(self, allowed: set[str]) -> YamlReader:
         """This mapping, refused if it holds a key outside `allowed` (a typo would otherwise be
         silently ignored)."""
         unknown = set(self.mapping()) - allowed
@@ -46,7 +46,7 @@ class YamlReader:
             raise self.fail(f"unknown keys {sorted(unknown)}", f"use only {sorted(allowed)}")
         return self
 
-    def get(self, key: str, default: Any = ...) -> "YamlReader":
+    def get(self, key: str, default: Any = ...) -> YamlReader:
         """The value under `key` (`default` where it is missing; without one, missing is an error)."""
         m = self.mapping()
         sub = f"{self.path}.{key}" if self.path else key

@@ -10,8 +10,8 @@ MJCF conventions of the written models:
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 import pinocchio as pin
@@ -19,7 +19,6 @@ from dm_control import mjcf
 
 from footforge.errors import InputError
 from footforge.models.urdf import ParsedURDF, children_in_urdf_order, joint_axis, joint_kind, quat_wxyz
-
 
 CONTACT_SOLMIX = 1000.0
 """MuJoCo averages two geoms' solref weighted by solmix: the robot's collision geoms outweigh a
@@ -41,7 +40,7 @@ def add_default_classes(root: mjcf.RootElement, *, friction: float, contact_solr
 
 
 def inertial_attributes(inertia: pin.Inertia) -> dict:
-    I = inertia.inertia
+    I = inertia.inertia  # noqa: E741  (the inertia tensor, named as in the equations)
     return dict(pos=np.array(inertia.lever), mass=float(inertia.mass),
                 fullinertia=[I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
 

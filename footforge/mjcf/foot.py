@@ -24,8 +24,7 @@ import pinocchio as pin
 from dm_control import mjcf
 
 from footforge.errors import InputError
-from footforge.geometry import box_corners
-from footforge.geometry import sole_primitives as geometry_sole_primitives
+from footforge.geometry import box_corners, sole_primitives as geometry_sole_primitives
 from footforge.inputs.params import FootContact, PassiveJoint
 from footforge.inputs.sidecar import FAMILIES, Sidecar
 from footforge.mjcf.elements import MeshAssets, add_body_tree, add_default_classes, add_geoms, inertial_attributes

@@ -6,7 +6,6 @@ from __future__ import annotations
 from dm_control import mjcf
 from lxml import etree
 
-
 FLOOR_CONTYPE = 1  # environment geoms touch robot collision geoms (conaffinity 1)
 
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import difflib
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from footforge.inputs.description import default_foot_description, load_descript
 from footforge.inputs.foot_root import select_foot_root
 from footforge.inputs.params import VariantParams, load_params
 from footforge.inputs.sidecar import Sidecar, find_sidecar, load_sidecar
-from footforge.inputs.urdf_lint import lint_and_repair, link_inertia_checks
+from footforge.inputs.urdf_lint import link_inertia_checks, lint_and_repair
 from footforge.models import kinematics
 from footforge.models.collision import DecompositionConfig, Hulls, decompose
 from footforge.models.urdf import ParsedURDF, is_mesh, parse_urdf
@@ -161,7 +161,7 @@ def check_sidecar_names(parsed, sidecar: Sidecar) -> None:
         wanted += [(f"closures[{i}].link", "link", c.link), (f"closures[{i}].to_link", "link", c.to_link)]
     root = parsed.description.root()
     names = {"joint": [j.get("name") for j in root.findall("joint")],
-             "link": [l.get("name") for l in root.findall("link")]}
+             "link": [e.get("name") for e in root.findall("link")]}
     unknown = [(key, kind, name) for key, kind, name in wanted if name not in names[kind]]
     if unknown:
         lines = []

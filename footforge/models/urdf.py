@@ -14,8 +14,8 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from footforge.inputs.description import Description
 from footforge.errors import InputError
+from footforge.inputs.description import Description
 
 FLOATING_JOINT = "root_joint"  # Pinocchio's name for the free-flyer it adds at the root
 
@@ -128,8 +128,8 @@ def parse_urdf(description: Description, *, floating: bool) -> ParsedURDF:
                          fix="run `footforge check` on it for the element at fault") from None
 
     children = {j.find("child").get("link") for j in root.findall("joint")}
-    links = [l.get("name") for l in root.findall("link")]
-    roots = [l for l in links if l not in children]
+    links = [e.get("name") for e in root.findall("link")]
+    roots = [name for name in links if name not in children]
     if len(roots) != 1:
         raise InputError(f"the URDF has {len(roots)} root links {roots}", file=str(description.source),
                          fix="connect every link to one tree; run `footforge check`")

@@ -20,14 +20,13 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from footforge.atomic import write_json
 from footforge.errors import InputError
 from footforge.rl.config import PPOConfig
 from footforge.rl.networks import network_factory
-
 
 CHECKPOINT_MANIFEST = "footforge_checkpoint.json"
 """In every checkpoint folder (and the policy folder copied from one): {"files": {relative path:

@@ -20,8 +20,8 @@ import mujoco
 import numpy as np
 
 from footforge.envs.config import check_policy_on_feet
-from footforge.rl.verdict import judge
 from footforge.errors import InputError
+from footforge.rl.verdict import judge
 from footforge.tables import markdown_table
 
 INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",

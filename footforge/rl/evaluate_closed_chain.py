@@ -41,8 +41,8 @@ import mujoco
 import numpy as np
 
 from footforge.envs.anymal import Robot, ensure_built, load_robot
-from footforge.envs.engine_mujoco import CpuRobots
 from footforge.envs.config import check_policy_on_feet
+from footforge.envs.engine_mujoco import CpuRobots
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
 from footforge.rl.evaluate import INDICES

@@ -68,7 +68,6 @@ def export(policy_dir: Path, out: Path | None = None, *, force: bool = False) ->
 
     from footforge.atomic import atomic_file
     from footforge.outputs import check_output_file
-
     from footforge.rl.policy_files import policy_folder
 
     policy_dir = policy_folder(policy_dir)  # a run's folder: its policy/ (or its newest intact checkpoint)
@@ -122,7 +121,7 @@ def build_model(policy_dir: Path):
     layers.append(policy_params["Dense_0"])
     graph = policy_graph(mean if policy.ppo.normalize_observations else None,
                          std if policy.ppo.normalize_observations else None,
-                         [(np.asarray(l["kernel"], np.float32), np.asarray(l["bias"], np.float32)) for l in layers],
+                         [(np.asarray(w["kernel"], np.float32), np.asarray(w["bias"], np.float32)) for w in layers],
                          kwargs["activation"])
     model = onnx.helper.make_model(graph, opset_imports=[onnx.helper.make_opsetid("", OPSET)],
                                    producer_name="footforge", producer_version=_version(),

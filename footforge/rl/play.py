@@ -194,7 +194,13 @@ class Player:
         import mujoco
 
         from footforge.envs.engine_mujoco import CpuRobots
-        from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, Controller, cpu_robot, observed_robot, policy_environment
+        from footforge.rl.evaluate_closed_chain import (
+            TERRAIN_TILES,
+            Controller,
+            cpu_robot,
+            observed_robot,
+            policy_environment,
+        )
         from footforge.rl.foot_imu import FootImuEstimator
 
         feet = check_feet(policy, config.feet)

@@ -19,8 +19,13 @@ from pathlib import Path
 from footforge.atomic import atomic_directory, write_json
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
-from footforge.rl.checkpoints import CHECKPOINT_MANIFEST, checkpoint_problem, latest_intact_checkpoint, legacy_run, \
-    write_checkpoint_manifest
+from footforge.rl.checkpoints import (
+    CHECKPOINT_MANIFEST,
+    checkpoint_problem,
+    latest_intact_checkpoint,
+    legacy_run,
+    write_checkpoint_manifest,
+)
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict, to_dict
 from footforge.rl.networks import network_factory
 from footforge.rl.run_folder import is_run_folder

@@ -11,15 +11,14 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 from footforge.outputs import MARKER, TRAINING_RUN, check_output_folder, marker_kind, write_marker
 from footforge.rl.checkpoints import latest_checkpoint
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict
-
 
 RUN_ENTRIES = ("config.json", "progress.json", "metrics.jsonl", "metrics.set_aside.jsonl", "tensorboard",
                "checkpoints", "policy", "terrain.png", MARKER)
@@ -107,7 +106,7 @@ def prepare_run_dir(run_dir: Path, *, resume: bool = False, force: bool = False,
     return run_dir
 
 
-def load_run_config(run_dir: Path) -> tuple[EnvConfig, "PPOConfig"]:
+def load_run_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
     """The environment and PPO configs a run was started with (its config.json).
 
     Raises:

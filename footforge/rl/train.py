@@ -38,24 +38,46 @@ import json
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from footforge.atomic import atomic_file, write_json
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 from footforge.rl.checkpoints import (  # noqa: F401 (re-exported)
-    CHECKPOINT_MANIFEST, checkpoint_problem, checkpoints, latest_checkpoint, latest_intact_checkpoint, resume_point,
-    save_checkpoint, write_checkpoint_manifest)
+    CHECKPOINT_MANIFEST,
+    checkpoint_problem,
+    checkpoints,
+    latest_checkpoint,
+    latest_intact_checkpoint,
+    resume_point,
+    save_checkpoint,
+    write_checkpoint_manifest,
+)
 from footforge.rl.config import (  # noqa: F401 (re-exported)
-    PPOConfig, config_differences, default_ppo, env_config_from_dict, from_dict, planned_steps, steps_per_iteration,
-    to_dict, training_epochs)
+    PPOConfig,
+    config_differences,
+    default_ppo,
+    env_config_from_dict,
+    from_dict,
+    planned_steps,
+    steps_per_iteration,
+    to_dict,
+    training_epochs,
+)
 from footforge.rl.networks import network_factory
 from footforge.rl.policy_files import (  # noqa: F401 (re-exported)
-    SavedPolicy, initial_policy, load_policy, load_policy_config, load_policy_parameters, policy_folder, policy_meta,
-    policy_problem, write_policy)
+    SavedPolicy,
+    initial_policy,
+    load_policy,
+    load_policy_config,
+    load_policy_parameters,
+    policy_folder,
+    policy_meta,
+    policy_problem,
+    write_policy,
+)
 from footforge.rl.run_folder import RUN_ENTRIES, is_run_folder, load_run_config, prepare_run_dir  # noqa: F401
-
 
 CURVE = "metrics.jsonl"
 CURVE_SET_ASIDE = "metrics.set_aside.jsonl"
@@ -246,15 +268,13 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         without an intact checkpoint or with other configs; `init_from` with `resume`, or a source
         whose networks do not fit this run.
     """
+    import jax
     from brax.training.agents.ppo import train as ppo_train
     from tensorboardX import SummaryWriter
 
     from footforge.envs import enable_float64_physics, from_config
     from footforge.envs.randomization import randomizer
     from footforge.envs.wrappers import wrap_for_training
-
-    import jax
-
     from footforge.rl import jax_compat
 
     if notice is None:

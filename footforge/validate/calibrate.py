@@ -23,9 +23,9 @@ import numpy as np
 from scipy.optimize import minimize
 
 from footforge.errors import InputError
-from footforge.variants import DERIVED
 from footforge.inputs.params import VariantParams, load_params
 from footforge.validate import fidelity
+from footforge.variants import DERIVED
 
 GROUPS = {"aff": (("ankle_pitch",), ("ankle_roll",)),
           "aof": (("ankle_pitch",), ("ankle_roll",), ("sole_front", "sole_back"))}

@@ -12,9 +12,9 @@ import numpy as np
 
 from footforge.atomic import atomic_directory
 from footforge.provenance import json_default
+from footforge.tables import markdown_table
 from footforge.validate import fidelity as fidelity_lib
 from footforge.validate.results import FidelitySummary, ValidationReport
-from footforge.tables import markdown_table
 
 METRICS = ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm", "slip_mm")
 COLOURS = {"full": "black", "aof": "tab:blue", "aff": "tab:orange", "ball": "tab:green"}

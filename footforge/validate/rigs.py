@@ -5,14 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from footforge import constants as C
-from footforge.mjcf import foot as foot_lib
 from footforge.inputs.params import VariantParams
+from footforge.mjcf import foot as foot_lib
 from footforge.mjcf.rig import build_rig
 from footforge.models.foot_source import FootSource
 from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
 from footforge.validate.simulate import RigCase
 from footforge.variants import DERIVED
-
 
 
 def build_feet(source: FootSource, variants) -> dict[str, foot_lib.FootModel | None]:

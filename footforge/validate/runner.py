@@ -6,24 +6,30 @@ from __future__ import annotations
 import multiprocessing
 import os
 import platform
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
-from typing import Callable
 
 from footforge import __version__
-from footforge.mjcf import foot as foot_lib
 from footforge.errors import InputError
-from footforge.variants import VALIDATED
 from footforge.inputs.params import VariantParams
+from footforge.mjcf import foot as foot_lib
 from footforge.models.foot_source import FootInputs, load_foot_source
 from footforge.processes import die_with_parent
 from footforge.provenance import versions
 from footforge.timing import StageTimer
-from footforge.validate import calibrate as calibration
-from footforge.validate import fidelity, rigs, simulate
-from footforge.validate.results import (Fidelity, FidelitySummary, ReferenceChecks, Speed, ValidationReport,
-                                        from_plain, to_plain)
+from footforge.validate import calibrate as calibration, fidelity, rigs, simulate
+from footforge.validate.results import (
+    Fidelity,
+    FidelitySummary,
+    ReferenceChecks,
+    Speed,
+    ValidationReport,
+    from_plain,
+    to_plain,
+)
 from footforge.validate.scenarios import Scenario, select
+from footforge.variants import VALIDATED
 
 CLOSURE_LIMIT_MM = 0.5
 """The closed chain is a trustworthy reference only if no loop opens by more than this."""

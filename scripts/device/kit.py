@@ -138,7 +138,7 @@ def run_job(args, extra: list[str]) -> int:
         with open(env_json, "w") as out:
             code = call(cmd, log, timeout=(deadline - time.time()) * 0.6, stdout=out)
         summary["env_speed_returncode"] = code
-        lines = [l for l in env_json.read_text().splitlines() if l.strip().startswith("{")]
+        lines = [line for line in env_json.read_text().splitlines() if line.strip().startswith("{")]
         summary["env_speed"] = json.loads(lines[-1]) if lines else None
         # PPO throughput: flat ball with the paper's settings, for what is left of the budget.
         run = runs / "bench_ppo_flat_ball"
@@ -150,7 +150,7 @@ def run_job(args, extra: list[str]) -> int:
                    "--num-envs", str(n), "--batch-size", str(n // 4), "--timesteps", "1000000000",
                    "--checkpoint-every", str(n * 48 * 10), "--max-minutes", f"{train_s / 60:.3f}"]
             ppo_code = call(cmd, log, timeout=deadline - time.time() - 10)
-            metrics = [json.loads(l) for l in (run / "metrics.jsonl").read_text().splitlines()] \
+            metrics = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()] \
                 if (run / "metrics.jsonl").is_file() else []
             sps = [m["training/sps"] for m in metrics if "training/sps" in m]
             summary["ppo"] = {"returncode": ppo_code, "num_envs": n, "training_sps": sps,
@@ -245,7 +245,7 @@ def pack(run: Path, results: Path) -> str:
     old = {str(p) for p in folder.iterdir() if p not in keep} if folder.is_dir() else set()
     target = results / f"{run.name}.tar.gz"
     for skip_tb in (False, True):
-        def keep(info: tarfile.TarInfo):
+        def keep(info: tarfile.TarInfo, skip_tb=skip_tb):  # this pass's skip_tb, bound
             path = str(run.parent / info.name)
             if any(path == o or path.startswith(o + "/") for o in old):
                 return None
