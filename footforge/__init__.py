@@ -103,7 +103,7 @@ class _QuietMjxWarp:
 
         spec = importlib.machinery.PathFinder.find_spec(fullname, path)
         if spec is not None and spec.loader is not None:
-            spec.loader = _QuietLoader(spec.loader)
+            spec.loader = _QuietLoader(spec.loader)  # type: ignore[assignment]  # the loader, wrapped
         return spec
 
 

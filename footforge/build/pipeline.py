@@ -149,7 +149,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
                 full_robot = build_robot(robot_parsed, full_foot, variant="full", params=params, friction=friction,
                                          stand_keyframe=False)
                 full_model = compile_model(full_robot.mjcf)
-                roots = [f"{C.FOOT_MODEL_NAME.format(leg=leg)}/{foot.root_body}" for leg in C.LEGS]
+                roots = [f"{C.FOOT_MODEL_NAME.format(leg=leg)}/{foot.root_body}" for leg in C.LEGS]  # type: ignore[union-attr]
                 comparison = compare_mass_properties(robot_model, full_model, "home", roots)
                 report["mass_properties_vs_full"] = comparison
     report["timings_s"] = stage.timings_s

@@ -6,9 +6,10 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from footforge.envs.anymal import DEFAULT_BUILD_ROOT
+from footforge.variants import Variant
 
 
-def build_defaults_if_missing(variants: Iterable[str], build_root: Path | None, console=None) -> None:
+def build_defaults_if_missing(variants: Iterable[Variant], build_root: Path | None, console=None) -> None:
     """Without a build root given (`build_root` None), builds each of `variants` into
     build/<variant>/ that holds no scene.xml yet, as `footforge build --variant <variant> --format
     mjcf` would. A build root the user gives must hold its builds already: the environments say

@@ -80,7 +80,7 @@ def _run(args) -> int:
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=console, transient=True) as progress:
         for policy in args.policy:
-            tasks = {}
+            tasks: dict = {}
 
             def report(feet, done, total, policy=policy, tasks=tasks):
                 if feet not in tasks:

@@ -7,6 +7,7 @@ import sys
 import time
 from dataclasses import fields, replace
 from pathlib import Path
+from typing import Any
 
 import footforge
 
@@ -412,7 +413,7 @@ class _Reporter:
 
     def __init__(self, console, task: str, total: int):
         self.console, self.task, self.total = console, task, total
-        self.progress = None
+        self.progress: Any = None  # a rich Progress on a terminal
         self.t0 = time.time()
 
     def __enter__(self):

@@ -9,7 +9,7 @@ Tasks x feet x policy types: flat x {ball, aff, aof} x {B, BH}; rough x {ball, a
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import get_args
+from typing import Any, get_args
 
 from footforge.envs.config import (
     CommandConfig,
@@ -77,7 +77,8 @@ def default_config(task: str, feet: str, policy: str, contact_model: str | None 
         config = EnvConfig(task="rough", feet=feet, policy=policy, action="position", action_scale=0.5,
                            commands=commands)
     contact_model = contact_model or config.contact_model
-    return replace(config, contact_model=contact_model, **physics(feet, contact_model))
+    # A str contact_model: physics() refuses an unknown one.
+    return replace(config, contact_model=contact_model, **physics(feet, contact_model))  # type: ignore[arg-type]
 
 
 CONTACT_MODELS = get_args(ContactModel)
@@ -132,7 +133,7 @@ def with_contact_model(config, contact_model: str):
     physics())."""
     from footforge.envs.anymal import STANCE_CONTACT_MAX_SIM_DT, min_solver_iterations
 
-    changes = {"contact_model": contact_model}
+    changes: dict[str, Any] = {"contact_model": contact_model}
     if contact_model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT:
         decimation = config.policy_dt / STANCE_CONTACT_MAX_SIM_DT
         if abs(decimation - round(decimation)) > 1e-6:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -301,7 +302,7 @@ _SOLE_GEOM_ATTRIBUTES = ("contype", "conaffinity", "group", "friction", "solmix"
 """What a sole sphere takes over from the box it stands in for."""
 
 
-def _sole_boxes_as_spheres(spec: mujoco.MjSpec, grid: tuple[int, int], radius: float) -> int:
+def _sole_boxes_as_spheres(spec: mujoco.MjSpec, grid: Sequence[int], radius: float) -> int:
     """Each colliding sole box of the derived feet becomes a grid of spheres on its bottom face
     (EnvConfig.heightfield_soles): the same friction and contact parameters, no mass (the bodies'
     inertials are explicit), in both engines' models, so a heightfield is collided by each engine's

@@ -8,7 +8,7 @@ cfg/task YAML). PPO hyperparameters live apart, in footforge.rl.config (PPOConfi
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Any, Literal
 
 from footforge import constants as C
 from footforge.envs import observations, rewards
@@ -437,7 +437,7 @@ def upgrade_saved(env: dict) -> dict:
     if env.get("task") == "rough" and "heightfield_soles" not in env:
         env["heightfield_soles"] = "box"  # rough runs saved before the key stood on the build's sole boxes
     if "observations" in env:
-        obs = {}
+        obs: dict[str, Any] = {}
         for key, value in env["observations"].items():
             if key in _SAVED_BEFORE_TERMS:
                 group, attribute = _SAVED_BEFORE_TERMS[key]

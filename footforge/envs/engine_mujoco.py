@@ -72,7 +72,7 @@ class MujocoState:
     """The constraint solver's starting acceleration for the next physics step (module docstring)."""
     sensordata: jax.Array
     """The model's sensors at the last physics step's forward pass."""
-    force_sensors: jax.Array = struct.field(pytree_node=False, default=None)
+    force_sensors: tuple[int, ...] = struct.field(pytree_node=False, default=None)
     """The actuatorfrc sensors' addresses in sensordata, model order (static)."""
 
     @property
@@ -326,7 +326,7 @@ class CpuRobots:
     def feet_on_ground(self) -> np.ndarray:
         """(N, 4) whether each foot (LF, RF, LH, RH) touches the ground (its contact sensor found one)."""
         found = self.sensordata[:, self._feet].reshape(len(self.state), 4, FOOT_CONTACT_SLOTS, 4)[..., 0]
-        return (found > 0).any(axis=2)
+        return (found > 0).any(axis=2)  # type: ignore[return-value]  # found is 3-D: an array
 
     def ground_contacts(self) -> tuple[np.ndarray, np.ndarray]:
         """((N,) any base geom touches the ground, (N,) legs with a thigh geom touching it): a contact
@@ -413,7 +413,7 @@ class MujocoPhysics:
         # computation that waits for this callback, which deadlocked under load (CI, 2026-11-28: a
         # `qpos + qpos_rest` here waited forever on XLA's CPU threads). NumPy views first, then only NumPy.
         qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = _numpy(qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart)
-        fields = _numpy(*fields)
+        fields = _numpy(*fields)  # type: ignore[assignment]
         batch, dtype = qpos.shape[:-1], qpos.dtype
         flat = [np.reshape(x, (-1, x.shape[-1])) for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart)]
         qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = flat
@@ -433,7 +433,7 @@ class MujocoPhysics:
 
     def _host_forward(self, qpos, qpos_rest, qvel, qvel_rest, ctrl, *fields):
         qpos, qpos_rest, qvel, qvel_rest, ctrl = _numpy(qpos, qpos_rest, qvel, qvel_rest, ctrl)  # as _host_step
-        fields = _numpy(*fields)
+        fields = _numpy(*fields)  # type: ignore[assignment]
         batch, dtype = qpos.shape[:-1], qpos.dtype
         qpos, qpos_rest, qvel, qvel_rest, ctrl = [np.reshape(x, (-1, x.shape[-1]))
                                                   for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl)]

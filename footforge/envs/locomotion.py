@@ -161,7 +161,7 @@ class LocomotionEnv(Env):
         """Every actuator's control (model order) from the 12 PD targets (actuated-joint order)."""
         return jp.zeros(self.mjx_model.nu, target.dtype).at[self._ctrl_order].set(target)
 
-    def _start_state(self, info, key):
+    def _start_state(self, info, key) -> tuple[jax.Array, jax.Array, jax.Array]:
         """(qpos, qvel, PD targets) an episode starts from, after OmniIsaacGymEnvs' reset_idx:
         targets at default x f, f drawn per joint in EnvConfig.reset.joint_pos_factor_range, and
         joint velocities in +-joint_vel_max. The pose is the build's `stand` keyframe (at rest

@@ -271,8 +271,8 @@ def preview(terrain: Terrain, path) -> None:
 
     c, h = terrain.config, terrain.heights_m
     res = terrain.resolution_m
-    extent = [terrain.origin_xy[0], terrain.origin_xy[0] + (h.shape[1] - 1) * res,
-              terrain.origin_xy[1], terrain.origin_xy[1] + (h.shape[0] - 1) * res]
+    extent = (terrain.origin_xy[0], terrain.origin_xy[0] + (h.shape[1] - 1) * res,
+              terrain.origin_xy[1], terrain.origin_xy[1] + (h.shape[0] - 1) * res)
     fig = Figure(figsize=(6, 10))
     ax = fig.subplots()
     image = ax.imshow(np.clip(h, -0.5, None), origin="lower", extent=extent, cmap="terrain")

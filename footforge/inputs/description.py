@@ -116,7 +116,7 @@ def is_xacro(path: Path, text: str) -> bool:
     return path.suffix == ".xacro" or "xmlns:xacro" in text
 
 
-def expand_xacro(path: Path, *, args: Mapping[str, str] = (),
+def expand_xacro(path: Path, *, args: Mapping[str, str] | None = None,
                  package_paths: Sequence[Path] = ()) -> str:
     """Runs xacro on `path` with `args`; returns the URDF text. Errors become InputError."""
     import xacro
@@ -124,7 +124,7 @@ def expand_xacro(path: Path, *, args: Mapping[str, str] = (),
     stderr = io.StringIO()
     try:
         with _xacro_find_resolver(package_paths), contextlib.redirect_stderr(stderr):
-            doc = xacro.process_file(str(path), mappings=dict(args))
+            doc = xacro.process_file(str(path), mappings=dict(args or {}))
     except InputError:
         raise
     except xml.parsers.expat.ExpatError as e:

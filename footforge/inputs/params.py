@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal, overload
 
 from footforge.inputs.description import descriptions_dir
 from footforge.inputs.yaml_reader import YamlReader, read_yaml
@@ -129,6 +130,10 @@ def _passive(r: YamlReader) -> PassiveJoint:
                         springref=r.get("springref", 0.0).float())
 
 
+@overload
+def _pair(r: YamlReader, n: Literal[2]) -> tuple[float, float]: ...
+@overload
+def _pair(r: YamlReader, n: Literal[3]) -> tuple[float, float, float]: ...
 def _pair(r: YamlReader, n: int) -> tuple[float, ...]:
     if not isinstance(r.data, list) or len(r.data) != n:
         raise r.fail(f"expected a list of {n} numbers, got {r.data!r}", f"give {n} numbers")

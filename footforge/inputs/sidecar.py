@@ -169,7 +169,7 @@ def load_sidecar(path: str | Path) -> Sidecar:
         closures.append(Closure(
             name=r.get("name").str(), link=r.get("link").str(), point=r.get("point").vec3(),
             to_link=r.get("to_link").str(), to_point=r.get("to_point").vec3(),
-            axis=tuple(a / norm for a in axis)))
+            axis=(axis[0] / norm, axis[1] / norm, axis[2] / norm)))
 
     spring = None
     if top.mapping().get("arch_spring") is not None:

@@ -33,11 +33,12 @@ Findings (severity; repairable or not):
 from __future__ import annotations
 
 import copy
+import functools
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 from lxml import etree
@@ -190,7 +191,7 @@ def read_inertial(link: etree._Element) -> Inertial | None:
     inertia_el = inertial.find("inertia")
     if inertia_el is None:
         problems.append("<inertia> is missing")
-        moments = (0.0,) * 6
+        moments: tuple[float, ...] = (0.0,) * 6
     else:
         moments = tuple(_number(inertia_el.get(a), f"<inertia {a}>", problems)
                         for a in INERTIA_ATTRIBUTES)
@@ -316,7 +317,7 @@ def _inertia_items(root: etree._Element) -> list[_Item]:
                              repairable=repairable)
             if repairable:
                 items.append(_Item(finding, key=("balance", inertia_el),
-                                   action=lambda el=inertia_el, label=label: _balance(el, label)))
+                                   action=functools.partial(_balance, inertia_el, label)))
             else:
                 items.append(_Item(finding))
     return items
@@ -344,8 +345,8 @@ def _parse_joint(joint: etree._Element) -> tuple[str | None, str | None, str | N
 
 def _tree_items(root: etree._Element) -> list[_Item]:
     items: list[_Item] = []
-    links = {link.get("name"): link for link in reversed(root.findall("link"))
-             if link.get("name")}  # reversed: the first of duplicates wins, as in ROS
+    links: dict[str, etree._Element] = {link.get("name"): link for link in reversed(root.findall("link"))
+                                         if link.get("name")}  # reversed: the first of duplicates wins, as in ROS
     parents_of: dict[str, list[str]] = {}
     fixed_children: dict[str, list[str]] = {}
     moving: list[tuple[str, str, str]] = []  # (joint label, type, child)
@@ -525,7 +526,7 @@ def _collision_mesh_problem(path: Path, scale: str | None) -> str | None:
     from footforge.inputs.meshes import flat_mesh_problem
 
     try:
-        mesh = trimesh.load(path, force="mesh")
+        mesh = cast(trimesh.Trimesh, trimesh.load(path, force="mesh"))  # force="mesh": one Trimesh
     except Exception as e:  # trimesh raises many kinds for a malformed file
         return f"cannot be read ({e})"
     try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import builtins
 import math
 from pathlib import Path
 from typing import Any
@@ -72,19 +73,20 @@ class YamlReader:
             raise self.fail(f"{self.data} is above {max_value}", f"give a value <= {max_value}")
         return float(self.data)
 
-    def vec3(self) -> tuple[float, float, float]:
+    # `builtins.`: in the class body below `def str` and `def float`, those names are the methods.
+    def vec3(self) -> tuple[builtins.float, builtins.float, builtins.float]:
         if not isinstance(self.data, list) or len(self.data) != 3:
             raise self.fail(f"expected [x, y, z], got {self.data!r}", "give three numbers")
-        return tuple(YamlReader(v, f"{self.path}[{i}]", self.file).float()
-                     for i, v in enumerate(self.data))
+        x, y, z = (YamlReader(v, f"{self.path}[{i}]", self.file).float() for i, v in enumerate(self.data))
+        return x, y, z
 
-    def str_list(self) -> tuple[str, ...]:
+    def str_list(self) -> tuple[builtins.str, ...]:
         if not isinstance(self.data, list):
             raise self.fail(f"expected a list of names, got {self.data!r}", "write [a, b]")
         return tuple(YamlReader(v, f"{self.path}[{i}]", self.file).str()
                      for i, v in enumerate(self.data))
 
-    def float_map(self) -> dict[str, float]:
+    def float_map(self) -> dict[builtins.str, builtins.float]:
         return {str(k): YamlReader(v, f"{self.path}.{k}", self.file).float()
                 for k, v in self.mapping().items()}
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -84,7 +85,7 @@ def geom_attributes(geom_object, assets: MeshAssets) -> dict:
     g = geom_object.geometry
     kind = type(g).__name__
     placement = geom_object.placement
-    attrs = dict(pos=np.array(placement.translation), quat=quat_wxyz(placement.rotation))
+    attrs: dict[str, Any] = dict(pos=np.array(placement.translation), quat=quat_wxyz(placement.rotation))
     if kind == "Box":
         attrs.update(type="box", size=np.array(g.halfSide))
     elif kind == "Sphere":

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -190,8 +191,8 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot",
     root = _new_root(name, source.sidecar, params.contact_solref_for(variant))
     root.default.add("default", dclass=DERIVED_JOINT_CLASS).joint.set_attributes(type="hinge", limited="true")
     assets = MeshAssets(root)
-    elements = {None: _root_body(source, root, assets, _hull_geoms(source, assets), collide=contact.upper_collisions)}
-    frames = {None: pin.SE3.Identity()}
+    elements: dict[str | None, Any] = {None: _root_body(source, root, assets, _hull_geoms(source, assets), collide=contact.upper_collisions)}
+    frames: dict[str | None, Any] = {None: pin.SE3.Identity()}
     for b in bodies:
         rel = frames[b.parent].actInv(b.frame)
         body = elements[b.parent].add("body", name=b.name, pos=np.array(rel.translation), quat=quat_wxyz(rel.rotation))

@@ -35,9 +35,10 @@ def build_rig(foot: FootModel | None, ball_radius: float | None, *, variant: str
     root.sensor.add("jointpos", name="slider_pos", joint="slider")
     root.sensor.add("jointvel", name="slider_vel", joint="slider")
     if foot is None:  # the ball foot: a sphere whose centre is the mount (the default mount offset)
+        # ball_radius is given with the ball foot (foot None)
         carriage.add("geom", name="ball_collision", dclass="collision", type="sphere", size=[ball_radius])
-        carriage.add("site", name="touchdown", pos=[0, 0, -ball_radius], size=[0.005], group=4)
-        lowest = -ball_radius
+        carriage.add("site", name="touchdown", pos=[0, 0, -ball_radius], size=[0.005], group=4)  # type: ignore[operator]
+        lowest = -ball_radius  # type: ignore[operator]
     else:
         rig_foot = clone(foot, "foot")
         add_passive_sensors(rig_foot.mjcf, rig_foot.passive_joints)

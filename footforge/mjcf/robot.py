@@ -108,7 +108,7 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
 
 def foot_reference_qpos(mj: mujoco.MjModel, foot: FootModel | None, prefix_format: str) -> dict[int, float]:
     """qpos address -> value of every foot joint at the reference pose."""
-    values = {}
+    values: dict[int, float] = {}
     if foot is None:
         return values
     for leg in C.LEGS:

@@ -19,6 +19,7 @@ import multiprocessing as mp
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 import trimesh
@@ -68,7 +69,7 @@ class Hulls:
 
     def stl_bytes(self, i: int) -> bytes:
         mesh = trimesh.Trimesh(self.vertices[i], self.faces[i], process=False)
-        return mesh.export(file_type="stl")
+        return cast(bytes, mesh.export(file_type="stl"))  # STL: bytes
 
 
 def _coacd_worker(vertices, faces, config: dict, queue, parent_pid: int) -> None:
@@ -117,7 +118,8 @@ def decompose(mesh_path: Path, config: DecompositionConfig = DecompositionConfig
             return Hulls(tuple(z[f"v{i}"] for i in range(n)), tuple(z[f"f{i}"] for i in range(n)),
                          decomposed=bool(z["decomposed"]), cached=True)
     try:
-        mesh = trimesh.load(io.BytesIO(data), file_type=mesh_path.suffix.lstrip(".").lower(), force="mesh")
+        mesh = cast(trimesh.Trimesh,  # force="mesh": one Trimesh
+                    trimesh.load(io.BytesIO(data), file_type=mesh_path.suffix.lstrip(".").lower(), force="mesh"))
     except Exception as e:
         raise InputError(f"cannot read mesh: {e}", file=str(mesh_path), fix="export it as STL or OBJ") from None
     problem = flat_mesh_problem(mesh)
@@ -136,7 +138,7 @@ def decompose(mesh_path: Path, config: DecompositionConfig = DecompositionConfig
         parts = _run_coacd(mesh_path, mesh, config)
         decomposed = True
     cache_dir.mkdir(parents=True, exist_ok=True)
-    arrays = {"count": len(parts), "decomposed": decomposed}
+    arrays: dict[str, Any] = {"count": len(parts), "decomposed": decomposed}
     for i, (v, f) in enumerate(parts):
         arrays[f"v{i}"], arrays[f"f{i}"] = v, f
     tmp = entry.with_suffix(f".tmp{os.getpid()}.npz")

@@ -144,11 +144,11 @@ def reference_pose(parsed: ParsedURDF, sidecar: Sidecar) -> ReferencePose:
     gaps = np.linalg.norm(closure_residuals(parsed, sidecar, q), axis=1)
     worst = int(np.argmax(gaps))
     if gaps[worst] > CLOSURE_TOLERANCE_M:
-        c = sidecar.closures[worst]
+        closure = sidecar.closures[worst]
         raise CheckFailure(
-            f"closure '{c.name}' does not close at the reference pose: gap {gaps[worst] * 1e3:.3f} mm "
-            f"between '{c.link}' {list(c.point)} and '{c.to_link}' {list(c.to_point)}",
-            file=str(sidecar.source), element=f"closure '{c.name}'",
+            f"closure '{closure.name}' does not close at the reference pose: gap {gaps[worst] * 1e3:.3f} mm "
+            f"between '{closure.link}' {list(closure.point)} and '{closure.to_link}' {list(closure.to_point)}",
+            file=str(sidecar.source), element=f"closure '{closure.name}'",
             fix="check the closure points against the description (a sign of y, a frame), or the "
                 "reference_pose joints (the chain must be slack enough to reach)")
     data = model.createData()

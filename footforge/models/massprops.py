@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -87,7 +89,7 @@ def compare_mass_properties(variant_model: mujoco.MjModel, full_model: mujoco.Mj
     dv = at_keyframe(variant_model, key, free_joint_qpos=df.qpos[:7])
     tv, tf = subtree_inertia(variant_model, dv, 0), subtree_inertia(full_model, df, 0)
     scale = max(float(np.linalg.norm(tf.lever)), 1.0)
-    report = {
+    report: dict[str, Any] = {
         "total_mass": {"variant_kg": tv.mass, "full_kg": tf.mass,
                        "relative_error": abs(tv.mass - tf.mass) / tf.mass, "tolerance": MASS_RTOL},
         "com": {"variant_m": np.array(tv.lever).tolist(), "full_m": np.array(tf.lever).tolist(),

@@ -131,7 +131,7 @@ def resume_point(run_dir: Path, notice: Callable[[str], None], set_aside: bool):
     if not found:
         raise InputError(f"nothing to resume: no checkpoints in {run_dir / 'checkpoints'}", file=str(run_dir),
                          fix="start without --resume (with --force to start this run over), or give another run")
-    skipped = []
+    skipped: list[tuple[int, Path]] = []
     legacy = legacy_run(run_dir)
     for step, path in reversed(found):
         problem = checkpoint_problem(path, read=False, legacy=legacy)

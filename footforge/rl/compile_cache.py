@@ -51,8 +51,9 @@ def enable(enabled: bool = True) -> Path | None:
 
     if not enabled:
         return None
-    if jax.config.jax_compilation_cache_dir:  # set by JAX_COMPILATION_CACHE_DIR (the GPU kit) or the caller
-        return Path(jax.config.jax_compilation_cache_dir)
+    # jax.config's options are attributes made at run time (no type information).
+    if jax.config.jax_compilation_cache_dir:  # type: ignore[attr-defined]  # set by JAX_COMPILATION_CACHE_DIR (the GPU kit) or the caller
+        return Path(jax.config.jax_compilation_cache_dir)  # type: ignore[attr-defined]
     folder = default_folder()
     if folder is None:
         return None

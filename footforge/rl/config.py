@@ -131,8 +131,9 @@ def from_dict(cls, data: dict, default=None):
         if name not in types:
             raise InputError(f"unknown configuration key '{name}' for {cls.__name__}",
                              fix="use the footforge version that wrote the configuration")
+        factory = types[name].default_factory
         field_default = getattr(default, name) if default is not None else (
-            types[name].default_factory() if callable(types[name].default_factory) else types[name].default)
+            factory() if callable(factory) else types[name].default)
         if is_dataclass(field_default):
             value = from_dict(type(field_default), value, field_default)
         elif isinstance(value, list):

@@ -241,7 +241,7 @@ def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarra
         for level in sorted(set(levels[kinds == kind])):
             robots = (kinds == kind) & (levels == level)
             alive = rows["alive"][robots]
-            cell = {"robots": int(robots.sum()), "falls": int((~alive[:, -1]).sum()),
+            cell: dict[str, float] = {"robots": int(robots.sum()), "falls": int((~alive[:, -1]).sum()),
                     "diverged": int(rows["diverged"][robots].any(axis=1).sum())}
             cell |= {name: float(rows[name][robots][alive].mean()) if alive.any() else float("nan") for name in INDICES}
             out.setdefault(kind, {})[int(level)] = cell

@@ -111,7 +111,7 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
         "estimated_from": "IMUs (footforge.rl.foot_imu)", "imu_bodies": list(IMU_BODIES), "joints": list(trained.passive_names)}
     for feet, robot in ((config.feet, trained), (FULL, full)):
         result["feet"][feet] = run(env, robot, policy, steps=steps, num_robots=num_robots, seed=seed, terrain=terrain,
-                                   progress=(lambda done, f=feet: progress(f, done, steps)) if progress else None,
+                                   progress=(lambda done, f=feet: progress(f, done, steps)) if progress else None,  # type: ignore[misc]
                                    imu=imu if feet == FULL else None)
     return result
 
@@ -215,7 +215,7 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     walking = judge(feet_down, live, rows["base_height"], rows["vx_command"], rows["vx"],
                     np.hypot(rows["vx_command"], rows["vy_command"]))
     traces = {"vx_m_s": rows["vx"], "vx_command_m_s": rows["vx_command"]}
-    closure = None
+    closure: dict[str, float] | None = None
     if robots.closure is not None:
         traces |= worst
         closure = {"num_closures": len(robots.closure.connect), "num_couplings": len(robots.closure.coupling)}

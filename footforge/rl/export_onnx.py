@@ -162,7 +162,7 @@ def policy_graph(mean: np.ndarray | None, std: np.ndarray | None,
     nodes, initializers = [], []
     x = "obs"
     if mean is not None:
-        initializers += [numpy_helper.from_array(mean, "obs_mean"), numpy_helper.from_array(std, "obs_std")]
+        initializers += [numpy_helper.from_array(mean, "obs_mean"), numpy_helper.from_array(std, "obs_std")]  # type: ignore[arg-type]  # with mean
         nodes += [helper.make_node("Sub", [x, "obs_mean"], ["obs_centred"], name="normalise_sub"),
                   helper.make_node("Div", ["obs_centred", "obs_std"], ["obs_normalised"], name="normalise_div")]
         x = "obs_normalised"

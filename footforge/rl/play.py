@@ -29,11 +29,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from footforge.errors import InputError
-from footforge.variants import PLAY_FEET as FEET  # the training feet and the closed chain
+from footforge.variants import (
+    PLAY_FEET as FEET,  # the training feet and the closed chain
+    Variant,
+)
+
+if TYPE_CHECKING:
+    from footforge.envs.config import EnvConfig
 
 TOOL = "footforge play"
 """Written into play's outputs (the GIF's comment, the log's "tool"): files play may replace."""
@@ -63,11 +70,11 @@ class OnnxPolicy:
 
     source: Path
     """The policy folder or the .onnx file it was read from."""
-    session: object
+    session: Any
     """onnxruntime.InferenceSession of the graph (input "obs", output "actions")."""
     metadata: dict
     """The ONNX metadata_props, JSON-decoded (footforge.rl.export_onnx.METADATA_KEYS)."""
-    config: object
+    config: EnvConfig
     """footforge.envs.config.EnvConfig: the policy folder's own, or for an .onnx file the task's
     default configuration with the file's action, physics step and observation settings."""
 
@@ -170,7 +177,7 @@ def _config_from_metadata(meta: dict, path: Path):
     return config
 
 
-def check_feet(policy: OnnxPolicy, feet: str | None) -> str:
+def check_feet(policy: OnnxPolicy, feet: str | None) -> Variant:
     """The feet to walk on (default the policy's own).
 
     Raises:
@@ -282,7 +289,7 @@ def play_headless(player: Player, *, seconds: float, command=(0.0, 0.0, 0.0)) ->
     steps = int(round(seconds / player.policy_dt))
     qpos = np.empty((steps, player.model.nq))
     keys = ("base_height_m", "vx", "vy", "yaw_rate", "fell", "feet_on_ground")
-    states = {k: [] for k in ("time_s", "base_pos_m", *keys)}
+    states: dict[str, list] = {k: [] for k in ("time_s", "base_pos_m", *keys)}
     start = time.perf_counter()
     for t in range(steps):
         record = player.step(command)
@@ -352,7 +359,7 @@ def play_interactive(player: Player, *, print_fn: Callable[[str], None] = print)
     import mujoco.viewer
 
     player.warm_up()  # before the window opens
-    keys = collections.deque()  # key_callback runs on the viewer's thread: hand the keys over
+    keys: collections.deque[int] = collections.deque()  # key_callback runs on the viewer's thread: hand the keys over
     try:
         viewer = mujoco.viewer.launch_passive(player.model, player.data, key_callback=keys.append)
     except Exception as e:  # GLFW without a display, mjpython on macOS...

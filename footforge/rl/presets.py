@@ -311,7 +311,7 @@ def overrides_between(env, ppo, preset_name: str) -> list[str]:
     from footforge.rl.config import config_differences, to_dict
 
     def leaves(tree: dict, prefix: str = "") -> dict[str, object]:
-        out = {}
+        out: dict[str, object] = {}
         for key, value in tree.items():
             out |= leaves(value, f"{prefix}{key}.") if isinstance(value, dict) else {f"{prefix}{key}": value}
         return out
@@ -322,10 +322,8 @@ def overrides_between(env, ppo, preset_name: str) -> list[str]:
         return "none" if value is None else str(value).lower() if isinstance(value, bool) else repr(value) \
             if isinstance(value, float) else str(value)
 
-    target = {"env": leaves(to_dict(replace(env, physics="mjx", build_dir=None)), "env."),
-              "ppo": leaves(to_dict(ppo), "ppo.")}
-    target = target["env"] | target["ppo"]
-    overrides = []
+    target = leaves(to_dict(replace(env, physics="mjx", build_dir=None)), "env.") | leaves(to_dict(ppo), "ppo.")
+    overrides: list[str] = []
     for name in ("env.contact_model", "env.float64_physics"):
         base_env, base_ppo = resolve(env.task, env.feet, env.policy, preset_name, overrides)
         base = leaves(to_dict(replace(base_env, physics="mjx", build_dir=None)), "env.")

@@ -358,8 +358,8 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         # holds already unless the killed call died before evaluating them.
         if not (step == 0 and evaluated_at_offset):
             for key, value in now.items():
-                writer.add_scalar(key, value, global_step)
-            writer.flush()
+                writer.add_scalar(key, value, global_step)  # type: ignore[union-attr]  # primary: a writer
+            writer.flush()  # type: ignore[union-attr]
             with open(run_dir / CURVE, "a") as f:  # one line per evaluation or training-episodes log
                 f.write(json.dumps({"global_step": global_step, "wall_s": wall_s_before + time.time() - t0} | now)
                         + "\n")

@@ -131,7 +131,7 @@ def _gait(stance: dict, agreement: dict) -> str:
     if min(values) > MAX_STANCE:
         return "stand"
     names = {"diagonal": "trot", "same_side": "pace", "lateral": "bound"}
-    kind = max(agreement, key=agreement.get)
+    kind = max(agreement, key=lambda k: agreement[k])
     if agreement[kind] >= PAIR_LOCKED and all(MIN_STANCE <= s <= MAX_STANCE for s in values):
         return names[kind]
     return "four-beat"

@@ -7,6 +7,8 @@ read back equals the MuJoCo value to float32 rounding (relative 6e-8), not to do
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 from pxr import Gf, Usd, UsdGeom, UsdPhysics, UsdValidation
@@ -48,7 +50,7 @@ def read_stage(stage: Usd.Stage) -> dict:
     """Bodies and joints as UsdPhysics parses them, with world poses and mass properties."""
     parsed = UsdPhysics.LoadUsdPhysicsFromRange(stage, [str(stage.GetDefaultPrim().GetPath())])
     cache = UsdGeom.XformCache()
-    out = {"bodies": {}, "joints": {}, "articulation_roots": []}
+    out: dict[str, Any] = {"bodies": {}, "joints": {}, "articulation_roots": []}
     for kind, (paths, descs) in parsed.items():
         for path, desc in zip(paths, descs):
             prim = stage.GetPrimAtPath(path)
@@ -66,7 +68,7 @@ def read_stage(stage: Usd.Stage) -> dict:
             elif hasattr(desc, "localPose0Position"):
                 # Read what was authored, not the parser's normalised copy (it may swap the bodies).
                 authored = UsdPhysics.Joint(prim)
-                joint = {"path": str(path), "type": str(kind).rsplit(".", 1)[-1],
+                joint: dict[str, Any] = {"path": str(path), "type": str(kind).rsplit(".", 1)[-1],
                          "exclude": bool(authored.GetExcludeFromArticulationAttr().Get()), "frames": []}
                 for rel, lp, lr in ((authored.GetBody0Rel(), authored.GetLocalPos0Attr(), authored.GetLocalRot0Attr()),
                                     (authored.GetBody1Rel(), authored.GetLocalPos1Attr(), authored.GetLocalRot1Attr())):
@@ -116,7 +118,7 @@ def compare_with_model(stage: Usd.Stage, model: mujoco.MjModel, *, keyframe: str
         return mj_name(model, obj, i, {mujoco.mjtObj.mjOBJ_BODY: "body", mujoco.mjtObj.mjOBJ_JOINT: "joint",
                                        mujoco.mjtObj.mjOBJ_EQUALITY: "equality"}[obj])
     roots = {name(mujoco.mjtObj.mjOBJ_BODY, b): b for b in range(1, model.nbody) if model.body_weldid[b] == b}
-    out = {"bodies_missing": sorted(set(roots) - set(usd["bodies"])),
+    out: dict[str, Any] = {"bodies_missing": sorted(set(roots) - set(usd["bodies"])),
            "bodies_extra": sorted(set(usd["bodies"]) - set(roots)),
            "mass_rel": 0.0, "com_m": 0.0, "principal_inertia_rel": 0.0, "inertia_tensor_rel": 0.0}
     for body_name, b in roots.items():

@@ -158,13 +158,13 @@ def _drive_terms(ctx: ExportContext) -> dict[int, DriveTerms]:
             t.add_spring(m.jnt_stiffness[j], m.qpos_spring[m.jnt_qposadr[j]])
     for a in range(m.nu):
         name = mj_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
-        j = servo_joint(m, a)
-        if j is None:
+        joint = servo_joint(m, a)
+        if joint is None:
             ctx.lose(f"actuator '{name}'", "not a unit-gear position servo on a hinge or slide joint", "dropped")
             continue
         # The servo's target at the exported pose: the keyframe's ctrl, else the joint's angle there.
-        target = ctx.data.ctrl[a] if ctx.keyframe is not None else ctx.data.qpos[m.jnt_qposadr[j]]
-        t = terms[j]
+        target = ctx.data.ctrl[a] if ctx.keyframe is not None else ctx.data.qpos[m.jnt_qposadr[joint]]
+        t = terms[joint]
         t.role = "actuated"
         t.add_spring(m.actuator_gainprm[a][0], target)
         t.damping += float(-m.actuator_biasprm[a][2])

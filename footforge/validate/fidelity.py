@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -127,7 +128,7 @@ def summarise(per_scenario: dict[str, dict], thresholds: Thresholds) -> dict:
     """Mean and worst of each error over the scenarios, and pass/fail against the thresholds
     (a metric that is undefined for the variant, like the ball's sole orientation, is skipped, and
     so are scenarios whose obstacle the variant or the closed chain missed: `missed_obstacle`)."""
-    out = {"metrics": {}, "passed": True, "failed_runs": sorted(s for s, e in per_scenario.items() if e.get("failed")),
+    out: dict[str, Any] = {"metrics": {}, "passed": True, "failed_runs": sorted(s for s, e in per_scenario.items() if e.get("failed")),
            "missed_obstacle": sorted(s for s, e in per_scenario.items() if e.get("missed_obstacle"))}
     for name, limit in thresholds.as_dict().items():
         values = np.array([e[name] for e in per_scenario.values()

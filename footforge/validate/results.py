@@ -173,10 +173,10 @@ def from_plain(tp, value):
 
 def json_schema() -> dict:
     """The JSON Schema (draft 2020-12) of report.json, from the classes above."""
-    definitions = {}
+    definitions: dict[str, dict | None] = {}
 
     def schema(tp) -> dict:
-        if dataclasses.is_dataclass(tp):
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):  # a class, never an instance, here
             if tp.__name__ not in definitions:
                 definitions[tp.__name__] = None  # reserved against recursion
                 hints = typing.get_type_hints(tp)

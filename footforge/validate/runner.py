@@ -106,7 +106,7 @@ class ValidationModels:
         """Input files with their hashes, checks and warnings (build_report's form)."""
         self.source = load_foot_source(options.foot, stage, self.inputs)
         self.feet = rigs.build_feet(self.source, options.variants)
-        self.sole = rigs.sole_extent(self.feet["full"])
+        self.sole = rigs.sole_extent(self.feet["full"])  # type: ignore[arg-type]  # the closed chain has a foot model
 
     def reload(self, variant: str, params: VariantParams) -> None:
         """Rebuilds `variant`'s foot with updated parameters."""
@@ -163,7 +163,7 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
         variants = ("full",) + options.variants
         cases = [c for v in variants for c in models.cases(v, scenarios)]
         results = pool.map(cases, advance("drop tests", len(cases)))
-        runs = {v: {} for v in variants}
+        runs: dict[str, dict[str, dict]] = {v: {} for v in variants}
         for r in results:
             runs[r["variant"]][r["scenario"]] = r
         fidelity_of = {v: compare(runs[v], runs["full"], options.thresholds) for v in options.variants}
@@ -179,7 +179,7 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
     reference = reference_checks(runs["full"])
     full = speed(runs["full"])
     return ValidationReport(
-        footforge=__version__, versions=versions(), machine=platform.platform(), seed=options.seed, jobs=options.jobs,
+        footforge=__version__, versions=versions(), machine=platform.platform(), seed=options.seed, jobs=options.jobs,  # type: ignore[arg-type]
         thresholds=options.thresholds.as_dict(), params=str(models.source.params.source),
         inputs=models.inputs.get("inputs", {}), scenarios=[s.describe() for s in scenarios],
         sole_extent_m=asdict(models.sole), reference=reference, speed={v: speed(runs[v], full.realtime_factor) for v in variants},

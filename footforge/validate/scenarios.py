@@ -88,7 +88,7 @@ def _scenarios() -> tuple[Scenario, ...]:
     s += [Scenario(f"rough_seed{k}", "rough", seed=k) for k in range(3)]
     for axis in ("pitch", "roll"):
         for deg in (10, -10):
-            s.append(Scenario(f"leg_{axis}_{deg:+d}deg", "flat", **{f"leg_{axis}_deg": float(deg)}))
+            s.append(Scenario(f"leg_{axis}_{deg:+d}deg", "flat", **{f"leg_{axis}_deg": float(deg)}))  # type: ignore[arg-type]
     s.append(Scenario("slope_pitch_20deg_5cm", "slope", slope_deg=20, slope_axis="pitch", drop_height_m=0.05))
     return tuple(s)
 
@@ -166,7 +166,7 @@ def add_obstacle(root: mjcf.RootElement, scenario: Scenario, sole: SoleExtent) -
         heights = rng.uniform(0.0, 1.0, size=(n, n))
         # Smooth with a 3x3 mean so bumps are a couple of cells wide, then span [0, 1].
         padded = np.pad(heights, 1, mode="edge")
-        heights = sum(padded[i:i + n, j:j + n] for i in range(3) for j in range(3)) / 9.0
+        heights = sum(padded[i:i + n, j:j + n] for i in range(3) for j in range(3)) / 9.0  # type: ignore[assignment]
         heights = (heights - heights.min()) / (heights.max() - heights.min())
         half = cell * (n - 1) / 2
         root.asset.add("hfield", name="rough", nrow=n, ncol=n, size=[half, half, scenario.rough_amplitude_m, 0.005],

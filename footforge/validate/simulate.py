@@ -234,7 +234,7 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     # after which the mount no longer descends (its slider velocity >= 0).
     slider_dof = int(slider.dofadr[0])
     touched, compressing, compression_impulse = False, True, 0.0
-    window = collections.deque(maxlen=max(1, int(round(PEAK_WINDOW_S / model.opt.timestep))))
+    window: collections.deque[float] = collections.deque(maxlen=max(1, int(round(PEAK_WINDOW_S / model.opt.timestep))))
     # The foot-ground contacts of the current state: from the placing forward pass, then after
     # every step those of the step just taken (read once, for the force sums and the records).
     pos, force, penetration, pairs = _ground_contacts(model, data, foot_mask)
@@ -264,7 +264,7 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
             compression_impulse += f_z * model.opt.timestep
             compressing = data.qvel[slider_dof] < 0.0
         window.append(f_z)
-        peak = max(peak, sum(window) / window.maxlen)
+        peak = max(peak, sum(window) / window.maxlen)  # type: ignore[operator]  # maxlen given above
         if data.warning.number.any() or not np.isfinite(data.qacc).all():
             warnings = [mujoco.mjtWarning(j).name for j, w in enumerate(data.warning) if w.number]
             failed = f"step {k}: " + (", ".join(warnings) if warnings else "non-finite acceleration")

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -122,7 +123,7 @@ class EnvStance:
     """The episode ended (a fall or a diverged simulation) before the end."""
 
 
-STANCE_TERRAIN_FIELDS = {"num_levels": 3, "num_columns": 6, "tile_size_m": 4.0, "border_m": 2.0, "platform_m": 1.5}
+STANCE_TERRAIN_FIELDS: dict[str, Any] = {"num_levels": 3, "num_columns": 6, "tile_size_m": 4.0, "border_m": 2.0, "platform_m": 1.5}
 """The rough terrain of the stance measurement (TerrainConfig fields): level 0's spawn platform is
 the same as in the full field, which compiles far slower."""
 
