@@ -25,9 +25,9 @@ def json_default(value):
 
 
 
-def versions() -> dict[str, str]:
+def versions() -> dict[str, str | None]:  # as ValidationReport.versions holds them
     from importlib.metadata import PackageNotFoundError, version
-    out = {}
+    out: dict[str, str | None] = {}
     for pkg in ("footforge", "mujoco", "dm-control", "pin", "coacd", "trimesh", "xacro", "usd-core"):
         try:
             out[pkg] = version(pkg)

@@ -94,8 +94,10 @@ def test_only_the_sole_collides_and_mass_is_unchanged(builds, shape):
         assert report["foot"]["contact"]["sole"] == SHAPES[shape]["sole"]
         assert report["foot"]["contact"]["upper_collisions"] is False
         # The leg's own colliders (shanks, thighs, base) are those of the box build.
-        legs = lambda m: sorted(m.geom(g).name for g in range(m.ngeom)  # noqa: E731
-                                if (m.geom_contype[g] or m.geom_conaffinity[g]) and "_foot/" not in m.geom(g).name)
+        def legs(m):
+            return sorted(m.geom(g).name for g in range(m.ngeom)
+                          if (m.geom_contype[g] or m.geom_conaffinity[g]) and "_foot/" not in m.geom(g).name)
+
         assert legs(new) == legs(box)
 
 

@@ -31,5 +31,7 @@ def build_defaults_if_missing(variants: Iterable[Variant], build_root: Path | No
             build(BuildOptions(variant=variant, out_dir=folder, formats=("mjcf",)))
             continue
         with console.status(message) as status:
-            build(BuildOptions(variant=variant, out_dir=folder, formats=("mjcf",)),
-                  progress=lambda stage: status.update(f"{message}: {stage}"))  # noqa: B023  (called within this iteration)
+            build(
+                BuildOptions(variant=variant, out_dir=folder, formats=("mjcf",)),
+                progress=lambda stage: status.update(f"{message}: {stage}"),  # noqa: B023  (called in this iteration)
+            )

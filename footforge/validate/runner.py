@@ -179,7 +179,7 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
     reference = reference_checks(runs["full"])
     full = speed(runs["full"])
     return ValidationReport(
-        footforge=__version__, versions=versions(), machine=platform.platform(), seed=options.seed, jobs=options.jobs,  # type: ignore[arg-type]
+        footforge=__version__, versions=versions(), machine=platform.platform(), seed=options.seed, jobs=options.jobs,
         thresholds=options.thresholds.as_dict(), params=str(models.source.params.source),
         inputs=models.inputs.get("inputs", {}), scenarios=[s.describe() for s in scenarios],
         sole_extent_m=asdict(models.sole), reference=reference, speed={v: speed(runs[v], full.realtime_factor) for v in variants},
