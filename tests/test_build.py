@@ -19,8 +19,11 @@ class _Warnings:
 
     @staticmethod
     def of(data):
-        return {mujoco.mjtWarning(i).name: int(data.warning[i].number)
-                for i in range(len(data.warning)) if data.warning[i].number}
+        return {
+            mujoco.mjtWarning(i).name: int(data.warning[i].number)
+            for i in range(len(data.warning))
+            if data.warning[i].number
+        }
 
 
 def _load(built, variant, name):
@@ -208,11 +211,31 @@ def test_mjcf_on_disk_equals_model_in_memory(tmp_path):
     hulls = decompose_collision_meshes(parsed, DecompositionConfig(), cache_dir=tmp_path / "cache")
     source = FootSource(parsed, sidecar, params, kinematics.reference_pose(parsed, sidecar), hulls)
     robot = parse_urdf(load_description(default_robot_description(), args={"foot": "none"}), floating=True)
-    memory = compile_model(build_robot(robot, foot_lib.build_derived(source, "aof"), variant="aof",
-                                                params=params, friction=sidecar.friction).mjcf)
-    for field in ("body_mass", "body_inertia", "body_ipos", "body_iquat", "body_pos", "body_quat", "jnt_axis",
-                  "jnt_range", "jnt_stiffness", "dof_damping", "dof_armature", "geom_size", "geom_pos",
-                  "geom_quat", "actuator_gainprm", "actuator_biasprm", "key_qpos", "mesh_vert"):
+    memory = compile_model(
+        build_robot(
+            robot, foot_lib.build_derived(source, "aof"), variant="aof", params=params, friction=sidecar.friction
+        ).mjcf
+    )
+    for field in (
+        "body_mass",
+        "body_inertia",
+        "body_ipos",
+        "body_iquat",
+        "body_pos",
+        "body_quat",
+        "jnt_axis",
+        "jnt_range",
+        "jnt_stiffness",
+        "dof_damping",
+        "dof_armature",
+        "geom_size",
+        "geom_pos",
+        "geom_quat",
+        "actuator_gainprm",
+        "actuator_biasprm",
+        "key_qpos",
+        "mesh_vert",
+    ):
         np.testing.assert_array_equal(getattr(disk, field), getattr(memory, field), err_msg=field)
 
 

@@ -25,7 +25,7 @@ def test_a_shipped_policy_loads_and_walks_on_its_own_feet(name):
     saved = load_policy_parameters(folder / "policy")
     progress = json.loads((folder / "progress.json").read_text())
     assert saved.global_step == progress["global_step"] > 0
-    (step, checkpoint), = [(int(p.name), p) for p in (folder / "checkpoints").iterdir()]
+    ((step, checkpoint),) = [(int(p.name), p) for p in (folder / "checkpoints").iterdir()]
     assert checkpoint_problem(checkpoint) is None and step == saved.global_step
     assert saved.env.feet in name and saved.env.task in name and saved.env.policy in name.split("_")
     evaluated = json.loads((folder / "evaluation/metrics.json").read_text())
@@ -44,8 +44,24 @@ def test_an_evaluation_repeats_byte_for_byte(tmp_path):
     from footforge.cli.main import main
 
     def run(out, seed):
-        assert main(["evaluate", "--policy", str(REPO / "policies/flat_ball_B"), "--num-envs", "4", "--seconds",
-                     "2", "--seed", str(seed), "--out", str(tmp_path / out)]) == 0
+        assert (
+            main(
+                [
+                    "evaluate",
+                    "--policy",
+                    str(REPO / "policies/flat_ball_B"),
+                    "--num-envs",
+                    "4",
+                    "--seconds",
+                    "2",
+                    "--seed",
+                    str(seed),
+                    "--out",
+                    str(tmp_path / out),
+                ]
+            )
+            == 0
+        )
         return (tmp_path / out / "metrics.json").read_bytes()
 
     first = run("a", 0)

@@ -84,6 +84,7 @@ def test_generator_reproduces_committed_files(tmp_path):
 
 def test_coacd_splits_outer_link():
     import coacd
+
     coacd.set_log_level("error")
     m = _load("outer_link")
     parts = coacd.run_coacd(

@@ -28,8 +28,13 @@ class CheckResult:
         return has_errors(self.findings)
 
 
-def check_description(path: str | Path, *, package_paths: Sequence[str | Path] = (),
-                      args: Mapping[str, str] | None = None, sidecar: str | Path | None = None) -> CheckResult:
+def check_description(
+    path: str | Path,
+    *,
+    package_paths: Sequence[str | Path] = (),
+    args: Mapping[str, str] | None = None,
+    sidecar: str | Path | None = None,
+) -> CheckResult:
     """Checks a URDF or xacro file (and, given a sidecar, that its closures close).
 
     Raises:
@@ -53,6 +58,8 @@ def check_description(path: str | Path, *, package_paths: Sequence[str | Path] =
             findings.append(Finding("error", "closure_open", e.element or "sidecar", e.message, e.fix or "", False))
         residuals = kinematics.closure_residuals(parsed, side, q)
         gaps = {c.name: float(np.linalg.norm(r)) for c, r in zip(side.closures, residuals)}
-        findings += [Finding("error", "closure_axis", element, message, fix, False)
-                     for element, message, fix in kinematics.closure_axis_problems(parsed, side, q)]
+        findings += [
+            Finding("error", "closure_axis", element, message, fix, False)
+            for element, message, fix in kinematics.closure_axis_problems(parsed, side, q)
+        ]
     return CheckResult(findings, gaps)

@@ -55,4 +55,3 @@ def passive_joints_of(config: EnvConfig, observation_size: int) -> int:
     if not config.haptic:
         return 0
     return (observation_size - size(config, 0)) // 2
-

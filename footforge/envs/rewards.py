@@ -60,7 +60,7 @@ def yaw_rate(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """exp(-(command - yaw rate)^2 / sigma), rad/s."""
     import jax.numpy as jp
 
-    return jp.exp(-(q.command[2] - q.ang_vel[2]) ** 2 / cfg.tracking_sigma)
+    return jp.exp(-((q.command[2] - q.ang_vel[2]) ** 2) / cfg.tracking_sigma)
 
 
 def lin_vel_z(q: Quantities, cfg: RewardParameters) -> jax.Array:
@@ -85,7 +85,7 @@ def base_height(q: Quantities, cfg: RewardParameters) -> jax.Array:
 
 def torques(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """sum tau^2, (N m)^2."""
-    return (q.torques ** 2).sum()
+    return (q.torques**2).sum()
 
 
 def joint_acc(q: Quantities, cfg: RewardParameters) -> jax.Array:

@@ -28,8 +28,11 @@ def diverged(data: mujoco.MjData, max_speed: float) -> bool:
     (EnvConfig.diverged_speed): a non-finite state or a generalised velocity past `max_speed`;
     or MuJoCo reset it because its accelerations blew up (a BADQACC warning, counted since the
     data was made or reset)."""
-    return not (np.isfinite(data.qpos).all() and np.all(np.abs(data.qvel) < max_speed)
-                and data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0)
+    return not (
+        np.isfinite(data.qpos).all()
+        and np.all(np.abs(data.qvel) < max_speed)
+        and data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
+    )
 
 
 def divergence_times(config: EnvConfig, robots: int, seconds: float, seed: int = 0) -> list[float | None]:

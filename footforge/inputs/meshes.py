@@ -10,7 +10,6 @@ FLAT_MESH_THICKNESS_M = 1e-6
 no convex hull (qhull fails on coplanar points) and no mass properties."""
 
 
-
 def mesh_thickness_m(vertices: np.ndarray) -> float:
     """The mesh's extent along its thinnest principal direction (0 for a flat mesh, in the
     vertices' unit): the spread of the vertices projected on the last right-singular vector of
@@ -24,7 +23,6 @@ def mesh_thickness_m(vertices: np.ndarray) -> float:
     return float(projection.max() - projection.min())
 
 
-
 def flat_mesh_problem(mesh: trimesh.Trimesh, scale: float = 1.0) -> str | None:
     """Why a collision mesh cannot be used (empty or flat), or None; `scale` converts its unit to
     metres (the URDF <mesh scale>)."""
@@ -32,6 +30,8 @@ def flat_mesh_problem(mesh: trimesh.Trimesh, scale: float = 1.0) -> str | None:
         return "it has no faces"
     thickness = mesh_thickness_m(mesh.vertices) * scale
     if thickness < FLAT_MESH_THICKNESS_M:
-        return (f"it is flat ({thickness:.2g} m thick across its thinnest direction): it encloses no volume, "
-                "so it has no convex hull and cannot collide as a solid")
+        return (
+            f"it is flat ({thickness:.2g} m thick across its thinnest direction): it encloses no volume, "
+            "so it has no convex hull and cannot collide as a solid"
+        )
     return None

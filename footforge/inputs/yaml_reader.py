@@ -30,13 +30,11 @@ class YamlReader:
         self.data, self.path, self.file = data, path, file
 
     def fail(self, msg: str, fix: str) -> InputError:
-        return InputError(msg, file=str(self.file), element=f"key '{self.path}'" if self.path else "top level",
-                          fix=fix)
+        return InputError(msg, file=str(self.file), element=f"key '{self.path}'" if self.path else "top level", fix=fix)
 
     def mapping(self) -> dict:
         if not isinstance(self.data, dict):
-            raise self.fail(f"expected a mapping, got {type(self.data).__name__}",
-                             "write it as 'key: value' lines")
+            raise self.fail(f"expected a mapping, got {type(self.data).__name__}", "write it as 'key: value' lines")
         return self.data
 
     def check_keys(self, allowed: set[str]) -> YamlReader:
@@ -64,8 +62,7 @@ class YamlReader:
         return self.data
 
     def float(self, *, min_value: float | None = None, max_value: float | None = None) -> float:
-        if isinstance(self.data, bool) or not isinstance(self.data, (int, float)) \
-                or not math.isfinite(self.data):
+        if isinstance(self.data, bool) or not isinstance(self.data, (int, float)) or not math.isfinite(self.data):
             raise self.fail(f"expected a finite number, got {self.data!r}", "give a number")
         if min_value is not None and self.data < min_value:
             raise self.fail(f"{self.data} is below {min_value}", f"give a value >= {min_value}")
@@ -83,12 +80,10 @@ class YamlReader:
     def str_list(self) -> tuple[builtins.str, ...]:
         if not isinstance(self.data, list):
             raise self.fail(f"expected a list of names, got {self.data!r}", "write [a, b]")
-        return tuple(YamlReader(v, f"{self.path}[{i}]", self.file).str()
-                     for i, v in enumerate(self.data))
+        return tuple(YamlReader(v, f"{self.path}[{i}]", self.file).str() for i, v in enumerate(self.data))
 
     def float_map(self) -> dict[builtins.str, builtins.float]:
-        return {str(k): YamlReader(v, f"{self.path}.{k}", self.file).float()
-                for k, v in self.mapping().items()}
+        return {str(k): YamlReader(v, f"{self.path}.{k}", self.file).float() for k, v in self.mapping().items()}
 
     def bool(self) -> bool:
         if not isinstance(self.data, bool):

@@ -36,9 +36,11 @@ def default_folder() -> Path | None:
     return base / "footforge" / "jax"
 
 
-CPU_NOTE = ("note: JAX's compilation cache is on for the CPU ({folder}); XLA may log 'Loading XLA:CPU AOT "
-            "result ... could lead to execution errors such as SIGILL' for each program it loads: tuning flags it "
-            "cannot match (jax-ml/jax#38445). FOOTFORGE_COMPILE_CACHE=off turns the cache off")
+CPU_NOTE = (
+    "note: JAX's compilation cache is on for the CPU ({folder}); XLA may log 'Loading XLA:CPU AOT "
+    "result ... could lead to execution errors such as SIGILL' for each program it loads: tuning flags it "
+    "cannot match (jax-ml/jax#38445). FOOTFORGE_COMPILE_CACHE=off turns the cache off"
+)
 """Said once where the CPU cache is chosen (FOOTFORGE_COMPILE_CACHE set)."""
 
 

@@ -24,8 +24,9 @@ import footforge
 from footforge.atomic import atomic_file
 from footforge.errors import InputError
 
-RENDER_FIX = ("install an OpenGL backend (e.g. apt install libosmesa6) and set MUJOCO_GL=osmesa "
-              "(or egl) before starting Python")
+RENDER_FIX = (
+    "install an OpenGL backend (e.g. apt install libosmesa6) and set MUJOCO_GL=osmesa (or egl) before starting Python"
+)
 
 
 def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
@@ -39,9 +40,12 @@ def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
     if footforge.GL_SET_BY_FOOTFORGE and os.environ.get("MUJOCO_GL") == "disable":
-        raise InputError("rendering needs an OpenGL backend named in MUJOCO_GL, and none is set (footforge's "
-                         "commands then render nothing)", fix="run the command as MUJOCO_GL=egl footforge ... "
-                         "(a GPU or Mesa's EGL) or MUJOCO_GL=osmesa footforge ... (software: apt install libosmesa6)")
+        raise InputError(
+            "rendering needs an OpenGL backend named in MUJOCO_GL, and none is set (footforge's "
+            "commands then render nothing)",
+            fix="run the command as MUJOCO_GL=egl footforge ... "
+            "(a GPU or Mesa's EGL) or MUJOCO_GL=osmesa footforge ... (software: apt install libosmesa6)",
+        )
     if footforge.GL_UNAVAILABLE is not None:
         backend, reason = footforge.GL_UNAVAILABLE
         raise InputError(f"MuJoCo cannot render offscreen with MUJOCO_GL={backend}: {reason}", fix=RENDER_FIX)
@@ -68,9 +72,17 @@ def check_renderer() -> None:
     _renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 16, 16).close()
 
 
-def render_frames(model: mujoco.MjModel, qpos: np.ndarray, *, width: int = 640, height: int = 360, every: int = 1,
-                  distance_m: float = 2.0, elevation_deg: float = -20.0, azimuth_deg: float = 120.0
-                  ) -> list[np.ndarray]:
+def render_frames(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    *,
+    width: int = 640,
+    height: int = 360,
+    every: int = 1,
+    distance_m: float = 2.0,
+    elevation_deg: float = -20.0,
+    azimuth_deg: float = 120.0,
+) -> list[np.ndarray]:
     """Renders every `every`-th row of `qpos` (T, model.nq), the camera looking at the base.
 
     Azimuth and elevation are MuJoCo's: the camera looks along (cos az cos el, sin az cos el,
@@ -108,8 +120,9 @@ def write_gif(frames: Sequence[np.ndarray], path: Path, fps: float, comment: str
     images = [Image.fromarray(f) for f in frames]
     extra = {"comment": comment} if comment else {}
     with atomic_file(path) as tmp:
-        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0,
-                       **extra)
+        images[0].save(
+            tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0, **extra
+        )
 
 
 def write_strip(frames: Sequence[np.ndarray], path: Path, count: int = 6) -> None:
