@@ -15,7 +15,8 @@ as footforge's terrain (then it is a staircase of the plane, no longer equal to 
 Prints one JSON line: per engine and shape, the worst ratio of peak force heightfield / plane and
 the worst extra motion (mm) over the exact heightfields, and every case under "cases".
 
-    python benchmarks/box_on_heightfield.py [--engines c mjx] [--shapes box "edge capsules" "corner spheres"] [--out FILE.jsonl]
+    python benchmarks/box_on_heightfield.py [--engines c mjx] \
+        [--shapes box "edge capsules" "corner spheres"] [--out FILE.jsonl]
     python benchmarks/box_on_heightfield.py --summarise FILE.jsonl   # the summary of a written run again
 """
 

@@ -233,9 +233,9 @@ def test_engines_agree_on_a_heightfield(built, feet, policy):
     would fail. Measured 2026-11-28 (4 robots, 2 policy steps, action seeds 1-3): AOF PH with
     spheres, feet 0.3-3.7 um apart, base up to 0.24 um, observations up to 2.7e-4, foot forces up to
     0.9 N, the same contacts (control: feet 15-18 mm, base 1.9-2.7 mm, observations 0.48-0.87); with
-    boxes feet 2.3-6.3 mm, base 0.2-1.35 mm, forces up to 700 N. Rough ball P: to 1e-5 at three robots; the fourth lands on a
-    platform's edge (C: a second contact on the slope's prism, normal tilted 27 deg; MJX: one), feet
-    1.3 mm apart (control 11-13 mm), observations 0.025."""
+    boxes feet 2.3-6.3 mm, base 0.2-1.35 mm, forces up to 700 N. Rough ball P: to 1e-5 at three
+    robots; the fourth lands on a platform's edge (C: a second contact on the slope's prism, normal
+    tilted 27 deg; MJX: one), feet 1.3 mm apart (control 11-13 mm), observations 0.025."""
     import os
     import subprocess
     import sys

@@ -114,7 +114,8 @@ def test_no_foot_starts_inside_a_slope(built):
     lowest foot collider point as high above its ground as in the stand on flat ground, and MuJoCo
     finds no foot contact deeper than the stand's own. The control: the same spawns without that lift
     (the reset before 2026-11-28 kept the lowest foot *site*, not collider point, at its stand
-    height above the ground) starts soles more than 5 mm inside the slopes, where MuJoCo's C engine pushed one out with 4.8e5 N."""
+    height above the ground) starts soles more than 5 mm inside the slopes, where MuJoCo's C engine
+    pushed one out with 4.8e5 N."""
     tiles = TerrainConfig(
         num_levels=2, num_columns=2, tile_size_m=4.0, border_m=2.0, platform_m=0.5, proportions=(1, 1, 0, 0, 0, 0)
     )
@@ -403,7 +404,8 @@ def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
     assert min(heights) > 0.25, (feet, min(heights))
 
 
-@pytest.mark.contact_physics  # a subprocess per feet (x64 is process-wide), each compiling one rough environment: 3-6 minutes
+# A subprocess per feet (x64 is process-wide), each compiling one rough environment: 3-6 minutes.
+@pytest.mark.contact_physics
 @pytest.mark.timeout(1800)
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_the_stance_holds_on_level_0_in_float64(built, feet):
@@ -460,8 +462,8 @@ def test_the_adaptive_feet_stand_on_level_0_in_float32(built, feet):
     seeds 0-2 and 4-7 sank 1.5-2.0 mm and slid 3.5-6.2 mm (MJX's heightfield manifold re-picking its
     points under a sole box, each jump a load float32 solves inexactly). With the sole spheres
     (EnvConfig.heightfield_soles, since 2026-11-28) all eight AOF spawns sank 1.8-2.0 mm and slid
-    3.7-4.5 mm, AFF's 1.2-1.5 and 3.1-4.9 (benchmarks/engines_2026-11-28/stance_sole_spheres.jsonl). What this guards: the
-    build's contact solref in float32 let AOF slide 8.0 mm at seed 1 and raised the others
+    3.7-4.5 mm, AFF's 1.2-1.5 and 3.1-4.9 (benchmarks/engines_2026-11-28/stance_sole_spheres.jsonl).
+    What this guards: the build's contact solref in float32 let AOF slide 8.0 mm at seed 1 and raised the others
     (benchmarks/log/2026-11-21_to_26.md), a regression of every spawn that the medians catch."""
     import jax
 

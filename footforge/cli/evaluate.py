@@ -156,7 +156,8 @@ def _run(args) -> int:
             if results[-1].get("kinds_not_covered"):
                 covered, missed = results[-1]["kinds_covered"], results[-1]["kinds_not_covered"]
                 print(
-                    f"footforge evaluate: warning: {args.num_envs} robots cover {len(covered)} of {len(covered) + len(missed)} "
+                    f"footforge evaluate: warning: {args.num_envs} robots cover {len(covered)} of "
+                    f"{len(covered) + len(missed)} "
                     f"terrain kinds; not measured: {', '.join(missed)} (give --num-envs {len(covered) + len(missed)} "
                     f"or more)",
                     file=sys.stderr,

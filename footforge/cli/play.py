@@ -177,7 +177,8 @@ def _run(args) -> int:
     meta = policy.metadata
     print(
         f"{PROG}: {meta['policy_type']} policy trained on {meta['feet']} ({meta['task']}, "
-        f"{meta['global_step'] / 1e6:.1f} M steps), on {feet} feet, {'terrain tiles' if args.terrain else 'flat ground'}, "
+        f"{meta['global_step'] / 1e6:.1f} M steps), on {feet} feet, "
+        f"{'terrain tiles' if args.terrain else 'flat ground'}, "
         f"stepped by MuJoCo's C engine"
     )
     build_defaults_if_missing([meta["feet"], feet], args.build_root)

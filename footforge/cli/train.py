@@ -16,9 +16,10 @@ footforge.headless_by_default()  # before any import of MuJoCo
 from footforge.errors import EXIT_INPUT_ERROR, InputError, interrupt_exit_code, interrupt_word  # noqa: E402
 
 DESCRIPTIONS = {
-    "flat": "Train an ANYmal C flat-ground policy with Brax PPO on MuJoCo (MJX on a GPU, its C engine on a CPU; the paper's flat task).",
-    "rough": "Train an ANYmal C rough-terrain policy with Brax PPO on MuJoCo (MJX or its C engine), up a terrain curriculum "
-    "(the paper's rough task).",
+    "flat": "Train an ANYmal C flat-ground policy with Brax PPO on MuJoCo (MJX on a GPU, its C engine on a CPU; "
+    "the paper's flat task).",
+    "rough": "Train an ANYmal C rough-terrain policy with Brax PPO on MuJoCo (MJX or its C engine), up a terrain "
+    "curriculum (the paper's rough task).",
 }
 """Each task's one-line description, the help's first line."""
 
@@ -115,7 +116,8 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
         "--contact-model",
         choices=["stance", "fast"],
         help="the MJX contact model (EnvConfig.contact_model) with the step and solver iterations it "
-        "needs (default: the preset's; default stance, cpu and forward fast): stance holds a standing robot (2.5 ms step); fast is 2-3x cheaper on the "
+        "needs (default: the preset's; default stance, cpu and forward fast): stance holds a standing robot "
+        "(2.5 ms step); fast is 2-3x cheaper on the "
         "CPU but a robot at rest sinks and slides 150-180 mm in 10 s (5 ms step)",
     )
     p.add_argument(

@@ -1,4 +1,5 @@
-"""The paper's ten reward terms (and two optional terms of legged_gym's: feet air time, standing still) as pure functions of what they penalise or reward.
+"""The paper's ten reward terms (and two optional terms of legged_gym's: feet air time, standing
+still) as pure functions of what they penalise or reward.
 
 Each term is declared once, as a field of RewardConfig (envs.config): its function (here), unit
 and scale (a RewardTerm, envs.terms). The environment measures a step's Quantities once; each function returns its

@@ -25,8 +25,9 @@ def build_rig(
 
     The slider's value is the foot mount's height (its zero puts the mount at z = 0); keyframe
     'reference' rests the foot's lowest point on the floor with the foot at its reference pose,
-    and so does qpos0 (the carriage is authored there, the slider's `ref` keeps its meaning). `mount_quat` (wxyz) tilts the foot
-    mount relative to the carriage: a leg meeting the ground at an angle.
+    and so does qpos0 (the carriage is authored there, the slider's `ref` keeps its meaning).
+    `mount_quat` (wxyz) tilts the foot mount relative to the carriage: a leg meeting the ground at an
+    angle.
     """
     root = mjcf.RootElement(model=f"foot_rig_{variant}")
     set_options(root, variant, params)

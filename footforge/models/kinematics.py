@@ -101,7 +101,8 @@ def closure_axis_problems(parsed: ParsedURDF, sidecar: Sidecar, q: np.ndarray) -
             problems.append(
                 (
                     f"closure '{c.name}'",
-                    f"its pin axis {list(c.axis)} (in {c.link}'s frame) is {np.degrees(angle):.1f} deg off the axis of the "
+                    f"its pin axis {list(c.axis)} (in {c.link}'s frame) is {np.degrees(angle):.1f} deg off "
+                    "the axis of the "
                     f"pin that carries {c.link}; footforge closes loops with a point coincidence and relies on the "
                     "chain's parallel pins for the rotation",
                     f"give the axis of the chain's pins in {c.link}'s frame (closures, axis) in {sidecar.source}",

@@ -119,8 +119,9 @@ def evaluate(
 
     Returns {"indices": {name: {"mean", "std"}}, "slippage", "falls", "diverged", "traces": {...}}
     where "falls" counts the robots that fell, "diverged" those of them whose simulation diverged
-    (a non-finite state or reward term: the environment's `diverged` metric), and the traces (robot 0's foot contacts, the mean base velocity error) feed the plots. Rough-terrain
-    policies walk the terrain they trained on (its seed), the robots spread over the terrain kinds
+    (a non-finite state or reward term: the environment's `diverged` metric), and the traces
+    (robot 0's foot contacts, the mean base velocity error) feed the plots. Rough-terrain policies
+    walk the terrain they trained on (its seed), the robots spread over the terrain kinds
     first, then the levels, then each kind's columns (spawn_tiles); "by_terrain" then holds each
     kind's and level's indices and falls, and "kinds_not_covered" the kinds that too few robots left
     out.
