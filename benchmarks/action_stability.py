@@ -40,6 +40,7 @@ def run_mjx(feet: str, robots: int, seconds: float, sim_dt: float, decimation: i
         def body(carry, k):
             s = step(carry, jp.clip(jax.random.normal(k, (robots, 12)), -1.0, 1.0))
             return s, s.metrics["diverged"]
+
         return jax.lax.scan(body, state, jax.random.split(key, steps))
 
     key_reset, key_run = jax.random.split(jax.random.PRNGKey(seed))
@@ -47,8 +48,12 @@ def run_mjx(feet: str, robots: int, seconds: float, sim_dt: float, decimation: i
     state = reset(jax.random.split(key_reset, robots))
     _, diverged = jax.jit(rollout)(state, key_run)
     diverged = np.asarray(diverged)
-    return {"diverged": int(diverged.sum()), "robots": robots, "robots_diverged": int((diverged.sum(0) > 0).sum()),
-            "wall_s": round(time.perf_counter() - t0, 1)}
+    return {
+        "diverged": int(diverged.sum()),
+        "robots": robots,
+        "robots_diverged": int((diverged.sum(0) > 0).sum()),
+        "wall_s": round(time.perf_counter() - t0, 1),
+    }
 
 
 def main() -> None:
@@ -60,9 +65,16 @@ def main() -> None:
     p.add_argument("--sim-dt", type=float, nargs="+", default=[0.005])
     p.add_argument("--decimation", type=int, nargs="+", default=[4], help="one per --sim-dt")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--contact-model", choices=("fast", "build", "stance"), default="fast", help="EnvConfig.contact_model")
-    p.add_argument("--iterations", type=int, nargs=2, metavar=("NEWTON", "LINESEARCH"),
-                   help="EnvConfig.solver_iterations and solver_ls_iterations (default: the config's)")
+    p.add_argument(
+        "--contact-model", choices=("fast", "build", "stance"), default="fast", help="EnvConfig.contact_model"
+    )
+    p.add_argument(
+        "--iterations",
+        type=int,
+        nargs=2,
+        metavar=("NEWTON", "LINESEARCH"),
+        help="EnvConfig.solver_iterations and solver_ls_iterations (default: the config's)",
+    )
     args = p.parse_args()
     physics = {"contact_model": args.contact_model}
     if args.iterations:
@@ -71,7 +83,8 @@ def main() -> None:
     for feet in args.feet:
         for dt, dec in zip(args.sim_dt, args.decimation):
             figures[f"{feet}_dt{dt * 1000:g}ms"] = (run_mjx if args.sim == "mjx" else run)(
-                feet, args.robots, args.seconds, dt, dec, args.seed, **physics)
+                feet, args.robots, args.seconds, dt, dec, args.seed, **physics
+            )
     print(json.dumps(figures))
 
 

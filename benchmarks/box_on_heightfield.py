@@ -15,9 +15,11 @@ as footforge's terrain (then it is a staircase of the plane, no longer equal to 
 Prints one JSON line: per engine and shape, the worst ratio of peak force heightfield / plane and
 the worst extra motion (mm) over the exact heightfields, and every case under "cases".
 
-    python benchmarks/box_on_heightfield.py [--engines c mjx] [--shapes box "edge capsules" "corner spheres"] [--out FILE.jsonl]
+    python benchmarks/box_on_heightfield.py [--engines c mjx] \
+        [--shapes box "edge capsules" "corner spheres"] [--out FILE.jsonl]
     python benchmarks/box_on_heightfield.py --summarise FILE.jsonl   # the summary of a written run again
 """
+
 from __future__ import annotations
 
 import argparse
@@ -65,8 +67,16 @@ def boxes_as_edge_capsules(body, radius_m: float) -> None:
         rot = rot.reshape(3, 3)
         for side in (-1.0, 1.0):
             ends = [np.asarray(geom.pos) + rot @ np.array([x, side * hy, -(hz - radius_m)]) for x in (-hx, hx)]
-            body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=np.concatenate(ends), size=[radius_m, 0.0, 0.0],
-                          condim=geom.condim, friction=geom.friction, solref=geom.solref, solimp=geom.solimp, mass=0.0)
+            body.add_geom(
+                type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                fromto=np.concatenate(ends),
+                size=[radius_m, 0.0, 0.0],
+                condim=geom.condim,
+                friction=geom.friction,
+                solref=geom.solref,
+                solimp=geom.solimp,
+                mass=0.0,
+            )
 
 
 CORNER_SPHERE_RADIUS_M = 0.008
@@ -80,9 +90,16 @@ def box_as_corner_spheres(body, geom, radius_m: float) -> None:
     hx, hy, hz = geom.size
     for x in (-1, 1):
         for y in (-1, 1):
-            body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius_m, 0, 0], mass=0.0,
-                          pos=np.asarray(geom.pos) + [x * (hx - radius_m), y * (hy - radius_m), -(hz - radius_m)],
-                          condim=geom.condim, friction=geom.friction, solref=geom.solref, solimp=geom.solimp)
+            body.add_geom(
+                type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                size=[radius_m, 0, 0],
+                mass=0.0,
+                pos=np.asarray(geom.pos) + [x * (hx - radius_m), y * (hy - radius_m), -(hz - radius_m)],
+                condim=geom.condim,
+                friction=geom.friction,
+                solref=geom.solref,
+                solimp=geom.solimp,
+            )
 
 
 def scene(surface: str, slope_deg: float, quantum_m: float, shape: str) -> mujoco.MjModel:
@@ -103,8 +120,13 @@ def scene(surface: str, slope_deg: float, quantum_m: float, shape: str) -> mujoc
         if quantum_m:
             heights = np.round(heights / quantum_m) * quantum_m
         lo, span = heights.min(), max(heights.max() - heights.min(), 1e-3)
-        spec.add_hfield(name="ramp", nrow=SAMPLES, ncol=SAMPLES, size=[2, 2, span, 0.5],
-                        userdata=((heights - lo) / span).ravel().tolist())
+        spec.add_hfield(
+            name="ramp",
+            nrow=SAMPLES,
+            ncol=SAMPLES,
+            size=[2, 2, span, 0.5],
+            userdata=((heights - lo) / span).ravel().tolist(),
+        )
         spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname="ramp", pos=[0, 0, lo])
     body = spec.worldbody.add_body(name="probe_foot/sole")
     body.add_freejoint()
@@ -112,8 +134,14 @@ def scene(surface: str, slope_deg: float, quantum_m: float, shape: str) -> mujoc
     body.explicitinertial = True
     body.mass = MASS_KG
     body.inertia = [MASS_KG / 3 * (SOLE_HALF_M[(i + 1) % 3] ** 2 + SOLE_HALF_M[(i + 2) % 3] ** 2) for i in range(3)]
-    body.add_geom(name="sole", type=mujoco.mjtGeom.mjGEOM_BOX, size=SOLE_HALF_M,
-                  friction=[0.8, 0.005, 0.0001], solref=[0.004, 1], solimp=[0.99, 0.999, 0.001, 0.5, 2])
+    body.add_geom(
+        name="sole",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=SOLE_HALF_M,
+        friction=[0.8, 0.005, 0.0001],
+        solref=[0.004, 1],
+        solimp=[0.99, 0.999, 0.001, 0.5, 2],
+    )
     if shape == "corner spheres":
         box_as_corner_spheres(body, spec.geom("sole"), CORNER_SPHERE_RADIUS_M)
         spec.delete(spec.geom("sole"))
@@ -144,8 +172,13 @@ def simulate(engine, model, qpos0, normal):
         for i in range(STEPS + 1):
             if i:
                 mujoco.mj_step(model, data)
-            rows.append((data.qpos[:3].copy(), float(data.qfrc_constraint[:3] @ normal),
-                         int(np.sum(data.contact.dist[:data.ncon] < 0))))
+            rows.append(
+                (
+                    data.qpos[:3].copy(),
+                    float(data.qfrc_constraint[:3] @ normal),
+                    int(np.sum(data.contact.dist[: data.ncon] < 0)),
+                )
+            )
         return rows
     import jax
     from mujoco import mjx
@@ -157,18 +190,21 @@ def simulate(engine, model, qpos0, normal):
         if i:
             dx = step(mx, dx)
         dist = np.asarray(dx._impl.contact.dist)
-        rows.append((np.asarray(dx.qpos[:3]).copy(), float(np.asarray(dx.qfrc_constraint[:3]) @ normal),
-                     int(np.sum(dist < 0))))
+        rows.append(
+            (np.asarray(dx.qpos[:3]).copy(), float(np.asarray(dx.qfrc_constraint[:3]) @ normal), int(np.sum(dist < 0)))
+        )
     return rows
 
 
 def measure(engine, surface, slope, quantum, shape, spot, depth):
     qpos0, normal = start(slope, *spot, depth)
     rows = simulate(engine, scene(surface, slope, quantum, shape), qpos0, normal)
-    return {"peak_force_N": round(max(r[1] for r in rows), 2),
-            "rest_force_N": round(float(np.mean([r[1] for r in rows[-40:]])), 3),
-            "moved_mm": round(float(np.linalg.norm(rows[-1][0] - qpos0[:3])) * 1e3, 3),
-            "contacts_end": rows[-1][2]}
+    return {
+        "peak_force_N": round(max(r[1] for r in rows), 2),
+        "rest_force_N": round(float(np.mean([r[1] for r in rows[-40:]])), 3),
+        "moved_mm": round(float(np.linalg.norm(rows[-1][0] - qpos0[:3])) * 1e3, 3),
+        "contacts_end": rows[-1][2],
+    }
 
 
 def summarise(cases, engines):
@@ -178,13 +214,21 @@ def summarise(cases, engines):
     for engine in engines:
         for shape in sorted({c["shape"] for c in cases}, key=SHAPES.index):
             for depth in START_DEPTHS_M:
-                mine = [c for c in cases if c["engine"] == engine and c["shape"] == shape and c["start_depth_m"] == depth]
+                mine = [
+                    c for c in cases if c["engine"] == engine and c["shape"] == shape and c["start_depth_m"] == depth
+                ]
                 exact, quantised = [c for c in mine if not c["quantum_m"]], [c for c in mine if c["quantum_m"]]
                 summary[f"{engine}, {shape}, {depth * 1e3:.0f} mm deep"] = {
-                    "worst_peak_ratio": round(max(c["heightfield"]["peak_force_N"] / c["plane"]["peak_force_N"] for c in exact), 3),
-                    "worst_extra_motion_mm": round(max(c["heightfield"]["moved_mm"] - c["plane"]["moved_mm"] for c in exact), 3),
-                    "worst_extra_motion_mm_quantised": round(max(c["heightfield"]["moved_mm"] - c["plane"]["moved_mm"]
-                                                                 for c in quantised), 3)}
+                    "worst_peak_ratio": round(
+                        max(c["heightfield"]["peak_force_N"] / c["plane"]["peak_force_N"] for c in exact), 3
+                    ),
+                    "worst_extra_motion_mm": round(
+                        max(c["heightfield"]["moved_mm"] - c["plane"]["moved_mm"] for c in exact), 3
+                    ),
+                    "worst_extra_motion_mm_quantised": round(
+                        max(c["heightfield"]["moved_mm"] - c["plane"]["moved_mm"] for c in quantised), 3
+                    ),
+                }
     return summary
 
 
@@ -193,10 +237,12 @@ def main(argv=None):
     parser.add_argument("--engines", nargs="+", choices=("c", "mjx"), default=["c", "mjx"])
     parser.add_argument("--shapes", nargs="+", choices=SHAPES, default=list(SHAPES[:2]))
     parser.add_argument("--out", help="also write every case as JSON lines here")
-    parser.add_argument("--edge-radius-m", type=float, help="the edge capsules' radius, m",
-                        default=None)
-    parser.add_argument("--summarise", metavar="CASES_JSONL", help="no simulation: print the summary of the cases a "
-                        "run wrote with --out")
+    parser.add_argument("--edge-radius-m", type=float, help="the edge capsules' radius, m", default=None)
+    parser.add_argument(
+        "--summarise",
+        metavar="CASES_JSONL",
+        help="no simulation: print the summary of the cases a run wrote with --out",
+    )
     args = parser.parse_args(argv)
     import platform
 
@@ -204,8 +250,16 @@ def main(argv=None):
         with open(args.summarise) as f:
             cases = [json.loads(line) for line in f if line.strip()]
         engines = sorted({c["engine"] for c in cases})
-        print(json.dumps({"benchmark": "box_on_heightfield", "summarised_from": args.summarise,
-                          "summary": summarise(cases, engines), "cases": len(cases)}))
+        print(
+            json.dumps(
+                {
+                    "benchmark": "box_on_heightfield",
+                    "summarised_from": args.summarise,
+                    "summary": summarise(cases, engines),
+                    "cases": len(cases),
+                }
+            )
+        )
         return
     global EDGE_RADIUS_M
     if args.edge_radius_m is not None:
@@ -221,16 +275,35 @@ def main(argv=None):
                     for quantum in (0.0, 0.005):
                         for engine in args.engines:
                             field = measure(engine, "heightfield", slope, quantum, shape, spot, depth)
-                            case = {"shape": shape, "engine": engine, "slope_deg": slope, "spot": spot,
-                                    "start_depth_m": depth, "quantum_m": quantum, "plane": plane, "heightfield": field}
+                            case = {
+                                "shape": shape,
+                                "engine": engine,
+                                "slope_deg": slope,
+                                "spot": spot,
+                                "start_depth_m": depth,
+                                "quantum_m": quantum,
+                                "plane": plane,
+                                "heightfield": field,
+                            }
                             cases.append(case)
                             print(json.dumps(case), file=sys.stderr, flush=True)
     summary = summarise(cases, args.engines)
     if args.out:
         with open(args.out, "w") as f:
             f.writelines(json.dumps(c) + "\n" for c in cases)
-    print(json.dumps({"benchmark": "box_on_heightfield", "machine": platform.platform(), "mujoco": mujoco.__version__,
-                      "wall_s": round(time.time() - began, 1), "edge_radius_m": radius, "summary": summary, "cases": len(cases)}))
+    print(
+        json.dumps(
+            {
+                "benchmark": "box_on_heightfield",
+                "machine": platform.platform(),
+                "mujoco": mujoco.__version__,
+                "wall_s": round(time.time() - began, 1),
+                "edge_radius_m": radius,
+                "summary": summary,
+                "cases": len(cases),
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

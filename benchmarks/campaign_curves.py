@@ -15,9 +15,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-PANELS = (("episode/length", "episode length (policy steps)"),
-          ("episode/error/lin_vel_x_per_step", "forward velocity error (m/s)"),
-          ("episode/sum_reward", "episode return"))
+PANELS = (
+    ("episode/length", "episode length (policy steps)"),
+    ("episode/error/lin_vel_x_per_step", "forward velocity error (m/s)"),
+    ("episode/sum_reward", "episode return"),
+)
 LEVEL = ("episode/terrain/level_per_step", "mean terrain level (rough curriculum, 0-9)")
 
 
@@ -44,8 +46,9 @@ def main() -> None:
             ax.set_xlabel("environment steps (M)")
             ax.set_title(label, fontsize=9)
         if logs:
-            last[name] = {"global_step": logs[-1]["global_step"]} | {k.split("/")[-1]: round(logs[-1][k], 3)
-                                                                      for k, _ in panels if k in logs[-1]}
+            last[name] = {"global_step": logs[-1]["global_step"]} | {
+                k.split("/")[-1]: round(logs[-1][k], 3) for k, _ in panels if k in logs[-1]
+            }
     axes[1].set_ylim(0, 2.5)
     axes[0].legend(fontsize=8)
     fig.tight_layout()

@@ -72,6 +72,7 @@ def main(argv=None) -> int:
             d, worst = carry
             d = jax.vmap(mjx.step, in_axes=(None, 0))(mx, d)
             return (d, jp.maximum(worst, jax.vmap(gap)(d).max())), None
+
         (d, worst), _ = jax.lax.scan(body, (d, jp.zeros(())), None, length=chunk)
         return d, worst
 
@@ -88,15 +89,34 @@ def main(argv=None) -> int:
     elapsed = time.perf_counter() - t0
     finite = bool(np.isfinite(np.asarray(state.qpos)).all() and np.isfinite(np.asarray(state.qvel)).all())
     timed = max(0, steps // chunk - 1) * chunk
-    print(json.dumps({"benchmark": "closed_chain_mjx", "machine": platform.platform(), "device": str(jax.devices()[0]),
-                      "model": args.model, "batch": args.batch, "seconds": round(steps // chunk * chunk * model.opt.timestep, 4),
-                      "timestep": model.opt.timestep, "iterations": int(model.opt.iterations),
-                      "nv": model.nv, "connect_closures": len(connects), "compile_s": round(compile_s, 1),
-                      "physics_steps_per_s": round(args.batch * timed / elapsed, 1) if timed else None,
-                      "max_closure_gap_mm": round(1e3 * worst_gap, 3), "finite": finite,
-                      "slider_height_m": (round(float(np.asarray(state.qpos)[:, model.jnt_qposadr[model.joint("slider").id]].mean()), 4)
-                                          if args.model == "rig" else None),
-                      "base_height_m": (round(float(np.asarray(state.qpos)[:, 2].mean()), 4) if args.model == "robot" else None)}))
+    print(
+        json.dumps(
+            {
+                "benchmark": "closed_chain_mjx",
+                "machine": platform.platform(),
+                "device": str(jax.devices()[0]),
+                "model": args.model,
+                "batch": args.batch,
+                "seconds": round(steps // chunk * chunk * model.opt.timestep, 4),
+                "timestep": model.opt.timestep,
+                "iterations": int(model.opt.iterations),
+                "nv": model.nv,
+                "connect_closures": len(connects),
+                "compile_s": round(compile_s, 1),
+                "physics_steps_per_s": round(args.batch * timed / elapsed, 1) if timed else None,
+                "max_closure_gap_mm": round(1e3 * worst_gap, 3),
+                "finite": finite,
+                "slider_height_m": (
+                    round(float(np.asarray(state.qpos)[:, model.jnt_qposadr[model.joint("slider").id]].mean()), 4)
+                    if args.model == "rig"
+                    else None
+                ),
+                "base_height_m": (
+                    round(float(np.asarray(state.qpos)[:, 2].mean()), 4) if args.model == "robot" else None
+                ),
+            }
+        )
+    )
     return 0
 
 

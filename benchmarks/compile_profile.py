@@ -39,20 +39,34 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--tasks", nargs="+", default=["flat", "rough"], choices=list(envs.TASKS))
     p.add_argument("--feet", nargs="+", default=list(FEET), choices=list(FEET))
-    p.add_argument("--policies", nargs="+", default=["B"],
-                   help="policy types where the task has them (PH on ball feet falls back to P)")
+    p.add_argument(
+        "--policies",
+        nargs="+",
+        default=["B"],
+        help="policy types where the task has them (PH on ball feet falls back to P)",
+    )
     p.add_argument("--contact-models", nargs="+", default=["stance"], choices=["stance", "fast"])
     p.add_argument("--batch", type=int, default=128, help="robots in the batched reset and step")
-    p.add_argument("--shank-collisions", nargs="+", default=["on"], choices=["on", "off"],
-                   help="rough task: the shank tubes colliding with the terrain (EnvConfig.shank_collisions)")
+    p.add_argument(
+        "--shank-collisions",
+        nargs="+",
+        default=["on"],
+        choices=["on", "off"],
+        help="rough task: the shank tubes colliding with the terrain (EnvConfig.shank_collisions)",
+    )
     p.add_argument("--repeat-step", action="store_true", help="also time a second trace and lowering of the step")
     args = p.parse_args()
     if args.batch < 1:
         p.error(f"--batch must be at least 1 (got {args.batch})")
     # Cold compilation, whatever the environment sets (the GPU kit's run.sh sets JAX_COMPILATION_CACHE_DIR).
     jax.config.update("jax_enable_compilation_cache", False)
-    figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,
-               "mujoco": mujoco.__version__, "batch": args.batch}
+    figures = {
+        "machine": platform.platform(),
+        "device": str(jax.devices()[0]),
+        "jax": jax.__version__,
+        "mujoco": mujoco.__version__,
+        "batch": args.batch,
+    }
     for task in args.tasks:
         for feet in args.feet:
             policies = envs.policy_types(task, feet, args.policies)
@@ -60,8 +74,9 @@ def main() -> None:
             for policy in policies:
                 for contact in args.contact_models:
                     for shank in shanks:
-                        config = replace(envs.default_config(task, feet, policy, contact),
-                                         shank_collisions=shank == "on")
+                        config = replace(
+                            envs.default_config(task, feet, policy, contact), shank_collisions=shank == "on"
+                        )
                         name = f"{task}_{feet}_{policy}_{contact}" + ("" if shank == "on" else "_noshank")
                         figures[name] = profile(envs.from_config(config), args.batch, args.repeat_step)
                         print(f"{name}: {figures[name]}", flush=True)
@@ -72,8 +87,14 @@ def model_sizes(env) -> dict:
     """The model's sizes that the compiled program's size follows."""
     m = env.robot.model
     groups = _collision_groups(m)
-    return {"nbody": m.nbody, "nv": m.nv, "ngeom": m.ngeom, "nhfield": m.nhfield,
-            "collision_pairs": sum(groups.values()), "collision_groups": groups}
+    return {
+        "nbody": m.nbody,
+        "nv": m.nv,
+        "ngeom": m.ngeom,
+        "nhfield": m.nhfield,
+        "collision_pairs": sum(groups.values()),
+        "collision_groups": groups,
+    }
 
 
 def _collision_groups(m: mujoco.MjModel) -> dict[str, int]:
@@ -86,8 +107,9 @@ def _collision_groups(m: mujoco.MjModel) -> dict[str, int]:
                 continue
             if not ((m.geom_contype[i] & m.geom_conaffinity[j]) or (m.geom_contype[j] & m.geom_conaffinity[i])):
                 continue
-            key = "-".join(sorted(mujoco.mjtGeom(int(m.geom_type[g])).name.removeprefix("mjGEOM_").lower()
-                                  for g in (i, j)))
+            key = "-".join(
+                sorted(mujoco.mjtGeom(int(m.geom_type[g])).name.removeprefix("mjGEOM_").lower() for g in (i, j))
+            )
             groups[key] = groups.get(key, 0) + 1
     return groups
 

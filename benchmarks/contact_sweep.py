@@ -54,8 +54,13 @@ SETTINGS = {
 """solref time constants below 2 steps (10 ms) are raised to 10 ms by MuJoCo (refsafe)."""
 
 
-def configure(model: mujoco.MjModel, setting: str, leg_armature: float | None = None,
-              foot_armature: float | None = None, integrator: str | None = None) -> mujoco.MjModel:
+def configure(
+    model: mujoco.MjModel,
+    setting: str,
+    leg_armature: float | None = None,
+    foot_armature: float | None = None,
+    integrator: str | None = None,
+) -> mujoco.MjModel:
     cone, impratio, solimp, timeconst, iterations, ls_iterations, *step = SETTINGS[setting]
     m = copy.copy(model)
     if step:
@@ -67,8 +72,10 @@ def configure(model: mujoco.MjModel, setting: str, leg_armature: float | None = 
     m.geom_solimp[:, 2] = 0.001
     m.geom_solref[:, 0] = timeconst
     if integrator is not None:
-        m.opt.integrator = {"euler": mujoco.mjtIntegrator.mjINT_EULER,
-                            "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}[integrator]
+        m.opt.integrator = {
+            "euler": mujoco.mjtIntegrator.mjINT_EULER,
+            "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+        }[integrator]
     # armature (reflected rotor inertia, kg m^2) of the actuated leg joints and of the passive foot joints
     legs = m.jnt_dofadr[m.actuator_trnid[:, 0]]
     if leg_armature is not None:
@@ -140,8 +147,10 @@ def run_mjx(m, robot, qvel, steps, settle):
     _, (z, xy) = jax.block_until_ready(run(batch))
     wall = time.perf_counter() - start
     out = summarise(np.asarray(z), np.asarray(xy), np.ones(len(qvel), bool), settle)
-    return out | {"us_per_robot_step": round(1e6 * wall / steps / len(qvel), 1),
-                  "compile_s": round(compile_and_run - wall, 1)}
+    return out | {
+        "us_per_robot_step": round(1e6 * wall / steps / len(qvel), 1),
+        "compile_s": round(compile_and_run - wall, 1),
+    }
 
 
 def main(argv=None) -> int:
@@ -154,16 +163,29 @@ def main(argv=None) -> int:
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--integrator", choices=["euler", "implicitfast"], help="default: the model's")
-    p.add_argument("--leg-armature", type=float, help="armature of the 12 actuated joints, kg m^2 (default: the model's)")
-    p.add_argument("--foot-armature", type=float, help="armature of the passive foot joints, kg m^2 (default: the model's)")
+    p.add_argument(
+        "--leg-armature", type=float, help="armature of the 12 actuated joints, kg m^2 (default: the model's)"
+    )
+    p.add_argument(
+        "--foot-armature", type=float, help="armature of the passive foot joints, kg m^2 (default: the model's)"
+    )
     args = p.parse_args(argv)
 
     from footforge.envs.anymal import load_robot
     from footforge.envs.config import EnvConfig
 
-    out = {"benchmark": "contact_sweep", "machine": platform.platform(), "mujoco": mujoco.__version__,
-           "sim": args.sim, "robots": args.robots, "amp": args.amp, "seconds": args.seconds,
-           "integrator": args.integrator, "leg_armature": args.leg_armature, "foot_armature": args.foot_armature}
+    out = {
+        "benchmark": "contact_sweep",
+        "machine": platform.platform(),
+        "mujoco": mujoco.__version__,
+        "sim": args.sim,
+        "robots": args.robots,
+        "amp": args.amp,
+        "seconds": args.seconds,
+        "integrator": args.integrator,
+        "leg_armature": args.leg_armature,
+        "foot_armature": args.foot_armature,
+    }
     for feet in args.feet:
         robot = load_robot(EnvConfig(feet=feet))
         qvel = initial_velocities(robot.model, args.robots, args.amp, args.seed)

@@ -23,7 +23,9 @@ from pathlib import Path
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--policy", type=Path, nargs="+", default=[Path("policies/flat_aof_B"), Path("policies/flat_ball_B")])
+    p.add_argument(
+        "--policy", type=Path, nargs="+", default=[Path("policies/flat_aof_B"), Path("policies/flat_ball_B")]
+    )
     p.add_argument("--num-envs", type=int, default=32)
     p.add_argument("--seconds", type=float, default=20.0)
     p.add_argument("--seed", type=int, default=0)
@@ -45,15 +47,37 @@ def main() -> int:
             r = evaluate(folder, num_envs=args.num_envs, seconds=args.seconds, seed=args.seed, physics=physics)
             w = r["walking"]
             rows.setdefault(str(path), {})[physics] = {
-                "verdict": w["verdict"], "line": w["line"], "falls": r["falls"], "diverged": r["diverged"],
-                "uptime": w["uptime"], "forward_error_mps": w["forward_error_mps"], "base_height_m": w["base_height_m"],
-                "gait": w["gait"], "wall_s": round(time.perf_counter() - start, 1)}
-            print(f"{path} [{physics}]: {w['line']}, {r['falls']} of {args.num_envs} fell "
-                  f"({time.perf_counter() - start:.0f} s)", file=sys.stderr, flush=True)
+                "verdict": w["verdict"],
+                "line": w["line"],
+                "falls": r["falls"],
+                "diverged": r["diverged"],
+                "uptime": w["uptime"],
+                "forward_error_mps": w["forward_error_mps"],
+                "base_height_m": w["base_height_m"],
+                "gait": w["gait"],
+                "wall_s": round(time.perf_counter() - start, 1),
+            }
+            print(
+                f"{path} [{physics}]: {w['line']}, {r['falls']} of {args.num_envs} fell "
+                f"({time.perf_counter() - start:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
     same = all(len({e["verdict"] for e in engines.values()}) == 1 for engines in rows.values())
-    print(json.dumps({"benchmark": "engine_verdicts", "machine": platform.platform(), "backend": jax.default_backend(),
-                      "num_envs": args.num_envs, "seconds": args.seconds, "seed": args.seed,
-                      "same_verdict": same, "policies": rows}))
+    print(
+        json.dumps(
+            {
+                "benchmark": "engine_verdicts",
+                "machine": platform.platform(),
+                "backend": jax.default_backend(),
+                "num_envs": args.num_envs,
+                "seconds": args.seconds,
+                "seed": args.seed,
+                "same_verdict": same,
+                "policies": rows,
+            }
+        )
+    )
     return 0
 
 

@@ -53,34 +53,75 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=20, help="policy steps timed per batch size")
     p.add_argument("--feet", nargs="+", default=list(FEET))
     p.add_argument("--tasks", nargs="+", default=["flat", "rough"], choices=list(envs.TASKS))
-    p.add_argument("--policies", nargs="+", default=["B", "PH"],
-                   help="policy types where the task has them (PH on ball feet falls back to P)")
-    p.add_argument("--contact-models", nargs="+", default=["stance", "fast"], choices=["stance", "fast"],
-                   help="EnvConfig.contact_model values to measure (default both: stance, the environments' "
-                        "default, and fast)")
+    p.add_argument(
+        "--policies",
+        nargs="+",
+        default=["B", "PH"],
+        help="policy types where the task has them (PH on ball feet falls back to P)",
+    )
+    p.add_argument(
+        "--contact-models",
+        nargs="+",
+        default=["stance", "fast"],
+        choices=["stance", "fast"],
+        help="EnvConfig.contact_model values to measure (default both: stance, the environments' default, and fast)",
+    )
     p.add_argument("--float64-physics", action="store_true", help="MJX in float64 (EnvConfig.float64_physics)")
-    p.add_argument("--shank-collisions", nargs="+", default=["on"], choices=["on", "off"],
-                   help="rough task: shank tubes colliding with the terrain (EnvConfig.shank_collisions); "
-                        "'on off' measures both (keys of 'off' end in _noshank before _b<batch>)")
-    p.add_argument("--heightfield-soles", nargs="+", default=["spheres"], choices=["spheres", "box"],
-                   help="rough AFF/AOF: the sole colliders on the heightfield (EnvConfig.heightfield_soles); "
-                        "'spheres box' measures both (keys of 'box' end in _soleboxes before _b<batch>)")
-    p.add_argument("--no-compile-cache", action="store_true",
-                   help="measure cold compilation: without JAX's persistent cache (footforge/rl/compile_cache.py)")
-    p.add_argument("--playground", action="store_true",
-                   help="also MuJoCo Playground's Go1 joystick for each task and batch size (keys "
-                        "playground_go1_<task>_b<batch>; needs the bench extra)")
-    p.add_argument("--mjx-impl", choices=["jax", "warp"], default="jax",
-                   help="MJX's backend (EnvConfig.mjx_impl): warp needs MuJoCo Warp and an NVIDIA GPU")
-    p.add_argument("--build-roots", nargs="+", default=[""], metavar="[LABEL=]DIR",
-                   help="builds to measure, each holding <DIR>/<feet>/ (default: the environments' own, build/); "
-                        "a LABEL is added to the keys (<task>_<feet>_<policy>_<LABEL>..._b<batch>), so that "
-                        "builds from different parameter files are measured in one run")
-    p.add_argument("--physics", nargs="+", default=["mjx"], choices=["mjx", "mujoco"],
-                   help="engines to measure (EnvConfig.physics): keys of mujoco end in _mujoco before _b<batch>")
-    p.add_argument("--raw-c", action="store_true",
-                   help="with --physics mujoco: also MuJoCo's C engine alone (mujoco.rollout) on the same model, "
-                        "1 thread and all (keys <name>_raw_c<threads>_b<batch>)")
+    p.add_argument(
+        "--shank-collisions",
+        nargs="+",
+        default=["on"],
+        choices=["on", "off"],
+        help="rough task: shank tubes colliding with the terrain (EnvConfig.shank_collisions); "
+        "'on off' measures both (keys of 'off' end in _noshank before _b<batch>)",
+    )
+    p.add_argument(
+        "--heightfield-soles",
+        nargs="+",
+        default=["spheres"],
+        choices=["spheres", "box"],
+        help="rough AFF/AOF: the sole colliders on the heightfield (EnvConfig.heightfield_soles); "
+        "'spheres box' measures both (keys of 'box' end in _soleboxes before _b<batch>)",
+    )
+    p.add_argument(
+        "--no-compile-cache",
+        action="store_true",
+        help="measure cold compilation: without JAX's persistent cache (footforge/rl/compile_cache.py)",
+    )
+    p.add_argument(
+        "--playground",
+        action="store_true",
+        help="also MuJoCo Playground's Go1 joystick for each task and batch size (keys "
+        "playground_go1_<task>_b<batch>; needs the bench extra)",
+    )
+    p.add_argument(
+        "--mjx-impl",
+        choices=["jax", "warp"],
+        default="jax",
+        help="MJX's backend (EnvConfig.mjx_impl): warp needs MuJoCo Warp and an NVIDIA GPU",
+    )
+    p.add_argument(
+        "--build-roots",
+        nargs="+",
+        default=[""],
+        metavar="[LABEL=]DIR",
+        help="builds to measure, each holding <DIR>/<feet>/ (default: the environments' own, build/); "
+        "a LABEL is added to the keys (<task>_<feet>_<policy>_<LABEL>..._b<batch>), so that "
+        "builds from different parameter files are measured in one run",
+    )
+    p.add_argument(
+        "--physics",
+        nargs="+",
+        default=["mjx"],
+        choices=["mjx", "mujoco"],
+        help="engines to measure (EnvConfig.physics): keys of mujoco end in _mujoco before _b<batch>",
+    )
+    p.add_argument(
+        "--raw-c",
+        action="store_true",
+        help="with --physics mujoco: also MuJoCo's C engine alone (mujoco.rollout) on the same model, "
+        "1 thread and all (keys <name>_raw_c<threads>_b<batch>)",
+    )
     args = p.parse_args()
     if args.mjx_impl != "jax":  # refused before any compiling, as a usage error (exit 2)
         from footforge.envs.anymal import check_mjx_impl
@@ -108,9 +149,14 @@ def main() -> None:
     from footforge.rl import compile_cache
 
     cache = compile_cache.enable(not args.no_compile_cache)
-    figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,
-               "mjx_impl": args.mjx_impl,
-               "compile_cache": str(cache) if cache else None, "float64_physics": args.float64_physics}
+    figures = {
+        "machine": platform.platform(),
+        "device": str(jax.devices()[0]),
+        "jax": jax.__version__,
+        "mjx_impl": args.mjx_impl,
+        "compile_cache": str(cache) if cache else None,
+        "float64_physics": args.float64_physics,
+    }
     if go1:
         figures["playground"] = go1.version()
     for task in args.tasks:
@@ -119,28 +165,44 @@ def main() -> None:
             shanks = args.shank_collisions if task == "rough" else ["on"]
             soles = args.heightfield_soles if task == "rough" and feet != "ball" else ["spheres"]
             for policy, contact, shank, sole, (label, root), engine in (
-                    (kind, model, on, so, r, e) for kind in policies for model in args.contact_models for on in shanks
-                    for so in soles for r in roots for e in args.physics):
+                (kind, model, on, so, r, e)
+                for kind in policies
+                for model in args.contact_models
+                for on in shanks
+                for so in soles
+                for r in roots
+                for e in args.physics
+            ):
                 config = envs.default_config(task, feet, policy, contact)
-                env = envs.from_config(replace(envs.with_float64_physics(config, args.float64_physics),
-                                               shank_collisions=shank == "on", mjx_impl=args.mjx_impl,
-                                               build_dir=f"{root}/{feet}" if root else config.build_dir,
-                                               physics=engine, heightfield_soles=sole))
-                name = (f"{task}_{feet}_{policy}" + (f"_{label}" if label else "")
-                        + ("" if contact == "fast" else f"_{contact}") + ("" if shank == "on" else "_noshank")
-                        + ("" if sole == "spheres" else "_soleboxes"))
+                env = envs.from_config(
+                    replace(
+                        envs.with_float64_physics(config, args.float64_physics),
+                        shank_collisions=shank == "on",
+                        mjx_impl=args.mjx_impl,
+                        build_dir=f"{root}/{feet}" if root else config.build_dir,
+                        physics=engine,
+                        heightfield_soles=sole,
+                    )
+                )
+                name = (
+                    f"{task}_{feet}_{policy}"
+                    + (f"_{label}" if label else "")
+                    + ("" if contact == "fast" else f"_{contact}")
+                    + ("" if shank == "on" else "_noshank")
+                    + ("" if sole == "spheres" else "_soleboxes")
+                )
                 for batch in args.batches:
                     suffix = "_mujoco" if engine == "mujoco" else ""
                     figures[f"{name}{suffix}_b{batch}"] = _measure(env, batch, args.steps)
                     if args.raw_c and engine == "mujoco":
                         for threads in sorted({1, env.physics._rollouts.threads}):
-                            figures[f"{name}_raw_c{threads}_b{batch}"] = _measure_raw_c(env, batch, args.steps,
-                                                                                        threads)
+                            figures[f"{name}_raw_c{threads}_b{batch}"] = _measure_raw_c(env, batch, args.steps, threads)
         if go1 and task in go1.ENV_NAMES:
             env, meshes = go1.make_env(task)
             for batch in args.batches:
                 figures[f"playground_go1_{task}_b{batch}"] = go1.measure(task, batch, args.steps, env=env) | {
-                    "meshes": meshes}
+                    "meshes": meshes
+                }
     print(json.dumps(figures))
 
 
@@ -159,8 +221,11 @@ def _measure(env, batch: int, steps: int) -> dict:
         state = step(state, actions)
     jax.block_until_ready(state.obs)
     rate = batch * steps / (time.perf_counter() - t0)
-    return {"compile_s": round(compile_s, 1), "policy_steps_per_s": round(rate, 1),
-            "physics_steps_per_s": round(rate * env.config.decimation, 1)}
+    return {
+        "compile_s": round(compile_s, 1),
+        "policy_steps_per_s": round(rate, 1),
+        "physics_steps_per_s": round(rate * env.config.decimation, 1),
+    }
 
 
 def _measure_raw_c(env, batch: int, steps: int, threads: int) -> dict:
@@ -172,20 +237,25 @@ def _measure_raw_c(env, batch: int, steps: int, threads: int) -> dict:
 
     engine = env.physics
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), batch)).pipeline_state
-    start = engine._initial_state(np.asarray(state.qpos), np.asarray(state.qpos_rest), np.asarray(state.qvel),
-                                  np.asarray(state.qvel_rest))
+    start = engine._initial_state(
+        np.asarray(state.qpos), np.asarray(state.qpos_rest), np.asarray(state.qvel), np.asarray(state.qvel_rest)
+    )
     control = np.repeat(np.asarray(state.ctrl, np.float64)[:, None, :], env.config.decimation, axis=1)
     warm = np.zeros((batch, engine.model.nv))
     with rollout.Rollout(nthread=threads if threads > 1 else 0) as pool:
         datas = [mujoco.MjData(engine.model) for _ in range(threads)]
         t0 = time.perf_counter()
         for _ in range(steps):
-            states, _ = pool.rollout(engine.model, datas, start, control, nstep=env.config.decimation,
-                                     initial_warmstart=warm)
+            states, _ = pool.rollout(
+                engine.model, datas, start, control, nstep=env.config.decimation, initial_warmstart=warm
+            )
             start = states[:, -1]
         rate = batch * steps / (time.perf_counter() - t0)
-    return {"threads": threads, "policy_steps_per_s": round(rate, 1),
-            "physics_steps_per_s": round(rate * env.config.decimation, 1)}
+    return {
+        "threads": threads,
+        "policy_steps_per_s": round(rate, 1),
+        "physics_steps_per_s": round(rate * env.config.decimation, 1),
+    }
 
 
 if __name__ == "__main__":

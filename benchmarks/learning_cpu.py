@@ -55,8 +55,15 @@ from pathlib import Path
 
 from footforge.variants import FEET
 
-_LEGACY_SIZE = ("ppo.num_envs=128", "ppo.unroll_length=24", "ppo.batch_size=64", "ppo.num_minibatches=4",
-                "ppo.num_eval_envs=64", "ppo.checkpoint_every_steps=500000", "ppo.num_timesteps=5000000")
+_LEGACY_SIZE = (
+    "ppo.num_envs=128",
+    "ppo.unroll_length=24",
+    "ppo.batch_size=64",
+    "ppo.num_minibatches=4",
+    "ppo.num_eval_envs=64",
+    "ppo.checkpoint_every_steps=500000",
+    "ppo.num_timesteps=5000000",
+)
 LEGACY_PRESETS = {
     "full": ("default", _LEGACY_SIZE + ("env.commands.lin_vel_x_range=-1,1", "env.commands.lin_vel_y_range=-0.5,0.5")),
     "forward": ("forward", ("env.contact_model=stance",) + _LEGACY_SIZE),
@@ -71,22 +78,41 @@ TOKENS = {
     "today": (),
     "position": ("env.action=position", "env.action_scale=0.5", "env.observations.pd_targets=false"),
     "velocity": ("env.action=velocity", "env.action_scale=13.5", "env.observations.pd_targets=true"),
-    "ppo": ("ppo.learning_rate=0.001", "ppo.adaptive_kl=0.01", "ppo.entropy_cost=0.01",
-            "ppo.policy_output_init_scale=0.01"),
-    "paper_ppo": ("ppo.learning_rate=0.0003", "ppo.adaptive_kl=0.008", "ppo.entropy_cost=0.001",
-                  "ppo.policy_output_init_scale=1.0"),
+    "ppo": (
+        "ppo.learning_rate=0.001",
+        "ppo.adaptive_kl=0.01",
+        "ppo.entropy_cost=0.01",
+        "ppo.policy_output_init_scale=0.01",
+    ),
+    "paper_ppo": (
+        "ppo.learning_rate=0.0003",
+        "ppo.adaptive_kl=0.008",
+        "ppo.entropy_cost=0.001",
+        "ppo.policy_output_init_scale=1.0",
+    ),
     "bound": ("ppo.policy_mean_clip=1.5",),
-    "rewards": ("env.rewards.lin_vel_xy.scale=2.0", "env.rewards.yaw_rate.scale=1.0", "env.rewards.base_height.scale=-2.0"),
-    "paper_rewards": ("env.rewards.lin_vel_xy.scale=1.0", "env.rewards.yaw_rate.scale=0.5",
-                      "env.rewards.base_height.scale=-10.0"),
+    "rewards": (
+        "env.rewards.lin_vel_xy.scale=2.0",
+        "env.rewards.yaw_rate.scale=1.0",
+        "env.rewards.base_height.scale=-2.0",
+    ),
+    "paper_rewards": (
+        "env.rewards.lin_vel_xy.scale=1.0",
+        "env.rewards.yaw_rate.scale=0.5",
+        "env.rewards.base_height.scale=-10.0",
+    ),
     "noclip": ("env.rewards.clip_total_at_zero=false",),
     "airtime": ("env.rewards.feet_air_time.scale=1.0",),
     "stance": ("env.contact_model=stance",),
     "fast": ("env.contact_model=fast",),
 }
 """Each variant token's overrides (footforge.rl.presets' form)."""
-VALUED = {"airtime": lambda x: f"env.rewards.feet_air_time.scale={x}", "entropy": lambda x: f"ppo.entropy_cost={x}",
-          "height": lambda x: f"env.rewards.base_height.scale={-x}", "resample": lambda x: f"env.commands.resample_s={x}"}
+VALUED = {
+    "airtime": lambda x: f"env.rewards.feet_air_time.scale={x}",
+    "entropy": lambda x: f"ppo.entropy_cost={x}",
+    "height": lambda x: f"env.rewards.base_height.scale={-x}",
+    "resample": lambda x: f"env.commands.resample_s={x}",
+}
 """NAME=X tokens: the override of X (X >= 0; X > 0 for resample)."""
 
 
@@ -122,40 +148,74 @@ def configure(feet: str, preset: str, variant: str, flags: list[str], sets: list
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))  # the first paragraph, whole
     p.add_argument("--out", type=Path, required=True, help="run folder (a new one, or the run to --resume)")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out from its newest checkpoint "
-                   "(parameters only: Brax restarts Adam and the adaptive learning rate)")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --out from its newest checkpoint "
+        "(parameters only: Brax restarts Adam and the adaptive learning rate)",
+    )
     p.add_argument("--feet", default="ball", choices=FEET)
     from footforge.rl.presets import PRESETS
 
-    p.add_argument("--preset", default="full", choices=sorted(set(PRESETS["flat"]) | set(LEGACY_PRESETS)),
-                   help="this benchmark's full or forward (LEGACY_PRESETS; default full), or footforge's flat "
-                        "preset default, cpu or paper")
-    p.add_argument("--variant", default="today",
-                   help=f"'+'-joined tokens among {', '.join(TOKENS)}, {', '.join(f'{k}=X' for k in VALUED)} (default today)")
-    p.add_argument("--set", action="append", default=[], dest="overrides", metavar="SECTION.FIELD=VALUE",
-                   help="any other override, after the variant (footforge train's --set)")
+    p.add_argument(
+        "--preset",
+        default="full",
+        choices=sorted(set(PRESETS["flat"]) | set(LEGACY_PRESETS)),
+        help="this benchmark's full or forward (LEGACY_PRESETS; default full), or footforge's flat "
+        "preset default, cpu or paper",
+    )
+    p.add_argument(
+        "--variant",
+        default="today",
+        help=f"'+'-joined tokens among {', '.join(TOKENS)}, {', '.join(f'{k}=X' for k in VALUED)} (default today)",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        dest="overrides",
+        metavar="SECTION.FIELD=VALUE",
+        help="any other override, after the variant (footforge train's --set)",
+    )
     p.add_argument("--timesteps", type=int, help="(default: the preset's; full and forward: 5,000,000)")
     p.add_argument("--num-envs", type=int, help="(default: the preset's, 128 for cpu)")
     p.add_argument("--unroll-length", type=int)
     p.add_argument("--batch-size", type=int, help="trajectories per minibatch (default: the preset's)")
     p.add_argument("--minibatches", type=int)
-    p.add_argument("--eval-every", type=int, help="env steps between checkpoints (and evaluations; default: the preset's)")
+    p.add_argument(
+        "--eval-every", type=int, help="env steps between checkpoints (and evaluations; default: the preset's)"
+    )
     p.add_argument("--eval-envs", type=int)
-    p.add_argument("--no-evaluations", action="store_true",
-                   help="no deterministic evaluations (the curve is the training episodes'; on a GPU one costs "
-                        "about 20 PPO iterations)")
+    p.add_argument(
+        "--no-evaluations",
+        action="store_true",
+        help="no deterministic evaluations (the curve is the training episodes'; on a GPU one costs "
+        "about 20 PPO iterations)",
+    )
     p.add_argument("--seed", type=int, help="(default: the preset's, 0)")
-    p.add_argument("--physics", default="auto", choices=["auto", "mjx", "mujoco"],
-                   help="the engine (EnvConfig.physics; auto: MuJoCo's C engine on a CPU, MJX elsewhere); "
-                        "the verdict's evaluation uses the same")
-    p.add_argument("--max-minutes", type=float,
-                   help="stop at the checkpoint before this wall time (train's max_wall_s)")
-    p.add_argument("--init-from", type=Path, metavar="RUN",
-                   help="a new run starting from RUN's newest checkpoint (train's init_from), with this "
-                        "command's --variant settings: fine-tuning")
+    p.add_argument(
+        "--physics",
+        default="auto",
+        choices=["auto", "mjx", "mujoco"],
+        help="the engine (EnvConfig.physics; auto: MuJoCo's C engine on a CPU, MJX elsewhere); "
+        "the verdict's evaluation uses the same",
+    )
+    p.add_argument(
+        "--max-minutes", type=float, help="stop at the checkpoint before this wall time (train's max_wall_s)"
+    )
+    p.add_argument(
+        "--init-from",
+        type=Path,
+        metavar="RUN",
+        help="a new run starting from RUN's newest checkpoint (train's init_from), with this "
+        "command's --variant settings: fine-tuning",
+    )
     p.add_argument("--build-dir", type=Path, help="footforge build of the feet (default build/<feet>)")
-    p.add_argument("--no-verdict", action="store_true",
-                   help="skip the final policy's walking verdict (pipelines/evaluate.py measures it later)")
+    p.add_argument(
+        "--no-verdict",
+        action="store_true",
+        help="skip the final policy's walking verdict (pipelines/evaluate.py measures it later)",
+    )
     args = p.parse_args(argv)
     if args.out.exists() and not args.resume:
         p.error(f"--out {args.out} exists; give a new folder, or --resume")
@@ -171,14 +231,24 @@ def main(argv=None) -> int:
 
     from footforge.rl import train
 
-    flags = [f"ppo.{field}={value}" for field, value in (
-        ("num_timesteps", args.timesteps),
-        ("num_envs", args.num_envs), ("unroll_length", args.unroll_length),
-        # As before presets: half the robots per minibatch where --num-envs is given alone.
-        ("batch_size", args.batch_size if args.batch_size is not None or args.num_envs is None else args.num_envs // 2),
-        ("num_minibatches", args.minibatches),
-        ("checkpoint_every_steps", args.eval_every), ("num_eval_envs", args.eval_envs), ("seed", args.seed))
-        if value is not None]
+    flags = [
+        f"ppo.{field}={value}"
+        for field, value in (
+            ("num_timesteps", args.timesteps),
+            ("num_envs", args.num_envs),
+            ("unroll_length", args.unroll_length),
+            # As before presets: half the robots per minibatch where --num-envs is given alone.
+            (
+                "batch_size",
+                args.batch_size if args.batch_size is not None or args.num_envs is None else args.num_envs // 2,
+            ),
+            ("num_minibatches", args.minibatches),
+            ("checkpoint_every_steps", args.eval_every),
+            ("num_eval_envs", args.eval_envs),
+            ("seed", args.seed),
+        )
+        if value is not None
+    ]
     from footforge.errors import InputError
 
     try:
@@ -196,8 +266,10 @@ def main(argv=None) -> int:
 
     cfg = replace(cfg, physics=engine.resolve(args.physics))
     t0 = time.time()
-    print(f"{args.feet} {args.preset} {args.variant} on {jax.default_backend()} ({jax.device_count()} device(s))",
-          flush=True)
+    print(
+        f"{args.feet} {args.preset} {args.variant} on {jax.default_backend()} ({jax.device_count()} device(s))",
+        flush=True,
+    )
     print("env steps | wall s | episode length (policy steps) | forward error m/s | base height m | source", flush=True)
 
     printed = set()
@@ -205,8 +277,10 @@ def main(argv=None) -> int:
     def progress(step, total, metrics, evaluation):
         if "eval/episode_reward" in metrics and evaluation:
             src, length = "eval", metrics["eval/avg_episode_length"]
-            err, height = metrics["eval/episode_error/lin_vel_x_per_step"], metrics.get(
-                "eval/episode_base_height_m_per_step", float("nan"))
+            err, height = (
+                metrics["eval/episode_error/lin_vel_x_per_step"],
+                metrics.get("eval/episode_base_height_m_per_step", float("nan")),
+            )
         elif "episode/length" in metrics:
             src, length = "train", metrics["episode/length"]
             err = metrics.get("episode/error/lin_vel_x_per_step", float("nan"))
@@ -218,40 +292,77 @@ def main(argv=None) -> int:
         printed.add((step, src))
         print(f"{step:>9,} | {time.time() - t0:6.0f} | {length:6.1f} | {err:.3f} | {height:.3f} | {src}", flush=True)
 
-    train.train(cfg, ppo, args.out, progress=progress, resume=args.resume, evaluate=not args.no_evaluations,
-                max_wall_s=args.max_minutes * 60 if args.max_minutes else None, init_from=args.init_from,
-                recipe=recipe)
+    train.train(
+        cfg,
+        ppo,
+        args.out,
+        progress=progress,
+        resume=args.resume,
+        evaluate=not args.no_evaluations,
+        max_wall_s=args.max_minutes * 60 if args.max_minutes else None,
+        init_from=args.init_from,
+        recipe=recipe,
+    )
     curve = []
     for e in map(json.loads, (args.out / "metrics.jsonl").read_text().splitlines()):
         key = "eval/" if "eval/episode_reward" in e else "episode/" if "episode/length" in e else None
         if key is None:
             continue
-        curve.append({"env_steps": e["global_step"], "wall_s": round(e["wall_s"], 1), "source": key[:-1],
-                      "episode_length": e.get("eval/avg_episode_length", e.get("episode/length")),
-                      "forward_error_mps": e.get(f"{key}episode_error/lin_vel_x_per_step" if key == "eval/"
-                                                 else "episode/error/lin_vel_x_per_step"),
-                      "base_height_m": e.get(f"{key}episode_base_height_m_per_step" if key == "eval/"
-                                             else "episode/base_height_m_per_step")})
+        curve.append(
+            {
+                "env_steps": e["global_step"],
+                "wall_s": round(e["wall_s"], 1),
+                "source": key[:-1],
+                "episode_length": e.get("eval/avg_episode_length", e.get("episode/length")),
+                "forward_error_mps": e.get(
+                    f"{key}episode_error/lin_vel_x_per_step" if key == "eval/" else "episode/error/lin_vel_x_per_step"
+                ),
+                "base_height_m": e.get(
+                    f"{key}episode_base_height_m_per_step" if key == "eval/" else "episode/base_height_m_per_step"
+                ),
+            }
+        )
     train_s = round(time.time() - t0, 1)
-    result = {"benchmark": "learning_cpu", "machine": platform.platform(), "cpu_cores": os.cpu_count(),
-              "backend": jax.default_backend(), "jax_devices": jax.device_count(), "feet": args.feet,
-              "preset": args.preset, "variant": args.variant,
-              "recipe": json.loads((args.out / "config.json").read_text()).get("recipe"),
-              # what was trained (the run's last checkpoint), not the curve's last row
-              "steps": json.loads((args.out / "progress.json").read_text()).get("global_step", 0)
-              if (args.out / "progress.json").is_file() else 0,
-              "num_envs": ppo.num_envs, "wall_s": train_s, "physics": cfg.physics}
+    result = {
+        "benchmark": "learning_cpu",
+        "machine": platform.platform(),
+        "cpu_cores": os.cpu_count(),
+        "backend": jax.default_backend(),
+        "jax_devices": jax.device_count(),
+        "feet": args.feet,
+        "preset": args.preset,
+        "variant": args.variant,
+        "recipe": json.loads((args.out / "config.json").read_text()).get("recipe"),
+        # what was trained (the run's last checkpoint), not the curve's last row
+        "steps": json.loads((args.out / "progress.json").read_text()).get("global_step", 0)
+        if (args.out / "progress.json").is_file()
+        else 0,
+        "num_envs": ppo.num_envs,
+        "wall_s": train_s,
+        "physics": cfg.physics,
+    }
     if not args.no_verdict:  # the final policy, deterministic, 32 robots x 20 s (footforge.rl.verdict)
         from footforge.rl.evaluate import evaluate
 
-        r = evaluate(args.out / "policy", num_envs=32, seconds=20.0, seed=ppo.seed, build_dir=cfg.build_dir,
-                     physics=cfg.physics)
+        r = evaluate(
+            args.out / "policy", num_envs=32, seconds=20.0, seed=ppo.seed, build_dir=cfg.build_dir, physics=cfg.physics
+        )
         w = r["walking"]
-        result |= {"verdict": w["verdict"], "verdict_line": w["line"], "forward_error": w["forward_error_mps"],
-                   "vx_slope": w["vx_slope"], "uptime": w["uptime"], "time_up_s": round(w["uptime"] * 20.0, 2),
-                   "base_height_m": w["base_height_m"], "stance_fraction": w["stance_fraction"],
-                   "gait": w["gait"], "pair_agreement": w["pair_agreement"],
-                   "clipped_fraction": r["clipped_fraction"], "falls": r["falls"], "eval_wall_s": round(time.time() - t0 - train_s, 1)}
+        result |= {
+            "verdict": w["verdict"],
+            "verdict_line": w["line"],
+            "forward_error": w["forward_error_mps"],
+            "vx_slope": w["vx_slope"],
+            "uptime": w["uptime"],
+            "time_up_s": round(w["uptime"] * 20.0, 2),
+            "base_height_m": w["base_height_m"],
+            "stance_fraction": w["stance_fraction"],
+            "gait": w["gait"],
+            "pair_agreement": w["pair_agreement"],
+            "clipped_fraction": r["clipped_fraction"],
+            "falls": r["falls"],
+            "eval_wall_s": round(time.time() - t0 - train_s, 1),
+        }
     print(json.dumps(_finite_or_none(result | {"curve": curve}), allow_nan=False))  # NaN is not JSON
     return 0
 

@@ -112,8 +112,7 @@ def _scene(terrain: str, meshes: dict[str, bytes] | None, strip_visual: bool = F
     assets = base.get_assets()  # Playground's own XML files and textures/heightfield
     files = {k: v for k, v in assets.items() if not k.endswith(".xml")} | (meshes or {})
     include = {k: v for k, v in assets.items() if k.endswith(".xml")}
-    spec = mujoco.MjSpec.from_string(consts.task_to_xml(XML_TASKS[terrain]).read_text(), include=include,
-                                     assets=files)
+    spec = mujoco.MjSpec.from_string(consts.task_to_xml(XML_TASKS[terrain]).read_text(), include=include, assets=files)
     if strip_visual:
         for geom in list(spec.geoms):
             if geom.type == mujoco.mjtGeom.mjGEOM_MESH:
@@ -138,10 +137,25 @@ def physics_check(terrain: str, steps: int = 200) -> dict:
         rows = []
         for g in range(m.ngeom):
             if m.geom_contype[g] or m.geom_conaffinity[g]:
-                rows.append((m.body(m.geom_bodyid[g]).name, m.geom(g).name, int(m.geom_type[g]),
-                             *m.geom_size[g], *m.geom_pos[g], *m.geom_quat[g], *m.geom_friction[g],
-                             *m.geom_solref[g], *m.geom_solimp[g], int(m.geom_condim[g]), int(m.geom_priority[g]),
-                             m.geom_margin[g], m.geom_gap[g], int(m.geom_contype[g]), int(m.geom_conaffinity[g])))
+                rows.append(
+                    (
+                        m.body(m.geom_bodyid[g]).name,
+                        m.geom(g).name,
+                        int(m.geom_type[g]),
+                        *m.geom_size[g],
+                        *m.geom_pos[g],
+                        *m.geom_quat[g],
+                        *m.geom_friction[g],
+                        *m.geom_solref[g],
+                        *m.geom_solimp[g],
+                        int(m.geom_condim[g]),
+                        int(m.geom_priority[g]),
+                        m.geom_margin[g],
+                        m.geom_gap[g],
+                        int(m.geom_contype[g]),
+                        int(m.geom_conaffinity[g]),
+                    )
+                )
         return rows
 
     def trajectory(m):
@@ -153,13 +167,21 @@ def physics_check(terrain: str, steps: int = 200) -> dict:
 
     ref = models["tetrahedra"]
     for name, m in models.items():
-        same = (np.array_equal(m.body_mass, ref.body_mass) and np.array_equal(m.body_inertia, ref.body_inertia)
-                and np.array_equal(m.body_ipos, ref.body_ipos) and np.array_equal(m.body_iquat, ref.body_iquat)
-                and colliding(m) == colliding(ref) and np.array_equal(trajectory(m), trajectory(ref)))
+        same = (
+            np.array_equal(m.body_mass, ref.body_mass)
+            and np.array_equal(m.body_inertia, ref.body_inertia)
+            and np.array_equal(m.body_ipos, ref.body_ipos)
+            and np.array_equal(m.body_iquat, ref.body_iquat)
+            and colliding(m) == colliding(ref)
+            and np.array_equal(trajectory(m), trajectory(ref))
+        )
         if not same:
             raise RuntimeError(f"Go1 {terrain}: the stand-in meshes change the physics ({name} differs)")
-    return {"total_mass_kg": round(float(ref.body_subtreemass[0]), 6), "colliding_geoms": len(colliding(ref)),
-            "visual_mesh_geoms": int(np.sum(ref.geom_type == mujoco.mjtGeom.mjGEOM_MESH))}
+    return {
+        "total_mass_kg": round(float(ref.body_subtreemass[0]), 6),
+        "colliding_geoms": len(colliding(ref)),
+        "visual_mesh_geoms": int(np.sum(ref.geom_type == mujoco.mjtGeom.mjGEOM_MESH)),
+    }
 
 
 @contextlib.contextmanager
@@ -206,18 +228,29 @@ def settings(env, state=None) -> dict:
     if state is not None and env.mjx_model.impl.value == "jax":
         geom = np.asarray(state.data._impl.contact.geom)[0]  # the first environment's (ncon, 2)
         floor = m.geom("floor").id
-        per_foot = {int(np.sum(((geom[:, 0] == g) & (geom[:, 1] == floor)) | ((geom[:, 0] == floor) & (geom[:, 1] == g))))
-                    for g in (m.geom(foot).id for foot in ("FR", "FL", "RR", "RL"))}
+        per_foot = {
+            int(np.sum(((geom[:, 0] == g) & (geom[:, 1] == floor)) | ((geom[:, 0] == floor) & (geom[:, 1] == g))))
+            for g in (m.geom(foot).id for foot in ("FR", "FL", "RR", "RL"))
+        }
         contacts = per_foot.pop() if len(per_foot) == 1 else sorted(per_foot)
-    return {"ctrl_dt": float(env.dt), "sim_dt": float(env.sim_dt), "n_substeps": int(env.n_substeps),
-            "timestep": float(m.opt.timestep), "iterations": int(m.opt.iterations),
-            "ls_iterations": int(m.opt.ls_iterations), "cone": _name(mujoco.mjtCone(m.opt.cone)),
-            "solver": _name(mujoco.mjtSolver(m.opt.solver)), "integrator": _name(mujoco.mjtIntegrator(m.opt.integrator)),
-            "impl": env.mjx_model.impl.value, "contacts_per_foot": contacts}
+    return {
+        "ctrl_dt": float(env.dt),
+        "sim_dt": float(env.sim_dt),
+        "n_substeps": int(env.n_substeps),
+        "timestep": float(m.opt.timestep),
+        "iterations": int(m.opt.iterations),
+        "ls_iterations": int(m.opt.ls_iterations),
+        "cone": _name(mujoco.mjtCone(m.opt.cone)),
+        "solver": _name(mujoco.mjtSolver(m.opt.solver)),
+        "integrator": _name(mujoco.mjtIntegrator(m.opt.integrator)),
+        "impl": env.mjx_model.impl.value,
+        "contacts_per_foot": contacts,
+    }
 
 
-def measure(terrain: str, batch: int, steps: int, actions: str = "zero", seed: int = 0, impl: str = "jax",
-            env=None) -> dict:
+def measure(
+    terrain: str, batch: int, steps: int, actions: str = "zero", seed: int = 0, impl: str = "jax", env=None
+) -> dict:
     """Compile time and throughput of Playground's Go1 joystick ('flat' or 'rough') at a batch size:
     compile_s (reset and the first two steps, compiled and run), then `steps` policy steps timed
     after them; zero actions, or uniform random ones in [-1, 1] drawn once with `seed`.
@@ -252,8 +285,12 @@ def measure(terrain: str, batch: int, steps: int, actions: str = "zero", seed: i
     rate = batch * steps / (time.perf_counter() - t0)
     if step._cache_size() != compiled:
         raise RuntimeError("Playground Go1: the step compiled again inside the timed loop")
-    result = {"compile_s": round(compile_s, 1), "policy_steps_per_s": round(rate, 1),
-              "physics_steps_per_s": round(rate * env.n_substeps, 1), "actions": actions}
+    result = {
+        "compile_s": round(compile_s, 1),
+        "policy_steps_per_s": round(rate, 1),
+        "physics_steps_per_s": round(rate * env.n_substeps, 1),
+        "actions": actions,
+    }
     if meshes:
         result["meshes"] = meshes
     return result | settings(env, state)
@@ -266,7 +303,8 @@ def measure_all(terrains, batches, steps: int, actions: str = "zero", impl: str 
         env, meshes = make_env(terrain, impl)
         for batch in batches:
             figures[f"{terrain}_b{batch}"] = measure(terrain, batch, steps, actions, impl=impl, env=env) | {
-                "meshes": meshes}
+                "meshes": meshes
+            }
     return figures
 
 
@@ -276,9 +314,14 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=20, help="policy steps timed per batch size")
     p.add_argument("--terrains", nargs="+", default=["flat", "rough"], choices=list(ENV_NAMES))
     p.add_argument("--actions", default="zero", choices=["zero", "random"])
-    p.add_argument("--impl", default="jax", choices=["jax", "warp"], help="MJX implementation (Playground's default: warp)")
-    p.add_argument("--no-compile-cache", action="store_true",
-                   help="measure cold compilation: without JAX's persistent cache (footforge/rl/compile_cache.py)")
+    p.add_argument(
+        "--impl", default="jax", choices=["jax", "warp"], help="MJX implementation (Playground's default: warp)"
+    )
+    p.add_argument(
+        "--no-compile-cache",
+        action="store_true",
+        help="measure cold compilation: without JAX's persistent cache (footforge/rl/compile_cache.py)",
+    )
     args = p.parse_args(argv)
     if not available():
         print(MISSING_MESSAGE, file=sys.stderr)
@@ -288,8 +331,13 @@ def main(argv=None) -> int:
     from footforge.rl import compile_cache
 
     cache = compile_cache.enable(not args.no_compile_cache)
-    figures = {"machine": platform.platform(), "device": str(jax.devices()[0]), "jax": jax.__version__,
-               "playground": version(), "compile_cache": str(cache) if cache else None}
+    figures = {
+        "machine": platform.platform(),
+        "device": str(jax.devices()[0]),
+        "jax": jax.__version__,
+        "playground": version(),
+        "compile_cache": str(cache) if cache else None,
+    }
     figures |= measure_all(args.terrains, args.batches, args.steps, args.actions, args.impl)
     print(json.dumps(figures))
     return 0

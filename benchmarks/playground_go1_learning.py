@@ -60,8 +60,13 @@ def rollout_forward_error(env, make_policy, params, robots: int, steps: int, see
         error += float(jp.sum(jp.where(up, jp.abs(cmd - vx), 0.0)))
         standing += float(jp.sum(jp.where(up, jp.abs(cmd), 0.0)))
         counted += float(jp.sum(up))
-    return {"forward_error": error / max(counted, 1.0), "standing_error": standing / max(counted, 1.0),
-            "falls": int(jp.sum(fell)), "robots": robots, "seconds": steps * env.dt}
+    return {
+        "forward_error": error / max(counted, 1.0),
+        "standing_error": standing / max(counted, 1.0),
+        "falls": int(jp.sum(fell)),
+        "robots": robots,
+        "seconds": steps * env.dt,
+    }
 
 
 def main(argv=None) -> int:
@@ -77,8 +82,7 @@ def main(argv=None) -> int:
         return 2
 
     import jax
-    from brax.training.agents.ppo import networks as ppo_networks
-    from brax.training.agents.ppo import train as ppo
+    from brax.training.agents.ppo import networks as ppo_networks, train as ppo
     from mujoco_playground import registry, wrapper
     from mujoco_playground.config import locomotion_params
 
@@ -93,36 +97,68 @@ def main(argv=None) -> int:
     network = settings.pop("network_factory")
     settings.pop("num_eval_envs", None)
     settings.pop("num_resets_per_eval", None)
-    settings.update(num_timesteps=args.timesteps, num_envs=args.num_envs, batch_size=max(1, args.num_envs // share),
-                    num_minibatches=share, num_evals=2, run_evals=False, log_training_metrics=True,
-                    training_metrics_steps=max(args.timesteps // 12, 1))
+    settings.update(
+        num_timesteps=args.timesteps,
+        num_envs=args.num_envs,
+        batch_size=max(1, args.num_envs // share),
+        num_minibatches=share,
+        num_evals=2,
+        run_evals=False,
+        log_training_metrics=True,
+        training_metrics_steps=max(args.timesteps // 12, 1),
+    )
     curve = []
     t0 = time.time()
 
     def progress(step, metrics):
         if "episode/sum_reward" in metrics:
-            row = {"env_steps": int(step), "wall_s": round(time.time() - t0, 1),
-                   "sum_reward": float(metrics["episode/sum_reward"]),
-                   "tracking_lin_vel": float(metrics.get("episode/reward/tracking_lin_vel", float("nan")))}
+            row = {
+                "env_steps": int(step),
+                "wall_s": round(time.time() - t0, 1),
+                "sum_reward": float(metrics["episode/sum_reward"]),
+                "tracking_lin_vel": float(metrics.get("episode/reward/tracking_lin_vel", float("nan"))),
+            }
             curve.append(row)
             print(json.dumps(row), file=sys.stderr, flush=True)
 
     make_policy, trained, _ = ppo.train(
-        environment=env, progress_fn=progress, seed=args.seed,
+        environment=env,
+        progress_fn=progress,
+        seed=args.seed,
         network_factory=functools.partial(ppo_networks.make_ppo_networks, **network),
-        wrap_env_fn=wrapper.wrap_for_brax_training, randomization_fn=registry.get_domain_randomizer(name),
-        **settings)
+        wrap_env_fn=wrapper.wrap_for_brax_training,
+        randomization_fn=registry.get_domain_randomizer(name),
+        **settings,
+    )
     wall_s = time.time() - t0
-    verdict = rollout_forward_error(env, make_policy, trained, args.eval_robots,
-                                    int(round(args.eval_seconds / env.dt)), args.seed + 7)
-    print(json.dumps({
-        "benchmark": "playground_go1_learning", "env": name, "meshes": meshes, "steps": int(args.timesteps),
-        "num_envs": args.num_envs, "batch_size": settings["batch_size"], "num_minibatches": share,
-        "unroll_length": settings["unroll_length"], "learning_rate": settings["learning_rate"],
-        "entropy_cost": settings["entropy_cost"], "discounting": settings["discounting"],
-        "wall_s": round(wall_s, 1), **verdict, "curve": curve,
-        "machine": platform.platform(), "cpu_cores": os.cpu_count(), "backend": jax.default_backend(),
-        "jax": jax.__version__, "playground": playground_go1.version()}))
+    verdict = rollout_forward_error(
+        env, make_policy, trained, args.eval_robots, int(round(args.eval_seconds / env.dt)), args.seed + 7
+    )
+    print(
+        json.dumps(
+            {
+                "benchmark": "playground_go1_learning",
+                "env": name,
+                "meshes": meshes,
+                "steps": int(args.timesteps),
+                "num_envs": args.num_envs,
+                "batch_size": settings["batch_size"],
+                "num_minibatches": share,
+                "unroll_length": settings["unroll_length"],
+                "learning_rate": settings["learning_rate"],
+                "entropy_cost": settings["entropy_cost"],
+                "discounting": settings["discounting"],
+                "wall_s": round(wall_s, 1),
+                **verdict,
+                "curve": curve,
+                "machine": platform.platform(),
+                "cpu_cores": os.cpu_count(),
+                "backend": jax.default_backend(),
+                "jax": jax.__version__,
+                "playground": playground_go1.version(),
+            }
+        )
+    )
     return 0
 
 

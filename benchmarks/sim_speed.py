@@ -50,7 +50,9 @@ def main() -> None:
             figures[f"{variant}_realtime_factor"] = round(rtf, 3)
             figures[f"{variant}_steps_per_s"] = round(sps, 1)
     for variant in VARIANTS:
-        figures[f"{variant}_speedup_vs_full"] = round(figures[f"{variant}_realtime_factor"] / figures["full_realtime_factor"], 2)
+        figures[f"{variant}_speedup_vs_full"] = round(
+            figures[f"{variant}_realtime_factor"] / figures["full_realtime_factor"], 2
+        )
     print(json.dumps(figures))
 
 

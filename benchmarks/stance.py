@@ -47,14 +47,20 @@ def main(argv=None) -> int:
             models["pyramidal"] = m
         if args.loads:
             height, splay = frictionless_rest(models["build"], seconds=args.seconds)
-            out[f"{variant}/loads"] = {"sideways_ratio": [round(float(r), 3) for r in foot_loads(models["build"]).sideways_ratio],
-                                       "frictionless_base_height_m": round(height, 4), "frictionless_splay_mm": round(1e3 * splay, 1)}
+            out[f"{variant}/loads"] = {
+                "sideways_ratio": [round(float(r), 3) for r in foot_loads(models["build"]).sideways_ratio],
+                "frictionless_base_height_m": round(height, 4),
+                "frictionless_splay_mm": round(1e3 * splay, 1),
+            }
         for name, model in models.items():
             for key in ("stand", "home"):
                 s = stand(model, keyframe=key, seconds=args.seconds)
-                out[f"{variant}/{name}/{key}"] = {"drop_mm": round(1e3 * s.drop_after_settle_m, 2),
-                                                  "slip_mm": round(1e3 * s.slip_after_settle_m, 2),
-                                                  "base_height_m": round(s.base_height_start_m, 4), "finite": s.finite}
+                out[f"{variant}/{name}/{key}"] = {
+                    "drop_mm": round(1e3 * s.drop_after_settle_m, 2),
+                    "slip_mm": round(1e3 * s.slip_after_settle_m, 2),
+                    "base_height_m": round(s.base_height_start_m, 4),
+                    "finite": s.finite,
+                }
     print(json.dumps(out))
     return 0
 

@@ -68,8 +68,9 @@ def rollout(mx, d0, qvel, key, decimation, policy_steps, acting, robot):
         d = d.replace(ctrl=d.ctrl.at[act].set(target))
         # Under JAX_ENABLE_X64 mjx.step returns some integer fields wider than put_data made
         # them; the loop carry keeps the input's dtypes (a no-op in float32).
-        d = jax.lax.fori_loop(0, decimation, lambda _, x: jax.tree.map(lambda new, old: new.astype(old.dtype),
-                                                                       mjx.step(mx, x), x), d)
+        d = jax.lax.fori_loop(
+            0, decimation, lambda _, x: jax.tree.map(lambda new, old: new.astype(old.dtype), mjx.step(mx, x), x), d
+        )
         bad = bad | ~jp.all(jp.isfinite(d.qvel)) | jp.any(jp.abs(d.qvel) > 1000.0)
         return (d, target, bad), (d.qpos[2], d.site_xpos[sites, :2])
 
@@ -84,11 +85,17 @@ def main(argv=None) -> int:
     p.add_argument("--integrator", choices=["euler", "implicitfast"], default="euler")
     p.add_argument("--cone", choices=["pyramidal", "elliptic"], default="pyramidal")
     p.add_argument("--iterations", type=int, nargs=2, default=[8, 16], metavar=("NEWTON", "LINESEARCH"))
-    p.add_argument("--grid", nargs="+", type=grid_point, default=[grid_point("0.0025,10,0.99,0.999,0.005")],
-                   help="dt,impratio,dmin,dmax,timeconst per point")
+    p.add_argument(
+        "--grid",
+        nargs="+",
+        type=grid_point,
+        default=[grid_point("0.0025,10,0.99,0.999,0.005")],
+        help="dt,impratio,dmin,dmax,timeconst per point",
+    )
     p.add_argument("--friction", type=float, help="sliding friction of every geom (default: the model's 0.8)")
-    p.add_argument("--foot-armature", type=float,
-                   help="armature of the passive foot joints, kg m^2 (default: the model's)")
+    p.add_argument(
+        "--foot-armature", type=float, help="armature of the passive foot joints, kg m^2 (default: the model's)"
+    )
     p.add_argument("--robots", type=int, default=8)
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--seed", type=int, default=0)
@@ -97,8 +104,10 @@ def main(argv=None) -> int:
 
     robot = load_robot(EnvConfig(feet=args.feet, build_dir=args.build_dir))
     m0 = robot.model
-    m0.opt.integrator = {"euler": mujoco.mjtIntegrator.mjINT_EULER,
-                         "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}[args.integrator]
+    m0.opt.integrator = {
+        "euler": mujoco.mjtIntegrator.mjINT_EULER,
+        "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+    }[args.integrator]
     m0.opt.cone = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}[args.cone]
     m0.opt.iterations, m0.opt.ls_iterations = args.iterations
     if args.friction is not None:
@@ -112,9 +121,19 @@ def main(argv=None) -> int:
     keys = jax.random.split(jax.random.PRNGKey(args.seed + 1), args.robots)
     policy_steps = int(round(args.seconds / POLICY_DT))
     settle = int(round(0.5 / POLICY_DT))
-    out = {"benchmark": "stance_mjx", "machine": platform.platform(), "jax_device": str(jax.devices()[0]),
-           "feet": args.feet, "integrator": args.integrator, "cone": args.cone, "iterations": args.iterations,
-           "friction": args.friction, "foot_armature": args.foot_armature, "robots": args.robots, "seconds": args.seconds}
+    out = {
+        "benchmark": "stance_mjx",
+        "machine": platform.platform(),
+        "jax_device": str(jax.devices()[0]),
+        "feet": args.feet,
+        "integrator": args.integrator,
+        "cone": args.cone,
+        "iterations": args.iterations,
+        "friction": args.friction,
+        "foot_armature": args.foot_armature,
+        "robots": args.robots,
+        "seconds": args.seconds,
+    }
     compiled = {}
     for point in args.grid:
         dt, impratio, dmin, dmax, timeconst = point
@@ -129,9 +148,12 @@ def main(argv=None) -> int:
         mx, d0 = mjx.put_model(m), mjx.put_data(m, d)
         decimation = int(round(POLICY_DT / dt))
         if decimation not in compiled:
-            compiled[decimation] = jax.jit(jax.vmap(
-                lambda mx, d0, v, k, acting, n=decimation: rollout(mx, d0, v, k, n, policy_steps, acting, robot),
-                in_axes=(None, None, 0, 0, None)))
+            compiled[decimation] = jax.jit(
+                jax.vmap(
+                    lambda mx, d0, v, k, acting, n=decimation: rollout(mx, d0, v, k, n, policy_steps, acting, robot),
+                    in_axes=(None, None, 0, 0, None),
+                )
+            )
         run = compiled[decimation]
         figures = {}
         for name, acting in (("rest", 0.0), ("act", 1.0)):
@@ -143,7 +165,10 @@ def main(argv=None) -> int:
                 if ok.any():
                     figures["rest"] |= {
                         "drop_mm": round(1e3 * float((z[settle] - z[settle:].min(0))[ok].max()), 1),
-                        "slip_mm": round(1e3 * float(np.linalg.norm(xy[-1] - xy[settle], axis=-1).max(-1)[ok].max()), 1)}
+                        "slip_mm": round(
+                            1e3 * float(np.linalg.norm(xy[-1] - xy[settle], axis=-1).max(-1)[ok].max()), 1
+                        ),
+                    }
             else:
                 figures["act"] = {"div": int(bad.sum())}
         start = time.perf_counter()

@@ -31,11 +31,20 @@ from mujoco.mjx._src import collision_driver, constraint, forward, sensor, smoot
 
 from footforge import envs
 
+
 def _stages():
     """mjx.forward and the Euler step, cut at the boundaries the profile reports."""
+
     def position(m, d):
-        for f in (smooth.kinematics, smooth.com_pos, smooth.camlight, smooth.tendon, smooth.crb,
-                  smooth.tendon_armature, smooth.factor_m):
+        for f in (
+            smooth.kinematics,
+            smooth.com_pos,
+            smooth.camlight,
+            smooth.tendon,
+            smooth.crb,
+            smooth.tendon_armature,
+            smooth.factor_m,
+        ):
             d = f(m, d)
         return d
 
@@ -47,9 +56,14 @@ def _stages():
         d = forward.fwd_actuation(m, d)
         return forward.fwd_acceleration(m, d)
 
-    return {"position": position, "collision": collision_driver.collision,
-            "constraint": constraint.make_constraint, "velocity": velocity,
-            "solve": solver.solve, "integrate": forward.euler}
+    return {
+        "position": position,
+        "collision": collision_driver.collision,
+        "constraint": constraint.make_constraint,
+        "velocity": velocity,
+        "solve": solver.solve,
+        "integrate": forward.euler,
+    }
 
 
 def _time(f, data, repeats: int) -> tuple[float, float]:
@@ -91,12 +105,19 @@ def profile(env, batch: int, repeats: int, settle_steps: int) -> dict:
     t, per_policy_step = _time(lambda s: step(s, actions), state, repeats)
     compile_s["env_step"], ms["env_step"] = t, per_policy_step / env.config.decimation
     active = int((data._impl.contact.dist[0] < 0).sum())
-    return {"nv": mj.nv, "ncon": int(data._impl.contact.dist.shape[1]), "ncon_active_robot0": active,
-            "nefc": int(data._impl.efc_J.shape[1]), "iterations": mj.opt.iterations,
-            "ls_iterations": mj.opt.ls_iterations, "solver": int(mj.opt.solver), "cone": int(mj.opt.cone),
-            "ms_per_physics_step": {k: round(v, 2) for k, v in ms.items()},
-            "stages_sum_ms": round(sum(v for k, v in ms.items() if k not in ("step", "env_step")), 2),
-            "compile_s": {k: round(v, 1) for k, v in compile_s.items()}}
+    return {
+        "nv": mj.nv,
+        "ncon": int(data._impl.contact.dist.shape[1]),
+        "ncon_active_robot0": active,
+        "nefc": int(data._impl.efc_J.shape[1]),
+        "iterations": mj.opt.iterations,
+        "ls_iterations": mj.opt.ls_iterations,
+        "solver": int(mj.opt.solver),
+        "cone": int(mj.opt.cone),
+        "ms_per_physics_step": {k: round(v, 2) for k, v in ms.items()},
+        "stages_sum_ms": round(sum(v for k, v in ms.items() if k not in ("step", "env_step")), 2),
+        "compile_s": {k: round(v, 1) for k, v in compile_s.items()},
+    }
 
 
 def main() -> None:
@@ -113,8 +134,14 @@ def main() -> None:
     from footforge.rl import compile_cache
 
     compile_cache.enable(True)
-    figures = {"benchmark": "step_profile", "machine": platform.platform(), "device": str(jax.devices()[0]),
-               "jax": jax.__version__, "mujoco": mujoco.__version__, "batch": args.batch}
+    figures = {
+        "benchmark": "step_profile",
+        "machine": platform.platform(),
+        "device": str(jax.devices()[0]),
+        "jax": jax.__version__,
+        "mujoco": mujoco.__version__,
+        "batch": args.batch,
+    }
     for task in args.tasks:
         for feet in args.feet:
             for contact in args.contact_models:

@@ -15,8 +15,22 @@ GL_UNAVAILABLE: "tuple[str, str] | None" = None
 """(backend asked for in MUJOCO_GL, why it cannot load), or None when nothing was switched off."""
 
 
-GL_SETTINGS = ("glfw", "egl", "osmesa", "", "on", "enable", "enabled", "true", "1",
-               "off", "disable", "disabled", "false", "0")
+GL_SETTINGS = (
+    "glfw",
+    "egl",
+    "osmesa",
+    "",
+    "on",
+    "enable",
+    "enabled",
+    "true",
+    "1",
+    "off",
+    "disable",
+    "disabled",
+    "false",
+    "0",
+)
 """MUJOCO_GL values that both MuJoCo and dm_control accept on Linux, as written: dm_control compares
 the value as it is (dm_control/_render/constants.py), MuJoCo lower-cased (mujoco/rendering/classic/
 gl_context.py: also glx; egl and osmesa on Linux only; wgl, cgl on Windows and macOS)."""
@@ -28,8 +42,10 @@ def gl_setting_error() -> "str | None":
     value = _os.environ.get("MUJOCO_GL")
     if value is None or value in GL_SETTINGS or "mujoco" in _sys.modules:
         return None
-    return (f"MUJOCO_GL={value!r} is not a value MuJoCo and dm_control accept ({', '.join(repr(v) for v in GL_SETTINGS)}): "
-            "set egl, osmesa or glfw to render, disable not to, or unset it")
+    return (
+        f"MUJOCO_GL={value!r} is not a value MuJoCo and dm_control accept ({', '.join(repr(v) for v in GL_SETTINGS)}): "
+        "set egl, osmesa or glfw to render, disable not to, or unset it"
+    )
 
 
 def gl_setting_refused(prog: str) -> bool:
@@ -103,7 +119,7 @@ class _QuietMjxWarp:
 
         spec = importlib.machinery.PathFinder.find_spec(fullname, path)
         if spec is not None and spec.loader is not None:
-            spec.loader = _QuietLoader(spec.loader)
+            spec.loader = _QuietLoader(spec.loader)  # type: ignore[assignment]  # the loader, wrapped
         return spec
 
 

@@ -36,8 +36,7 @@ class FootforgeError(Exception):
 
     exit_code = EXIT_INPUT_ERROR
 
-    def __init__(self, message: str, *, file: str | None = None, element: str | None = None,
-                 fix: str | None = None):
+    def __init__(self, message: str, *, file: str | None = None, element: str | None = None, fix: str | None = None):
         super().__init__(message)
         self.message = message
         self.file = file

@@ -12,9 +12,18 @@ import importlib.util
 
 from footforge.errors import InputError
 
-BUILD_EXTRA = {"dm_control": "dm-control", "xacro": "xacro", "pxr": "usd-core", "trimesh": "trimesh",
-               "coacd": "coacd", "fast_simplification": "fast-simplification", "pinocchio": "pin",
-               "lxml": "lxml", "yaml": "PyYAML", "scipy": "scipy"}
+BUILD_EXTRA = {
+    "dm_control": "dm-control",
+    "xacro": "xacro",
+    "pxr": "usd-core",
+    "trimesh": "trimesh",
+    "coacd": "coacd",
+    "fast_simplification": "fast-simplification",
+    "pinocchio": "pin",
+    "lxml": "lxml",
+    "yaml": "PyYAML",
+    "scipy": "scipy",
+}
 """The `build` extra's distributions (pyproject.toml, tests/test_packaging.py keeps them equal), by
 the module each one provides. Some come with the core set anyway (trimesh and scipy with
 mujoco-mjx, PyYAML with flax); they are listed because footforge's building imports them."""
@@ -38,6 +47,8 @@ def require_build_extra(what: str, alternative: str | None = None) -> None:
     """
     missing = missing_build_packages()
     if missing:
-        raise InputError(f"{what} needs footforge's build extra (the model-building packages), which is not "
-                         f"installed: {', '.join(missing)} missing",
-                         fix=BUILD_INSTALL + (f", or {alternative}" if alternative else ""))
+        raise InputError(
+            f"{what} needs footforge's build extra (the model-building packages), which is not "
+            f"installed: {', '.join(missing)} missing",
+            fix=BUILD_INSTALL + (f", or {alternative}" if alternative else ""),
+        )

@@ -25,5 +25,6 @@ def sole_primitives(center, half, kind: str, grid: tuple[int, int], radius_m: fl
         xs = np.linspace(center[0] - half[0] + r, center[0] + half[0] - r, nx) if nx > 1 else [center[0]]
         return [dict(type="sphere", size=[r], pos=[x, y, z]) for x in xs for y in ys]
     edges = np.linspace(center[0] - half[0] + r, center[0] + half[0] - r, nx + 1)  # capsule segments
-    return [dict(type="capsule", size=[r], fromto=[x0, y, z, x1, y, z])
-            for x0, x1 in zip(edges[:-1], edges[1:]) for y in ys]
+    return [
+        dict(type="capsule", size=[r], fromto=[x0, y, z, x1, y, z]) for x0, x1 in zip(edges[:-1], edges[1:]) for y in ys
+    ]

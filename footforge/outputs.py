@@ -36,9 +36,13 @@ def write_marker(folder: Path, command: str | None = None, *, kind: str | None =
 
     if command is None:
         command = " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
-    (Path(folder) / MARKER).write_text(json.dumps(
-        {"tool": "footforge", "command": command, "version": __version__} | ({"kind": kind} if kind else {}),
-        indent=1) + "\n")
+    (Path(folder) / MARKER).write_text(
+        json.dumps(
+            {"tool": "footforge", "command": command, "version": __version__} | ({"kind": kind} if kind else {}),
+            indent=1,
+        )
+        + "\n"
+    )
 
 
 def marker_kind(folder: Path) -> str | None:
@@ -72,8 +76,7 @@ def _nearest_existing(path: Path) -> Path:
     return path
 
 
-def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
-                        force_flag: str = "--force") -> Path:
+def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out", force_flag: str = "--force") -> Path:
     """Checks that `path` can be written as an output folder that replaces what is there.
 
     Call it before any long work. `flag` and `force_flag` name the command's options in the
@@ -99,25 +102,34 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
         target = target.resolve()
     cwd = Path.cwd()
     if target == cwd or target in cwd.parents:
-        raise InputError(f"{flag} {given}: {'links to' if linked else 'is'} the current folder or one above it, "
-                         f"which footforge would replace as a whole; give a new or footforge-written folder, "
-                         f"e.g. {flag} build/out")
+        raise InputError(
+            f"{flag} {given}: {'links to' if linked else 'is'} the current folder or one above it, "
+            f"which footforge would replace as a whole; give a new or footforge-written folder, "
+            f"e.g. {flag} build/out"
+        )
     if target.exists() and not target.is_dir():
-        raise InputError(f"{flag} {given}: is a file, not a folder; footforge does not replace files: "
-                         f"give another {flag} folder")
+        raise InputError(
+            f"{flag} {given}: is a file, not a folder; footforge does not replace files: give another {flag} folder"
+        )
     parent = _nearest_existing(target.parent)
     if not parent.is_dir():
-        raise InputError(f"{flag} {given}: {parent} is a file, so no folder can be made under it; "
-                         f"give another {flag} folder")
+        raise InputError(
+            f"{flag} {given}: {parent} is a file, so no folder can be made under it; give another {flag} folder"
+        )
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"{flag} {given}: cannot write in {parent} (permission denied); "
-                         f"give a {flag} folder in a writable place")
+        raise InputError(
+            f"{flag} {given}: cannot write in {parent} (permission denied); give a {flag} folder in a writable place"
+        )
     if target.is_dir() and not force and marker_kind(target) == TRAINING_RUN:
-        raise InputError(f"{flag} {given}: is a training run folder (checkpoints, metrics), which footforge "
-                         f"does not replace as a whole; give another {flag} folder, e.g. {flag} {given}/evaluation")
+        raise InputError(
+            f"{flag} {given}: is a training run folder (checkpoints, metrics), which footforge "
+            f"does not replace as a whole; give another {flag} folder, e.g. {flag} {given}/evaluation"
+        )
     if target.is_dir() and not force and not written_by_footforge(target) and any(target.iterdir()):
-        raise InputError(f"{flag} {given}: the folder holds files footforge did not write (no {MARKER}); "
-                         f"pass {force_flag} to replace it anyway, or give another {flag} folder")
+        raise InputError(
+            f"{flag} {given}: the folder holds files footforge did not write (no {MARKER}); "
+            f"pass {force_flag} to replace it anyway, or give another {flag} folder"
+        )
     return target
 
 
@@ -134,7 +146,8 @@ def check_output_file(out: Path, flag: str = "--out") -> None:
     parent = out.parent  # Path("x").parent is Path(".")
     if not parent.is_dir():
         why = "is not a folder" if parent.exists() else "does not exist"
-        raise InputError(f"its folder {parent} {why}", file=str(out),
-                         fix=f"create the folder first or choose another {flag}")
+        raise InputError(
+            f"its folder {parent} {why}", file=str(out), fix=f"create the folder first or choose another {flag}"
+        )
     if not os.access(parent, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK)):
         raise InputError("not writable", file=str(out), fix=f"choose a writable {flag} path")

@@ -48,8 +48,7 @@ def die_with_parent(parent_pid: int) -> None:
             pass  # no prctl (another libc): the watchdog thread below still works
     if os.getppid() != parent_pid:
         os._exit(1)
-    threading.Thread(target=_exit_if_orphaned, args=(parent_pid,), daemon=True,
-                     name="footforge-parent-watch").start()
+    threading.Thread(target=_exit_if_orphaned, args=(parent_pid,), daemon=True, name="footforge-parent-watch").start()
 
 
 class Terminated(KeyboardInterrupt):

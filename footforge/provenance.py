@@ -13,7 +13,6 @@ def sha256_file(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-
 def json_default(value):
     if isinstance(value, np.ndarray):
         return value.tolist()
@@ -24,10 +23,10 @@ def json_default(value):
     raise TypeError(type(value))
 
 
-
-def versions() -> dict[str, str]:
+def versions() -> dict[str, str | None]:  # as ValidationReport.versions holds them
     from importlib.metadata import PackageNotFoundError, version
-    out = {}
+
+    out: dict[str, str | None] = {}
     for pkg in ("footforge", "mujoco", "dm-control", "pin", "coacd", "trimesh", "xacro", "usd-core"):
         try:
             out[pkg] = version(pkg)

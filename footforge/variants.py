@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Literal, get_args
 
 Variant = Literal["full", "aof", "aff", "ball"]
-VARIANTS: tuple[str, ...] = get_args(Variant)
+VARIANTS: tuple[Variant, ...] = get_args(Variant)
 """What `footforge build --variant` makes: the 34-joint closed chain (full, the reference), the
 open-chain approximations AOF and AFF, and ANYmal C's ball foot."""
 
@@ -20,10 +20,10 @@ VALIDATED: tuple[str, ...] = DERIVED + ("ball",)
 """The variants `footforge validate` compares with the closed chain (`--variant all`)."""
 
 Feet = Literal["ball", "aff", "aof"]
-FEET: tuple[str, ...] = get_args(Feet)
+FEET: tuple[Feet, ...] = get_args(Feet)
 """The feet the MJX environments train on (the closed chain is too slow and stiff for MJX)."""
 
-PLAY_FEET: tuple[str, ...] = FEET + ("full",)
+PLAY_FEET: tuple[Variant, ...] = FEET + ("full",)
 """The feet a trained policy can walk on in CPU MuJoCo: the training feet and the closed chain."""
 
 PolicyType = Literal["B", "BH", "P", "PH"]
@@ -32,5 +32,5 @@ HAPTIC: tuple[str, ...] = ("BH", "PH")
 PERCEPTIVE: tuple[str, ...] = ("P", "PH")
 """Policy types that read the height scan (rough terrain)."""
 
-TASKS: dict[str, tuple[str, ...]] = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
+TASKS: dict[str, tuple[PolicyType, ...]] = {"flat": ("B", "BH"), "rough": ("B", "P", "BH", "PH")}
 """Each task's policy types: B blind, P perceptive (height scan), H haptic (passive foot joints)."""

@@ -1,4 +1,5 @@
-"""footforge evaluate-closed-chain, by the name the pipelines have always had: `python pipelines/evaluate_closed_chain.py --help`."""
+"""footforge evaluate-closed-chain, by the name the pipelines have always had:
+`python pipelines/evaluate_closed_chain.py --help`."""
 
 from __future__ import annotations
 

@@ -21,20 +21,27 @@ EXEMPT = "descriptions/"
 
 def tracked_sizes(repo: Path = REPO) -> dict[str, int]:
     """Size in bytes of every tracked file that exists in the work tree, outside EXEMPT."""
-    names = subprocess.run(["git", "ls-files", "-z"], cwd=repo, capture_output=True, check=True,
-                           timeout=60).stdout.decode().split("\0")
-    return {n: (repo / n).stat().st_size for n in names
-            if n and not n.startswith(EXEMPT) and (repo / n).is_file()}
+    names = (
+        subprocess.run(["git", "ls-files", "-z"], cwd=repo, capture_output=True, check=True, timeout=60)
+        .stdout.decode()
+        .split("\0")
+    )
+    return {n: (repo / n).stat().st_size for n in names if n and not n.startswith(EXEMPT) and (repo / n).is_file()}
 
 
 def problems(sizes: dict[str, int]) -> list[str]:
-    found = [f"{name}: {size / 2**20:.2f} MiB, over the {MAX_FILE_BYTES / 2**20:.0f} MiB a tracked file may have"
-             for name, size in sorted(sizes.items()) if size > MAX_FILE_BYTES]
+    found = [
+        f"{name}: {size / 2**20:.2f} MiB, over the {MAX_FILE_BYTES / 2**20:.0f} MiB a tracked file may have"
+        for name, size in sorted(sizes.items())
+        if size > MAX_FILE_BYTES
+    ]
     total = sum(sizes.values())
     if total > MAX_TREE_BYTES:
         largest = ", ".join(f"{n} ({s / 1e6:.1f} MB)" for n, s in sorted(sizes.items(), key=lambda x: -x[1])[:5])
-        found.append(f"the tracked tree outside {EXEMPT} is {total / 1e6:.1f} MB, over {MAX_TREE_BYTES / 1e6:.0f} MB "
-                     f"(largest: {largest})")
+        found.append(
+            f"the tracked tree outside {EXEMPT} is {total / 1e6:.1f} MB, over {MAX_TREE_BYTES / 1e6:.0f} MB "
+            f"(largest: {largest})"
+        )
     return found
 
 

@@ -24,8 +24,25 @@ def main(argv: list[str] | None = None) -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         raw = Path(tmp) / "raw.gif"
-        code = play([policy, "--headless", "--seconds", "3", "--command", "0.6", "0", "0", "--video", str(raw),
-                     "--width", "320", "--height", "180", *(["--feet", *feet] if feet else [])])
+        code = play(
+            [
+                policy,
+                "--headless",
+                "--seconds",
+                "3",
+                "--command",
+                "0.6",
+                "0",
+                "0",
+                "--video",
+                str(raw),
+                "--width",
+                "320",
+                "--height",
+                "180",
+                *(["--feet", *feet] if feet else []),
+            ]
+        )
         if code:
             return code
         width, colours, size = shrink_gif(raw)

@@ -53,8 +53,21 @@ def evaluate(run: Path, video: bool) -> int:
     meta = json.loads((run / "policy" / "footforge.json").read_text())
     own = meta["env"]["feet"]
     feet = [own] + [f for f in FEET_ORDER if f != own]
-    argv = ["--policy", str(run.relative_to(REPO)), "--feet", *feet, "--num-envs", "32", "--seconds", "20",
-            "--seed", "0", "--out", str((run / "evaluation").relative_to(REPO)), "--force"]
+    argv = [
+        "--policy",
+        str(run.relative_to(REPO)),
+        "--feet",
+        *feet,
+        "--num-envs",
+        "32",
+        "--seconds",
+        "20",
+        "--seed",
+        "0",
+        "--out",
+        str((run / "evaluation").relative_to(REPO)),
+        "--force",
+    ]
     if video:
         argv += ["--video", str(VIDEO_S)]
     print("footforge evaluate " + " ".join(argv), flush=True)
@@ -76,7 +89,8 @@ def light(folder: Path) -> None:
     from footforge.rl.render import shrink_gif
 
     removed = sorted(p.name for p in folder.glob("strip_*.png")) + sorted(
-        p.name for p in folder.glob("video_*.gif") if p.name != "video_0.gif")
+        p.name for p in folder.glob("video_*.gif") if p.name != "video_0.gif"
+    )
     for name in removed:
         (folder / name).unlink()
     card = folder / "policy_card.md"
@@ -91,8 +105,19 @@ def evaluate_closed_chain(run: Path) -> int:
     """`footforge evaluate-closed-chain` of one shipped policy into its closed_chain/ (8 robots x 20 s)."""
     from footforge.cli.evaluate_closed_chain import main as closed_chain_main
 
-    argv = ["--policy", str(run.relative_to(REPO)), "--seconds", "20", "--robots", "8", "--seed", "0",
-            "--out", str((run / "closed_chain").relative_to(REPO)), "--force"]
+    argv = [
+        "--policy",
+        str(run.relative_to(REPO)),
+        "--seconds",
+        "20",
+        "--robots",
+        "8",
+        "--seed",
+        "0",
+        "--out",
+        str((run / "closed_chain").relative_to(REPO)),
+        "--force",
+    ]
     print("footforge evaluate-closed-chain " + " ".join(argv), flush=True)
     return closed_chain_main(argv)
 
@@ -104,16 +129,19 @@ PLAY_START, PLAY_END = "<!-- closed-chain-play:start -->", "<!-- closed-chain-pl
 def play_caption() -> str:
     """The README's caption of the AOF policy on the closed chain: `footforge play`'s headless run
     (seed 0, 4 s at 0.6 m/s forward), its mean forward speed and verdict."""
-    from footforge.rl.play import Player, PlayConfig, load_policy, play_headless
+    from footforge.rl.play import PlayConfig, Player, load_policy, play_headless
 
     player = Player(load_policy(REPO / PLAY_POLICY), PlayConfig(feet="full", seed=0))
     player.warm_up()
     result = play_headless(player, seconds=4.0, command=(0.6, 0.0, 0.0))
     vx = result["states"]["vx"]
-    return (f"The AOF policy on the 34-joint closed chain, commanded 0.6 m/s forward (`MUJOCO_GL=egl footforge play "
-            f"{PLAY_POLICY} --feet full --headless --seconds 4 --command 0.6 0 0`; the GIF: `python scripts/readme_gif.py "
-            f"policies/flat_aof_B docs/images/walk_aof_closed_chain.gif --feet full`, its first 3 s): mean forward speed {sum(vx) / len(vx):.2f} m/s over the 4 s, "
-            f"{result['falls']} falls, verdict \"{result['walking']['line']}\".")
+    return (
+        f"The AOF policy on the 34-joint closed chain, commanded 0.6 m/s forward (`MUJOCO_GL=egl footforge play "
+        f"{PLAY_POLICY} --feet full --headless --seconds 4 --command 0.6 0 0`; the GIF: `python scripts/readme_gif.py "
+        f"policies/flat_aof_B docs/images/walk_aof_closed_chain.gif --feet full`, its first 3 s): mean forward "
+        f"speed {sum(vx) / len(vx):.2f} m/s over the 4 s, "
+        f'{result["falls"]} falls, verdict "{result["walking"]["line"]}".'
+    )
 
 
 def _replace_block(path: Path, start: str, end: str, text: str) -> None:
@@ -146,32 +174,51 @@ def row(run: Path) -> str:
     w = own["walking"]
     step = int(meta["global_step"])
     machine = meta.get("machine") or {}
-    where = ("this 2-core CPU" if machine.get("backend") == "cpu" else
-             f"{machine.get('devices', '?')} x {machine.get('device_kind', '?')}") if machine else "machine not recorded"
+    where = (
+        (
+            "this 2-core CPU"
+            if machine.get("backend") == "cpu"
+            else f"{machine.get('devices', '?')} x {machine.get('device_kind', '?')}"
+        )
+        if machine
+        else "machine not recorded"
+    )
     trained = f"{_steps(step)} steps, {where}, {_wall(meta.get('wall_s'))}"
     origin = config.get("initialised_from")
     if origin:
-        trained = (f"{_steps(step + int(origin['step']))} steps: {_steps(int(origin['step']))} of an earlier run "
-                   f"(`--init-from`), then {trained}")
+        trained = (
+            f"{_steps(step + int(origin['step']))} steps: {_steps(int(origin['step']))} of an earlier run "
+            f"(`--init-from`), then {trained}"
+        )
     recipe = config.get("recipe")
-    recipe_cell = f"`{recipe['preset']}`" + (f" + {len(recipe['overrides'])} overrides" if recipe.get("overrides") else "") \
-        if recipe else "not recorded"
+    recipe_cell = (
+        f"`{recipe['preset']}`" + (f" + {len(recipe['overrides'])} overrides" if recipe.get("overrides") else "")
+        if recipe
+        else "not recorded"
+    )
     stance = w.get("stance_fraction") or {}
     stance_cell = " / ".join(f"{100 * stance[k]:.0f} %" for k in ("LF", "RF", "LH", "RH")) if stance else "-"
     zero_shot = [r for r in results if r is not own]
-    others = "; ".join(f"{FEET_NAMES[r['feet']]} {r['walking']['verdict']} ({r['falls']} fell)" for r in zero_shot
-                       if "walking" in r)
-    return (f"| `policies/{run.name}` | {FEET_NAMES[own['feet']]} | {trained} | {recipe_cell} | **{w['verdict']}** "
-            f"({w['gait']}) | {w['forward_error_mps']:.3f} m/s | {own['falls']} | {w['base_height_m']:.3f} m | "
-            f"{stance_cell} | {others or '-'} |")
+    others = "; ".join(
+        f"{FEET_NAMES[r['feet']]} {r['walking']['verdict']} ({r['falls']} fell)" for r in zero_shot if "walking" in r
+    )
+    return (
+        f"| `policies/{run.name}` | {FEET_NAMES[own['feet']]} | {trained} | {recipe_cell} | **{w['verdict']}** "
+        f"({w['gait']}) | {w['forward_error_mps']:.3f} m/s | {own['falls']} | {w['base_height_m']:.3f} m | "
+        f"{stance_cell} | {others or '-'} |"
+    )
 
 
 def table(runs: list[Path]) -> str:
-    header = ("| policy | feet | trained | recipe (card) | verdict (gait) | forward error | falls of 32 (20 s) | base | "
-              "feet on the ground LF / RF / LH / RH | zero-shot on the other feet |\n"
-              "| --- | --- | --- | --- | --- | ---: | ---: | ---: | --- | --- |\n")
-    note = ("\n\n32 robots x 20 s each, seed 0, commands vx U(-1, 1), vy U(-0.5, 0.5) m/s every 10 s, pushes; "
-            "written by `python scripts/shipped_evaluations.py` from each policy's `evaluation/metrics.json`.")
+    header = (
+        "| policy | feet | trained | recipe (card) | verdict (gait) | forward error | falls of 32 (20 s) | base | "
+        "feet on the ground LF / RF / LH / RH | zero-shot on the other feet |\n"
+        "| --- | --- | --- | --- | --- | ---: | ---: | ---: | --- | --- |\n"
+    )
+    note = (
+        "\n\n32 robots x 20 s each, seed 0, commands vx U(-1, 1), vy U(-0.5, 0.5) m/s every 10 s, pushes; "
+        "written by `python scripts/shipped_evaluations.py` from each policy's `evaluation/metrics.json`."
+    )
     return header + "\n".join(row(r) for r in runs) + note
 
 
@@ -186,8 +233,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--policies", nargs="+", metavar="NAME", help="only these (default: every shipped policy)")
     p.add_argument("--no-video", action="store_true", help="no GIFs (also where MUJOCO_GL is unset)")
     p.add_argument("--tables-only", action="store_true", help="only rewrite the tables from the committed metrics")
-    p.add_argument("--closed-chain", action="store_true",
-                   help="also the closed-chain records (closed_chain/) and the README's closed-chain play caption")
+    p.add_argument(
+        "--closed-chain",
+        action="store_true",
+        help="also the closed-chain records (closed_chain/) and the README's closed-chain play caption",
+    )
     args = p.parse_args(argv)
     os.chdir(REPO)  # the evaluations are recorded with paths relative to the repository
     runs = shipped()

@@ -66,7 +66,20 @@ def float64_stance(task: str, feet: str, build_root) -> dict:
     import sys
 
     # A float64 value scattered into a float32 array warns now and will be an error in JAX.
-    run = subprocess.run([sys.executable, "-W", "error:scatter inputs have incompatible types:FutureWarning", "-c",
-                          _FLOAT64_STANCE, task, feet, str(build_root)], capture_output=True, text=True, timeout=1500)
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-W",
+            "error:scatter inputs have incompatible types:FutureWarning",
+            "-c",
+            _FLOAT64_STANCE,
+            task,
+            feet,
+            str(build_root),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=1500,
+    )
     assert run.returncode == 0, run.stderr[-3000:]
     return json.loads(run.stdout.strip().splitlines()[-1])

@@ -121,17 +121,32 @@ def parse_listing(text: str = REFERENCE_LISTING) -> dict[str, dict]:
     bodies: dict[str, dict] = {}
     current = None
     for line in text.strip().splitlines():
-        if m := re.match(r"BODY (\S+) parent=(\S+) pos=\[(.*?)\] quat=\[(.*?)\] mass=(\S+) "
-                         r"ipos=\[(.*?)\] iquat=\[(.*?)\] inertia=\[(.*?)\]", line):
+        if m := re.match(
+            r"BODY (\S+) parent=(\S+) pos=\[(.*?)\] quat=\[(.*?)\] mass=(\S+) "
+            r"ipos=\[(.*?)\] iquat=\[(.*?)\] inertia=\[(.*?)\]",
+            line,
+        ):
             name, parent, pos, quat, mass, ipos, iquat, inertia = m.groups()
             current = bodies[name] = dict(
-                parent=parent, pos=_vec(pos), quat=_vec(quat), mass=float(mass), ipos=_vec(ipos),
-                iquat=_vec(iquat), inertia=_vec(inertia), joints=[], geoms=[])
-        elif m := re.match(r"\s+JOINT (\S+) type=(\d) axis=\[(.*?)\] pos=\[(.*?)\] range=\[(.*?)\] "
-                           r"limited=(\w+)", line):
+                parent=parent,
+                pos=_vec(pos),
+                quat=_vec(quat),
+                mass=float(mass),
+                ipos=_vec(ipos),
+                iquat=_vec(iquat),
+                inertia=_vec(inertia),
+                joints=[],
+                geoms=[],
+            )
+        elif m := re.match(
+            r"\s+JOINT (\S+) type=(\d) axis=\[(.*?)\] pos=\[(.*?)\] range=\[(.*?)\] "
+            r"limited=(\w+)",
+            line,
+        ):
             name, jtype, axis, _, jrange, limited = m.groups()
-            current["joints"].append(dict(name=name, type=int(jtype), axis=_vec(axis),
-                                          range=_vec(jrange), limited=limited == "True"))
+            current["joints"].append(
+                dict(name=name, type=int(jtype), axis=_vec(axis), range=_vec(jrange), limited=limited == "True")
+            )
         elif m := re.match(r"\s+GEOM type=(\d) size=\[(.*?)\] pos=\[(.*?)\] quat=\[(.*?)\]", line):
             gtype, size, pos, quat = m.groups()
             current["geoms"].append(dict(type=int(gtype), size=_vec(size), pos=_vec(pos), quat=_vec(quat)))
@@ -160,7 +175,7 @@ def mujoco_model(urdf: str) -> mujoco.MjModel:
     geoms, visuals dropped, and a free joint on the base (a floating joint from a dummy root link,
     which fusestatic merges into the world)."""
     start = re.search(r"<robot\b[^>]*>", urdf)
-    return mujoco.MjModel.from_xml_string(urdf[:start.end()] + MUJOCO_IMPORT + urdf[start.end():])
+    return mujoco.MjModel.from_xml_string(urdf[: start.end()] + MUJOCO_IMPORT + urdf[start.end() :])
 
 
 def quat_to_matrix(quat: np.ndarray) -> np.ndarray:
@@ -281,8 +296,9 @@ def test_foot_none_has_no_ball_and_same_mass(model_ball: mujoco.MjModel, model_n
         none_geoms = body_geoms(model_none, model_none.body(f"{leg}_SHANK").id)
         assert len(none_geoms) == len(ball_geoms) - 1
         # the foot adapter tube stays
-        np.testing.assert_allclose(model_none.geom_size[none_geoms][:, :2],
-                                   model_ball.geom_size[ball_geoms[:-1]][:, :2], atol=1e-12)
+        np.testing.assert_allclose(
+            model_none.geom_size[none_geoms][:, :2], model_ball.geom_size[ball_geoms[:-1]][:, :2], atol=1e-12
+        )
     np.testing.assert_allclose(model_none.body_inertia, model_ball.body_inertia, atol=1e-12)
 
 
@@ -320,11 +336,11 @@ def test_foot_mount_frame(foot: str) -> None:
 
 
 def test_foot_mount_pose_is_an_argument() -> None:
-    model, data = _pinocchio_frames(expand(foot="none", foot_mount_xyz="0.01 0 -0.03",
-                                           foot_mount_rpy="0 0 1.5707963267948966"))
+    model, data = _pinocchio_frames(
+        expand(foot="none", foot_mount_xyz="0.01 0 -0.03", foot_mount_rpy="0 0 1.5707963267948966")
+    )
     for leg in LEGS:
-        relative = data.oMf[model.getFrameId(f"{leg}_FOOT")].actInv(
-            data.oMf[model.getFrameId(f"{leg}_foot_mount")])
+        relative = data.oMf[model.getFrameId(f"{leg}_FOOT")].actInv(data.oMf[model.getFrameId(f"{leg}_foot_mount")])
         np.testing.assert_allclose(relative.translation, [0.01, 0.0, -0.03], atol=1e-12)
         np.testing.assert_allclose(relative.rotation, pin.rpy.rpyToMatrix(0, 0, np.pi / 2), atol=1e-12)
 
@@ -353,9 +369,9 @@ def test_softfoot_q_is_included_only_when_asked(tmp_path: Path, monkeypatch: pyt
         '<inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial></link>'
         '<joint name="${prefix}mount" type="fixed"><parent link="${parent}"/>'
         '<child link="${prefix}ankle"/></joint>'
-        '</xacro:macro></robot>')
-    monkeypatch.setattr(xacro.substitution_args, "_eval_find",
-                        lambda pkg: str(tmp_path / pkg))
+        "</xacro:macro></robot>"
+    )
+    monkeypatch.setattr(xacro.substitution_args, "_eval_find", lambda pkg: str(tmp_path / pkg))
     urdf = expand(foot="softfoot_q")
     root = etree.fromstring(urdf.encode())
     for leg in LEGS:
@@ -389,7 +405,8 @@ def test_urdf_structure(urdf_ball: str) -> None:
             assert len(link) == 0, f"{name} should have no inertial and no geometry"
     revolute = [j for j in root.findall("joint") if j.get("type") == "revolute"]
     assert sorted(j.get("name") for j in revolute) == sorted(
-        f"{leg}_{dof}" for leg in LEGS for dof in ("HAA", "HFE", "KFE"))
+        f"{leg}_{dof}" for leg in LEGS for dof in ("HAA", "HFE", "KFE")
+    )
     for joint in revolute:
         limit = joint.find("limit")
         assert float(limit.get("effort")) == 80.0 and float(limit.get("velocity")) == 7.5

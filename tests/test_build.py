@@ -19,8 +19,11 @@ class _Warnings:
 
     @staticmethod
     def of(data):
-        return {mujoco.mjtWarning(i).name: int(data.warning[i].number)
-                for i in range(len(data.warning)) if data.warning[i].number}
+        return {
+            mujoco.mjtWarning(i).name: int(data.warning[i].number)
+            for i in range(len(data.warning))
+            if data.warning[i].number
+        }
 
 
 def _load(built, variant, name):
@@ -192,14 +195,14 @@ def test_mjcf_on_disk_equals_model_in_memory(tmp_path):
     build(BuildOptions(variant="aof", out_dir=out, cache_dir=tmp_path / "cache"))
     disk = mujoco.MjModel.from_xml_path(str(out / "robot.xml"))
     # Rebuild in memory from the same inputs.
-    from footforge.models import kinematics
-    from footforge.models.collision import DecompositionConfig
     from footforge.inputs.description import default_foot_description
     from footforge.inputs.params import load_params
     from footforge.inputs.sidecar import default_sidecar_path, load_sidecar
+    from footforge.mjcf.writing import compile_model
+    from footforge.models import kinematics
+    from footforge.models.collision import DecompositionConfig
     from footforge.models.foot_source import FootSource, decompose_collision_meshes
     from footforge.models.urdf import parse_urdf
-    from footforge.mjcf.writing import compile_model
 
     desc = load_description(default_foot_description())
     parsed = parse_urdf(desc, floating=True)
@@ -208,11 +211,31 @@ def test_mjcf_on_disk_equals_model_in_memory(tmp_path):
     hulls = decompose_collision_meshes(parsed, DecompositionConfig(), cache_dir=tmp_path / "cache")
     source = FootSource(parsed, sidecar, params, kinematics.reference_pose(parsed, sidecar), hulls)
     robot = parse_urdf(load_description(default_robot_description(), args={"foot": "none"}), floating=True)
-    memory = compile_model(build_robot(robot, foot_lib.build_derived(source, "aof"), variant="aof",
-                                                params=params, friction=sidecar.friction).mjcf)
-    for field in ("body_mass", "body_inertia", "body_ipos", "body_iquat", "body_pos", "body_quat", "jnt_axis",
-                  "jnt_range", "jnt_stiffness", "dof_damping", "dof_armature", "geom_size", "geom_pos",
-                  "geom_quat", "actuator_gainprm", "actuator_biasprm", "key_qpos", "mesh_vert"):
+    memory = compile_model(
+        build_robot(
+            robot, foot_lib.build_derived(source, "aof"), variant="aof", params=params, friction=sidecar.friction
+        ).mjcf
+    )
+    for field in (
+        "body_mass",
+        "body_inertia",
+        "body_ipos",
+        "body_iquat",
+        "body_pos",
+        "body_quat",
+        "jnt_axis",
+        "jnt_range",
+        "jnt_stiffness",
+        "dof_damping",
+        "dof_armature",
+        "geom_size",
+        "geom_pos",
+        "geom_quat",
+        "actuator_gainprm",
+        "actuator_biasprm",
+        "key_qpos",
+        "mesh_vert",
+    ):
         np.testing.assert_array_equal(getattr(disk, field), getattr(memory, field), err_msg=field)
 
 

@@ -31,13 +31,23 @@ def test_build_writes_outputs_and_summary(capsys, tmp_path):
     assert code == 0, text
     assert "total mass" in text and "pass" in text
     assert {p.name for p in (tmp_path / "out").iterdir()} == {
-        "robot.xml", "scene.xml", "foot_rig.xml", "assets", "build_report.json",
-        "robot.usda", "robot.usd", "foot_rig.usda", "foot_rig.usd", ".footforge-output"}
+        "robot.xml",
+        "scene.xml",
+        "foot_rig.xml",
+        "assets",
+        "build_report.json",
+        "robot.usda",
+        "robot.usd",
+        "foot_rig.usda",
+        "foot_rig.usd",
+        ".footforge-output",
+    }
 
 
 def test_foot_only(capsys, tmp_path):
-    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--out", tmp_path / "f",
-                     "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys, "build", "--variant", "aof", "--foot-only", "--out", tmp_path / "f", "--cache-dir", tmp_path / "c"
+    )
     assert code == 0, text
     assert (tmp_path / "f/foot.xml").is_file() and not (tmp_path / "f/robot.xml").exists()
 
@@ -50,8 +60,18 @@ def test_unknown_variant_is_a_usage_error(capsys):
 def test_missing_mesh_names_link_and_leaves_no_output(capsys, tmp_path, foot_copy):
     (foot_copy / "meshes/arch.stl").unlink()
     out = tmp_path / "out"
-    code, text = run(capsys, "build", "--variant", "aof", "--description", foot_copy / "urdf/softfoot_q.urdf.xacro",
-                     "--package-path", tmp_path, "--out", out)
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aof",
+        "--description",
+        foot_copy / "urdf/softfoot_q.urdf.xacro",
+        "--package-path",
+        tmp_path,
+        "--out",
+        out,
+    )
     assert code == 2
     assert "arch.stl" in text and "front_arch" in text and "fix:" in text and "Traceback" not in text
     assert not out.exists() and not any(p.name.startswith(".out.tmp") for p in tmp_path.iterdir())
@@ -74,8 +94,20 @@ def test_a_flat_collision_mesh_is_found_by_check_and_refused_by_build(capsys, tm
     code, text = run(capsys, "check", xacro, "--package-path", tmp_path)
     assert code == 1 and "unusable_collision_mesh" in text and "arch.stl" in text and "flat" in text
     out = tmp_path / "out"
-    code, text = run(capsys, "build", "--variant", "aof", "--description", xacro, "--package-path", tmp_path,
-                     "--out", out, "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aof",
+        "--description",
+        xacro,
+        "--package-path",
+        tmp_path,
+        "--out",
+        out,
+        "--cache-dir",
+        tmp_path / "c",
+    )
     assert code == 1 and "unusable_collision_mesh" in text and "arch.stl" in text
     assert "Traceback" not in text and "networkx" not in text
     assert not out.exists()
@@ -84,16 +116,28 @@ def test_a_flat_collision_mesh_is_found_by_check_and_refused_by_build(capsys, tm
 def test_malformed_xacro(capsys, tmp_path, foot_copy):
     path = foot_copy / "urdf/softfoot_q.xacro"
     path.write_text(path.read_text().replace("</robot>", "</robt>"))
-    code, text = run(capsys, "build", "--variant", "aff", "--description", foot_copy / "urdf/softfoot_q.urdf.xacro",
-                     "--package-path", tmp_path, "--out", tmp_path / "out")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aff",
+        "--description",
+        foot_copy / "urdf/softfoot_q.urdf.xacro",
+        "--package-path",
+        tmp_path,
+        "--out",
+        tmp_path / "out",
+    )
     assert code == 2 and ("malformed" in text.lower() or "xacro failed" in text), text
     assert "Traceback" not in text
 
 
 def test_unresolved_package(capsys, tmp_path):
     urdf = tmp_path / "foot.urdf"
-    urdf.write_text('<robot name="r"><link name="a"><visual><geometry><mesh filename="package://nopkg/m.stl"/>'
-                    "</geometry></visual></link></robot>")
+    urdf.write_text(
+        '<robot name="r"><link name="a"><visual><geometry><mesh filename="package://nopkg/m.stl"/>'
+        "</geometry></visual></link></robot>"
+    )
     code, text = run(capsys, "check", urdf)
     assert code == 1 and "nopkg" in text
 
@@ -101,8 +145,17 @@ def test_unresolved_package(capsys, tmp_path):
 def test_non_physical_inertia_fails_then_repairs(capsys, tmp_path, foot_copy):
     path = foot_copy / "urdf/softfoot_q.xacro"
     path.write_text(path.read_text().replace('izz="4.0468e-6"', 'izz="1.0468e-6"'))  # the public file's typo
-    args = ["build", "--variant", "aff", "--description", foot_copy / "urdf/softfoot_q.urdf.xacro",
-            "--package-path", tmp_path, "--cache-dir", tmp_path / "c"]
+    args = [
+        "build",
+        "--variant",
+        "aff",
+        "--description",
+        foot_copy / "urdf/softfoot_q.urdf.xacro",
+        "--package-path",
+        tmp_path,
+        "--cache-dir",
+        tmp_path / "c",
+    ]
     code, text = run(capsys, *args, "--out", tmp_path / "out")
     assert code == 1 and "ankle" in text and "triangle" in text and "--repair" in text
     assert not (tmp_path / "out").exists()
@@ -136,29 +189,46 @@ def test_closure_axis_off_the_chain_pins_is_refused(capsys, tmp_path):
     sidecar.write_text(yaml.safe_dump(data))
     code, text = run(capsys, "check", FOOT_XACRO, "--sidecar", sidecar)
     assert code == 1 and f"closure '{closure['name']}'" in text and "10.0 deg off" in text, text
-    code, text = run(capsys, "build", "--variant", "aof", "--sidecar", sidecar, "--out", tmp_path / "o", "--format", "mjcf")
+    code, text = run(
+        capsys, "build", "--variant", "aof", "--sidecar", sidecar, "--out", tmp_path / "o", "--format", "mjcf"
+    )
     assert code == 1 and "10.0 deg off" in text and not (tmp_path / "o").exists(), text
 
 
 def test_check_clean_descriptions(capsys):
     code, text = run(capsys, "check", FOOT_XACRO, "--sidecar", FOOT_SIDECAR)
     assert code == 0, text
-    code, text = run(capsys, "check", REPO / "descriptions/anymal_c/urdf/anymal_c.urdf.xacro", "--arg", "foot:=softfoot_q")
+    code, text = run(
+        capsys, "check", REPO / "descriptions/anymal_c/urdf/anymal_c.urdf.xacro", "--arg", "foot:=softfoot_q"
+    )
     assert code == 0, text
 
 
-@pytest.mark.parametrize("edit, message", [
-    (lambda d: d.update(friction=-1), "friction"),
-    (lambda d: d.update(bogus=1), "top level: unknown keys ['bogus']"),
-    (lambda d: d["closures"][0].update(link="no_such_link"), "no_such_link"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda d: d.update(friction=-1), "friction"),
+        (lambda d: d.update(bogus=1), "top level: unknown keys ['bogus']"),
+        (lambda d: d["closures"][0].update(link="no_such_link"), "no_such_link"),
+    ],
+)
 def test_bad_sidecar_values(capsys, tmp_path, edit, message):
     data = yaml.safe_load(FOOT_SIDECAR.read_text())
     edit(data)
     sidecar = tmp_path / "bad.sidecar.yaml"
     sidecar.write_text(yaml.safe_dump(data))
-    code, text = run(capsys, "build", "--variant", "aff", "--sidecar", sidecar, "--out", tmp_path / "o",
-                     "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aff",
+        "--sidecar",
+        sidecar,
+        "--out",
+        tmp_path / "o",
+        "--cache-dir",
+        tmp_path / "c",
+    )
     text = " ".join(text.split())  # rich wraps long lines where the temporary path's length puts them
     assert code == 2 and message in text and "Traceback" not in text
 
@@ -211,9 +281,11 @@ def test_existing_default_builds_need_no_build_packages(tmp_path, monkeypatch):
 
     (tmp_path / "build" / "ball").mkdir(parents=True)
     (tmp_path / "build" / "ball" / "scene.xml").write_text("<mujoco/>")
-    code = ("import sys; sys.modules.update(lxml=None, xacro=None, coacd=None, pinocchio=None); "
-            "from footforge.cli.builds import build_defaults_if_missing; "
-            "build_defaults_if_missing(['ball'], None); print('ok')")
+    code = (
+        "import sys; sys.modules.update(lxml=None, xacro=None, coacd=None, pinocchio=None); "
+        "from footforge.cli.builds import build_defaults_if_missing; "
+        "build_defaults_if_missing(['ball'], None); print('ok')"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
 
@@ -230,9 +302,16 @@ def test_help_lists_every_job_in_one_line_each(capsys):
     assert [job for job in listed if job in JOBS] == list(JOBS)
 
 
-@pytest.mark.parametrize("job, first_option", [("evaluate", "--policy"), ("evaluate-closed-chain", "--robots"),
-                                               ("play", "--headless"), ("train flat", "--feet"),
-                                               ("train rough", "--terrain")])
+@pytest.mark.parametrize(
+    "job, first_option",
+    [
+        ("evaluate", "--policy"),
+        ("evaluate-closed-chain", "--robots"),
+        ("play", "--headless"),
+        ("train flat", "--feet"),
+        ("train rough", "--terrain"),
+    ],
+)
 def test_each_job_has_its_own_help(capsys, job, first_option):
     code, text = run(capsys, *job.split(), "--help")
     assert code == 0 and f"usage: footforge {job} " in text and first_option in text
@@ -251,14 +330,17 @@ def test_a_job_reports_bad_input_with_its_exit_code(capsys, tmp_path):
     assert code == 2 and f"{tmp_path / 'none'}" in text and not (tmp_path / "eval").exists()
 
 
-@pytest.mark.parametrize("job, argv", [
-    ("export", ["export", "{missing}"]),
-    ("evaluate", ["evaluate", "--policy", "{missing}", "--out", "{out}"]),
-    ("evaluate-closed-chain", ["evaluate-closed-chain", "--policy", "{missing}", "--out", "{out}"]),
-    ("play", ["play", "{missing}", "--headless"]),
-    ("train flat", ["train", "flat", "--out", "{missing}", "--resume"]),
-    ("validate", ["validate", "--variant", "aof", "--params", "{missing}"]),
-])
+@pytest.mark.parametrize(
+    "job, argv",
+    [
+        ("export", ["export", "{missing}"]),
+        ("evaluate", ["evaluate", "--policy", "{missing}", "--out", "{out}"]),
+        ("evaluate-closed-chain", ["evaluate-closed-chain", "--policy", "{missing}", "--out", "{out}"]),
+        ("play", ["play", "{missing}", "--headless"]),
+        ("train flat", ["train", "flat", "--out", "{missing}", "--resume"]),
+        ("validate", ["validate", "--variant", "aof", "--params", "{missing}"]),
+    ],
+)
 def test_every_command_s_error_starts_with_its_own_name(capsys, tmp_path, job, argv):
     """One error prefix for every command, `footforge <command>: error:`, whichever module runs it
     (issue: `footforge: error:`, `evaluate: error:`, `play: error:`, `train_flat: error:`)."""
@@ -268,8 +350,16 @@ def test_every_command_s_error_starts_with_its_own_name(capsys, tmp_path, job, a
     assert code == 2 and errors and errors[0].startswith(f"footforge {job}: error: "), text
 
 
-@pytest.mark.parametrize("script, job", [("evaluate", "evaluate"), ("evaluate_closed_chain", "evaluate-closed-chain"),
-                                         ("play", "play"), ("train_flat", "train flat"), ("train_rough", "train rough")])
+@pytest.mark.parametrize(
+    "script, job",
+    [
+        ("evaluate", "evaluate"),
+        ("evaluate_closed_chain", "evaluate-closed-chain"),
+        ("play", "play"),
+        ("train_flat", "train flat"),
+        ("train_rough", "train rough"),
+    ],
+)
 def test_pipeline_scripts_run_the_same_jobs(script, job):
     """pipelines/<script>.py, run by path as people do, is footforge <job>: the same options."""
     import subprocess
@@ -280,8 +370,9 @@ def test_pipeline_scripts_run_the_same_jobs(script, job):
         assert out.returncode == 0, out.stderr
         return sorted({word.strip("[],") for word in out.stdout.split() if word.startswith(("--", "[--"))})
 
-    assert options([sys.executable, str(REPO / "pipelines" / f"{script}.py")]) == \
-        options([sys.executable, "-m", "footforge.cli", *job.split()])
+    assert options([sys.executable, str(REPO / "pipelines" / f"{script}.py")]) == options(
+        [sys.executable, "-m", "footforge.cli", *job.split()]
+    )
 
 
 def test_every_option_of_every_job_says_what_it_does_and_its_default():
@@ -292,8 +383,17 @@ def test_every_option_of_every_job_says_what_it_does_and_its_default():
     from footforge.cli.main import parsers
 
     jobs = parsers()
-    assert set(jobs) == {"build", "validate", "check", "export", "evaluate", "evaluate-closed-chain", "play",
-                         "train flat", "train rough"}
+    assert set(jobs) == {
+        "build",
+        "validate",
+        "check",
+        "export",
+        "evaluate",
+        "evaluate-closed-chain",
+        "play",
+        "train flat",
+        "train rough",
+    }
     missing = []
     for job, parser in jobs.items():
         assert parser.description, job
@@ -304,8 +404,11 @@ def test_every_option_of_every_job_says_what_it_does_and_its_default():
             name = "/".join(action.option_strings) or action.dest
             if not action.help:
                 missing.append(f"{job} {name}: no help")
-            elif (action.option_strings and action.default not in (None, [], argparse.SUPPRESS)
-                  and not isinstance(action.default, bool)):
+            elif (
+                action.option_strings
+                and action.default not in (None, [], argparse.SUPPRESS)
+                and not isinstance(action.default, bool)
+            ):
                 values = action.default if isinstance(action.default, list) else [action.default]
                 flat = " ".join(text.split())
                 for value in map(str, values):  # 10.0 may be written 10
@@ -321,8 +424,10 @@ def test_commands_hold_back_mjx_s_lines_about_a_missing_warp():
     import subprocess
     import sys
 
-    code = ("import footforge; footforge.headless_by_default(); footforge.headless_by_default(); "
-            "import brax.envs.base; from mujoco.mjx import warp; print('imported', warp.WARP_INSTALLED in (True, False))")
+    code = (
+        "import footforge; footforge.headless_by_default(); footforge.headless_by_default(); "
+        "import brax.envs.base; from mujoco.mjx import warp; print('imported', warp.WARP_INSTALLED in (True, False))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout == "imported True\n" and "Failed to import" not in out.stderr
@@ -343,8 +448,17 @@ def test_tables_are_not_cut_when_piped(monkeypatch):
     monkeypatch.delenv("COLUMNS", raising=False)
     out = console()
     assert not out.is_terminal and out.width == PIPED_WIDTH  # pytest captures: not a terminal
-    headers = ["variant", "force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm",
-               "slip_mm", "speed vs full", "verdict"]
+    headers = [
+        "variant",
+        "force_nrmse",
+        "peak_force_rel",
+        "final_height_mm",
+        "orientation_deg",
+        "cop_mm",
+        "slip_mm",
+        "speed vs full",
+        "verdict",
+    ]
     table = Table()
     for h in headers:
         table.add_column(h)
@@ -365,14 +479,24 @@ def test_an_unknown_mujoco_gl_is_an_input_error_for_every_command(value):
     import subprocess
     import sys
 
-    commands = [["-m", "footforge.cli.main", "--help"], ["-m", "footforge.cli.main", "build", "--help"],
-                ["-m", "footforge.cli.main", "train", "flat", "--help"], ["-m", "footforge.cli.main", "evaluate", "--help"],
-                ["-m", "footforge.cli.main", "play", "--help"], ["-m", "footforge.cli.main", "evaluate-closed-chain", "--help"],
-                [str(REPO / "pipelines" / "train_rough.py"), "--help"]]
+    commands = [
+        ["-m", "footforge.cli.main", "--help"],
+        ["-m", "footforge.cli.main", "build", "--help"],
+        ["-m", "footforge.cli.main", "train", "flat", "--help"],
+        ["-m", "footforge.cli.main", "evaluate", "--help"],
+        ["-m", "footforge.cli.main", "play", "--help"],
+        ["-m", "footforge.cli.main", "evaluate-closed-chain", "--help"],
+        [str(REPO / "pipelines" / "train_rough.py"), "--help"],
+    ]
     for command in commands:
         for setting, code in ((value, 2), ("disable", 0)):
-            done = subprocess.run([sys.executable, *command], capture_output=True, text=True, timeout=300,
-                                  env=os.environ | {"MUJOCO_GL": setting})
+            done = subprocess.run(
+                [sys.executable, *command],
+                capture_output=True,
+                text=True,
+                timeout=300,
+                env=os.environ | {"MUJOCO_GL": setting},
+            )
             assert done.returncode == code, (command, setting, done.stderr[-2000:])
             if code == 2:
                 assert "Traceback" not in done.stderr and done.stderr.count("\n") == 1, (command, done.stderr)
@@ -391,8 +515,13 @@ def test_the_cpu_learning_benchmark_says_whole_sentences_and_writes_valid_json()
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, str(REPO / "benchmarks/learning_cpu.py"), "--help"], capture_output=True,
-                         text=True, cwd=REPO, timeout=120)
+    out = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks/learning_cpu.py"), "--help"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+    )
     assert out.returncode == 0, out.stderr
     description = " ".join(out.stdout.split("\n\n")[1].split())
     assert description.endswith(".") and "a variant of its settings" in description, description
@@ -401,4 +530,8 @@ def test_the_cpu_learning_benchmark_says_whole_sentences_and_writes_valid_json()
     spec.loader.exec_module(module)
     row = {"vx_slope": float("nan"), "gait": {"trot": float("inf")}, "curve": [{"x": 1.5}], "steps": 3}
     assert json.loads(json.dumps(module._finite_or_none(row), allow_nan=False)) == {
-        "vx_slope": None, "gait": {"trot": None}, "curve": [{"x": 1.5}], "steps": 3}
+        "vx_slope": None,
+        "gait": {"trot": None},
+        "curve": [{"x": 1.5}],
+        "steps": 3,
+    }

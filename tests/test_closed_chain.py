@@ -6,27 +6,32 @@ from dataclasses import replace
 
 import jax
 import jax.numpy as jp
+import mujoco
 import numpy as np
 import pytest
-import mujoco
 from mujoco import mjx
+
+from footforge import constants as C, envs
+from footforge.envs import observation_layout, terrain as terrain_lib
+from footforge.envs.config import ObservationConfig
+from footforge.errors import InputError
+from footforge.rl import train
+from footforge.rl.evaluate_closed_chain import (
+    TERRAIN_TILES,
+    Controller,
+    comparison_markdown,
+    cpu_robot,
+    evaluate_closed_chain,
+    place_at_start,
+)
+from footforge.rl.verdict import VERDICTS
 
 from conftest import REPO
 
-from footforge import constants as C
-from footforge import envs
-from footforge.rl import train
-from footforge.rl.evaluate_closed_chain import (TERRAIN_TILES, Controller, comparison_markdown, cpu_robot,
-                                                evaluate_closed_chain, place_at_start)
-from footforge.envs import observation_layout
-from footforge.envs import terrain as terrain_lib
-from footforge.envs.config import ObservationConfig
-from footforge.errors import InputError
-from footforge.rl.verdict import VERDICTS
-
 NOISELESS = ObservationConfig(noise=False)
-TILE = terrain_lib.TerrainConfig(num_levels=1, num_columns=1, tile_size_m=2.0, border_m=1.0, platform_m=0.5,
-                                 proportions=(0, 1, 0, 0, 0, 0))
+TILE = terrain_lib.TerrainConfig(
+    num_levels=1, num_columns=1, tile_size_m=2.0, border_m=1.0, platform_m=0.5, proportions=(0, 1, 0, 0, 0, 0)
+)
 """One rough-slope tile: the smallest heightfield with heights under the scan."""
 
 
@@ -39,8 +44,9 @@ def test_cpu_controller_matches_the_mjx_env(built, monkeypatch, task, policy):
     would take most of a minute to compile on the CPU."""
     monkeypatch.setattr(mjx, "step", lambda model, data: data)
     monkeypatch.setattr(mjx, "forward", lambda model, data: data)
-    config = replace(envs.default_config(task, "aof", policy), build_dir=str(built["aof"][0]), observations=NOISELESS,
-                     terrain=TILE)
+    config = replace(
+        envs.default_config(task, "aof", policy), build_dir=str(built["aof"][0]), observations=NOISELESS, terrain=TILE
+    )
     env = envs.from_config(config)
     seed, action = 3, jp.linspace(-1.0, 1.0, 12)
     control = Controller(env, env.robot, lambda obs, key: (jp.broadcast_to(action, (obs.shape[0], 12)), {}))
@@ -60,8 +66,9 @@ def test_cpu_controller_matches_the_mjx_env(built, monkeypatch, task, policy):
     assert not after.done  # an ended episode would restart: nothing to compare
     _, targets, _, _, info, keys = control.act(obs, qpos[None], info)
     np.testing.assert_allclose(targets[0], after.pipeline_state.ctrl[env.robot.actuator_ids], atol=1e-6)
-    info, obs, row = control.settle(qpos[None], qvel[None], info, keys, action[None],
-                                    after.pipeline_state.actuator_force[None])
+    info, obs, row = control.settle(
+        qpos[None], qvel[None], info, keys, action[None], after.pipeline_state.actuator_force[None]
+    )
     np.testing.assert_allclose(obs[0], after.obs, atol=1e-5)
     np.testing.assert_allclose(info["command"][0], after.info["command"], atol=1e-6)
     # Both sides call the same observation functions, so the proprioceptive block is also computed
@@ -73,15 +80,28 @@ def test_cpu_controller_matches_the_mjx_env(built, monkeypatch, task, policy):
     rot = rot.reshape(3, 3)
     model = env.robot.model
     joints = [model.joint(name) for name in C.ACTUATED_JOINTS]
-    joint_q = np.array([q[j.qposadr[0]] for j in joints]) - np.array([C.DEFAULT_JOINT_ANGLES_RAD[n]
-                                                                         for n in C.ACTUATED_JOINTS])
+    joint_q = np.array([q[j.qposadr[0]] for j in joints]) - np.array(
+        [C.DEFAULT_JOINT_ANGLES_RAD[n] for n in C.ACTUATED_JOINTS]
+    )
     joint_v = np.array([v[j.dofadr[0]] for j in joints])
-    by_hand = np.concatenate([2.0 * rot.T @ v[:3], 0.25 * v[3:6], rot.T @ [0.0, 0.0, -1.0],
-                              np.asarray(after.info["command"]) * [2.0, 2.0, 0.25], joint_q, 0.05 * joint_v,
-                              np.asarray(action)])
-    np.testing.assert_allclose(obs[0][:by_hand.size], by_hand, atol=1e-5)
-    for ours, theirs in (("lin_vel_x_error", "error/lin_vel_x_per_step"), ("lin_vel_y_error", "error/lin_vel_y_per_step"),
-                         ("yaw_rate_error", "error/yaw_rate_per_step"), ("base_height", "base_height_m_per_step")):
+    by_hand = np.concatenate(
+        [
+            2.0 * rot.T @ v[:3],
+            0.25 * v[3:6],
+            rot.T @ [0.0, 0.0, -1.0],
+            np.asarray(after.info["command"]) * [2.0, 2.0, 0.25],
+            joint_q,
+            0.05 * joint_v,
+            np.asarray(action),
+        ]
+    )
+    np.testing.assert_allclose(obs[0][: by_hand.size], by_hand, atol=1e-5)
+    for ours, theirs in (
+        ("lin_vel_x_error", "error/lin_vel_x_per_step"),
+        ("lin_vel_y_error", "error/lin_vel_y_per_step"),
+        ("yaw_rate_error", "error/yaw_rate_per_step"),
+        ("base_height", "base_height_m_per_step"),
+    ):
         assert row[ours][0] == pytest.approx(float(after.metrics[theirs]), abs=1e-5)
 
 
@@ -91,8 +111,12 @@ def untrained(built, tmp_path_factory):
     root = tmp_path_factory.mktemp("policies")
     b = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]))
     bh = replace(envs.default_config("flat", "aof", "BH"), build_dir=str(built["aof"][0]))
-    return {"B": train.initial_policy(b, train.PPOConfig(), root / "B", observation_size=observation_layout.size(b, 0)),
-            "BH": train.initial_policy(bh, train.PPOConfig(), root / "BH", observation_size=observation_layout.size(bh, 16))}
+    return {
+        "B": train.initial_policy(b, train.PPOConfig(), root / "B", observation_size=observation_layout.size(b, 0)),
+        "BH": train.initial_policy(
+            bh, train.PPOConfig(), root / "BH", observation_size=observation_layout.size(bh, 16)
+        ),
+    }
 
 
 def test_short_run_on_the_closed_chain_and_the_training_feet(built, untrained):
@@ -156,11 +180,16 @@ def test_a_haptic_policy_runs_on_the_closed_chain_through_the_foot_imus(built, u
     monkeypatch.setattr(closed_chain.FootImuEstimator, "__call__", recording)
     result = evaluate_closed_chain(untrained["BH"], seconds=0.1, num_robots=1, build_root=built["full"][0].parent)
     assert list(result["feet"]) == ["aof", "full"]
-    assert result["passive_joints_on_full"]["joints"][:4] == ["LF_foot/ankle_pitch", "LF_foot/ankle_roll",
-                                                               "LF_foot/sole_back", "LF_foot/sole_front"]
+    assert result["passive_joints_on_full"]["joints"][:4] == [
+        "LF_foot/ankle_pitch",
+        "LF_foot/ankle_roll",
+        "LF_foot/sole_back",
+        "LF_foot/sole_front",
+    ]
     assert all(column["finite"] for column in result["feet"].values())
-    assert seen and all(a.shape == (16,) and r.shape == (16,) and np.isfinite(a).all() and np.isfinite(r).all()
-                        for a, r in seen)
+    assert seen and all(
+        a.shape == (16,) and r.shape == (16,) and np.isfinite(a).all() and np.isfinite(r).all() for a, r in seen
+    )
     # The robot starts at `stand` and settles: its feet deform, so the estimates move off zero.
     assert max(np.abs(a).max() for a, _ in seen) > math.radians(0.5)
 
@@ -177,8 +206,9 @@ def test_a_walking_policy_does_not_break_the_closed_chain(built):
     loops stay shut within 3 mm. With MuJoCo's default (soft) joint stops and the chain pins'
     old armature of 1e-6 kg m^2, robots 1 and 0 of this seed diverged at 3.4 and 5.6 s, the
     loops opening by 6.3 mm (benchmarks/RESULTS.md, the shipped policies on the closed chain)."""
-    result = evaluate_closed_chain(REPO / "policies/flat_aof_B/policy", seconds=6.0, num_robots=4, seed=0,
-                                   build_root=built["full"][0].parent)
+    result = evaluate_closed_chain(
+        REPO / "policies/flat_aof_B/policy", seconds=6.0, num_robots=4, seed=0, build_root=built["full"][0].parent
+    )
     full = result["feet"]["full"]
     assert full["diverged"] == 0 and full["finite"], full["fall_times_s"]
     assert full["closure"]["closure_gap_max_m"] < 3e-3

@@ -24,8 +24,13 @@ def _cpu_reference(rig_path, seconds: float) -> tuple[float, float]:
     worst = 0.0
     for _ in range(int(round(seconds / model.opt.timestep))):
         mujoco.mj_step(model, data)
-        worst = max(worst, max(np.linalg.norm(data.site_xpos[model.eq_obj1id[e]] - data.site_xpos[model.eq_obj2id[e]])
-                               for e in connects))
+        worst = max(
+            worst,
+            max(
+                np.linalg.norm(data.site_xpos[model.eq_obj1id[e]] - data.site_xpos[model.eq_obj2id[e]])
+                for e in connects
+            ),
+        )
     return float(data.qpos[slider]), worst
 
 
@@ -33,8 +38,23 @@ def _cpu_reference(rig_path, seconds: float) -> tuple[float, float]:
 @pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_the_closed_chain_steps_on_mjx_batched_and_stays_closed(built):
     folder = built["full"][0]
-    run = subprocess.run([sys.executable, str(REPO / "benchmarks/closed_chain_mjx.py"), "--model", "rig", "--build",
-                          str(folder), "--batch", "4", "--seconds", "1.0"], capture_output=True, text=True, timeout=1200)
+    run = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "benchmarks/closed_chain_mjx.py"),
+            "--model",
+            "rig",
+            "--build",
+            str(folder),
+            "--batch",
+            "4",
+            "--seconds",
+            "1.0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
     assert run.returncode == 0, run.stderr[-3000:]
     result = json.loads(run.stdout.strip().splitlines()[-1])
     height, cpu_gap = _cpu_reference(folder / "foot_rig.xml", 1.0)

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from footforge.models.collision import DecompositionConfig, decompose
 from footforge.errors import InputError
+from footforge.models.collision import DecompositionConfig, decompose
 
 from conftest import REPO
 

@@ -33,8 +33,15 @@ def _yaw_quat(yaw):
 
 @pytest.fixture(scope="module")
 def env(built):
-    commands = CommandConfig(lin_vel_x_range=(-2.0, 2.0), lin_vel_y_range=(-1.0, 1.0), zero_below=0.5,
-                             heading_range=(-1.0, 2.0), heading_gain=0.5, yaw_rate_limit=1.0, resample_s=10.0)
+    commands = CommandConfig(
+        lin_vel_x_range=(-2.0, 2.0),
+        lin_vel_y_range=(-1.0, 1.0),
+        zero_below=0.5,
+        heading_range=(-1.0, 2.0),
+        heading_gain=0.5,
+        yaw_rate_limit=1.0,
+        resample_s=10.0,
+    )
     return _env(built, commands=commands, pushes=PushConfig(interval_s=15.0, max_speed=1.0, enabled=True))
 
 
@@ -47,7 +54,7 @@ def test_commands_are_uniform_in_their_ranges_with_a_dead_zone(env):
     assert not np.asarray(standing).any()  # standing_fraction 0: no standing command
     speed = np.hypot(commands[:, 0], commands[:, 1])
     zeroed = speed == 0.0
-    p = math.pi * 0.5 ** 2 / 8.0
+    p = math.pi * 0.5**2 / 8.0
     assert zeroed.mean() == pytest.approx(p, abs=4 * math.sqrt(p * (1 - p) / DRAWS))  # 4 sigma
     assert (speed[~zeroed] > 0.5).all()
     assert (commands[:, 2] == 0.0).all()
@@ -87,14 +94,17 @@ def test_a_share_of_standing_commands_is_all_zero_and_holds_the_heading(built):
         assert float(env.heading_command(info, data)[2]) == pytest.approx(yaw_rate)
 
 
-@pytest.mark.parametrize("yaw, heading, expected", [
-    (0.0, 0.5, 0.25),     # gain 0.5 x error 0.5
-    (0.0, 3.0, 1.0),      # 1.5 clipped at the 1 rad/s limit
-    (0.0, -3.0, -1.0),
-    (3.0, -3.0, 0.5 * (2 * math.pi - 6.0)),   # the short way round: +0.283 rad, not -6
-    (-3.0, 3.0, -0.5 * (2 * math.pi - 6.0)),
-    (1.2, 1.2, 0.0),
-])
+@pytest.mark.parametrize(
+    "yaw, heading, expected",
+    [
+        (0.0, 0.5, 0.25),  # gain 0.5 x error 0.5
+        (0.0, 3.0, 1.0),  # 1.5 clipped at the 1 rad/s limit
+        (0.0, -3.0, -1.0),
+        (3.0, -3.0, 0.5 * (2 * math.pi - 6.0)),  # the short way round: +0.283 rad, not -6
+        (-3.0, 3.0, -0.5 * (2 * math.pi - 6.0)),
+        (1.2, 1.2, 0.0),
+    ],
+)
 def test_heading_controller_turns_the_short_way_within_the_limit(env, yaw, heading, expected):
     data = SimpleNamespace(qpos=jp.concatenate([jp.array([0.0, 0.0, 0.5]), _yaw_quat(yaw)]))
     info = {"command": jp.array([0.3, -0.2, 0.7]), "heading_target": jp.float32(heading), "standing": jp.array(False)}
@@ -141,8 +151,12 @@ def test_the_total_reward_is_the_sum_of_its_terms_clipped_at_zero_or_not(built, 
     for clip in (False, True):
         config = envs.default_config("flat", "ball", "B")
         r = config.rewards
-        r = replace(r, clip_total_at_zero=clip, lin_vel_xy=replace(r.lin_vel_xy, scale=0.0),
-                    yaw_rate=replace(r.yaw_rate, scale=0.0))
+        r = replace(
+            r,
+            clip_total_at_zero=clip,
+            lin_vel_xy=replace(r.lin_vel_xy, scale=0.0),
+            yaw_rate=replace(r.yaw_rate, scale=0.0),
+        )
         env = _env(built, rewards=r, pushes=replace(config.pushes, enabled=False))
         state = env.reset(jax.random.PRNGKey(0))
         after = env.step(state, jp.full(env.action_size, 0.8))  # off the default pose: the penalties bite

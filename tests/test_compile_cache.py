@@ -23,9 +23,12 @@ print(len(hits))
 
 
 def _run(env: dict, enabled: bool = True) -> list[str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("FOOTFORGE_COMPILE_CACHE", "JAX_COMPILATION_CACHE_DIR")} | env
-    done = subprocess.run([sys.executable, "-c", PROGRAM.format(enabled=enabled)], capture_output=True, text=True,
-                          env=env, timeout=300)
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("FOOTFORGE_COMPILE_CACHE", "JAX_COMPILATION_CACHE_DIR")
+    } | env
+    done = subprocess.run(
+        [sys.executable, "-c", PROGRAM.format(enabled=enabled)], capture_output=True, text=True, env=env, timeout=300
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     return done.stdout.split()
 
@@ -63,9 +66,13 @@ def test_on_the_cpu_the_cache_is_off_unless_a_folder_is_named(tmp_path):
     assert _run({"XDG_CACHE_HOME": str(tmp_path / "xdg")}) == ["None", "0"]
     assert not (tmp_path / "xdg").exists()
     env = {k: v for k, v in os.environ.items() if k not in ("FOOTFORGE_COMPILE_CACHE", "JAX_COMPILATION_CACHE_DIR")}
-    done = subprocess.run([sys.executable, "-c", "from footforge.rl import compile_cache as c; c.enable(); c.enable()"],
-                          capture_output=True, text=True, env=env | {"FOOTFORGE_COMPILE_CACHE": str(tmp_path / "c")},
-                          timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-c", "from footforge.rl import compile_cache as c; c.enable(); c.enable()"],
+        capture_output=True,
+        text=True,
+        env=env | {"FOOTFORGE_COMPILE_CACHE": str(tmp_path / "c")},
+        timeout=300,
+    )
     assert done.returncode == 0 and done.stderr.count("note: JAX's compilation cache is on for the CPU") == 1
 
 

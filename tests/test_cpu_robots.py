@@ -27,7 +27,7 @@ def _targets(robot, n, seed=0):
 
 def _contact_list(data):
     """MuJoCo's contact list of `data`: (geom pairs (ncon, 2), signed distances (ncon,))."""
-    return data.contact.geom[:data.ncon].copy().reshape(-1, 2), data.contact.dist[:data.ncon].copy()
+    return data.contact.geom[: data.ncon].copy().reshape(-1, 2), data.contact.dist[: data.ncon].copy()
 
 
 def _placed(robot, n, terrain=None):

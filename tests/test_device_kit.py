@@ -8,23 +8,30 @@ import sys
 import tarfile
 
 import pytest
-from conftest import REPO
 
 from footforge.rl.train import write_checkpoint_manifest
+
+from conftest import REPO
 
 sys.path.insert(0, str(REPO / "scripts/device"))
 import kit  # noqa: E402
 
 
 def test_run_sh_without_a_kit_is_a_usage_error(tmp_path):
-    done = subprocess.run([str(REPO / "scripts/device/run.sh"), "--kit", str(tmp_path / "none"), "bench"],
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [str(REPO / "scripts/device/run.sh"), "--kit", str(tmp_path / "none"), "bench"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2 and "prepare.sh" in done.stderr
 
 
 def test_prepare_and_dryrun_refuse_extra_arguments():
     for script in ("prepare.sh", "dryrun.sh"):
-        done = subprocess.run([str(REPO / "scripts/device" / script), "a", "b"], capture_output=True, text=True, timeout=120)
+        done = subprocess.run(
+            [str(REPO / "scripts/device" / script), "a", "b"], capture_output=True, text=True, timeout=120
+        )
         assert done.returncode == 2 and "usage" in done.stderr
 
 
@@ -56,7 +63,12 @@ def test_results_tarball_keeps_the_latest_checkpoint_and_unpacks(tmp_path):
     fresh.mkdir()
     kit.unpack(results / name, fresh)
     assert kit.run_state(fresh / "flat_ball_B") | {"metrics": {}} == {
-        "global_step": 64, "num_timesteps": 64, "complete": True, "stopped": None, "metrics": {}}
+        "global_step": 64,
+        "num_timesteps": 64,
+        "complete": True,
+        "stopped": None,
+        "metrics": {},
+    }
     with pytest.raises(kit.UsageError):
         kit.unpack(tmp_path / "missing.tar.gz", fresh)
 
@@ -71,8 +83,13 @@ def test_cpu_dry_run_of_the_gpu_kit(tmp_path):
     env = dict(os.environ)
     env.pop("PYTHONPATH", None)
     env.setdefault("PREPARE_PYTHON", sys.executable)
-    done = subprocess.run([str(REPO / "scripts/device/dryrun.sh"), str(tmp_path / "dry")], capture_output=True,
-                          text=True, env=env, timeout=3600)
+    done = subprocess.run(
+        [str(REPO / "scripts/device/dryrun.sh"), str(tmp_path / "dry")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=3600,
+    )
     last = json.loads(done.stdout.strip().splitlines()[-1])
     assert done.returncode == 0 and last["dryrun"] == "ok", done.stdout[-4000:] + done.stderr[-2000:]
 
@@ -82,7 +99,9 @@ def test_campaign_takes_a_spec_that_begins_with_an_option_and_refuses_an_unknown
     misspelt campaign option is still a usage error."""
     campaign = str(REPO / "scripts/device/campaign.sh")
     common = ["--kit", str(tmp_path / "none"), "--results", str(tmp_path / "out")]
-    done = subprocess.run([campaign, *common, "--resume x.tar.gz train-flat ball B"], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [campaign, *common, "--resume x.tar.gz train-flat ball B"], capture_output=True, text=True, timeout=120
+    )
     assert "unknown option" not in done.stderr
     assert done.returncode == 1 and "the kit did not install" in done.stderr  # it went on to the kit
     done = subprocess.run([campaign, "--minute", "5", "train-flat ball B"], capture_output=True, text=True, timeout=120)

@@ -48,8 +48,9 @@ def _pair(built, task, feet, policy, **overrides):
     only add a large velocity step to compare)."""
     config = envs.default_config(task, feet, policy)
     kwargs = dict(build_dir=str(built[feet][0]), pushes=replace(config.pushes, enabled=False)) | overrides
-    return envs.make(task, feet, policy, physics="mjx", **kwargs), envs.make(task, feet, policy, physics="mujoco",
-                                                                            **kwargs)
+    return envs.make(task, feet, policy, physics="mjx", **kwargs), envs.make(
+        task, feet, policy, physics="mujoco", **kwargs
+    )
 
 
 def _rollout(env, actions):
@@ -60,9 +61,17 @@ def _rollout(env, actions):
 
     def read(s):
         d = s.pipeline_state
-        return {"obs": s.obs, "reward": s.reward, "done": s.done, "contacts": jax.vmap(env.foot_contacts)(d),
-                "forces": jax.vmap(env.foot_forces)(d), "probes": jax.vmap(env.physics.probe_points)(d),
-                "feet": jax.vmap(env.foot_positions)(d), "base_pose": d.qpos[:, :7]}
+        return {
+            "obs": s.obs,
+            "reward": s.reward,
+            "done": s.done,
+            "contacts": jax.vmap(env.foot_contacts)(d),
+            "forces": jax.vmap(env.foot_forces)(d),
+            "probes": jax.vmap(env.physics.probe_points)(d),
+            "feet": jax.vmap(env.foot_positions)(d),
+            "base_pose": d.qpos[:, :7],
+        }
+
     rows = [read(state)]
     for a in actions:
         state = step(state, a)
@@ -77,11 +86,15 @@ def _actions(env, seed=1):
 def _parts(mjx_rows, c_rows):
     """The largest difference of each quantity over every step and robot (the observation split
     into its actuated part and the passive foot joints)."""
+
     def split(row):
         return row | {"obs": row["obs"][:, :ACTUATED_OBS], "passive_obs": row["obs"][:, ACTUATED_OBS:]}
+
     pairs = [(split(m), split(c)) for m, c in zip(mjx_rows, c_rows)]
-    return {k: max(float(np.max(np.abs(m[k].astype(float) - c[k].astype(float)), initial=0.0)) for m, c in pairs)
-            for k in pairs[0][0]}
+    return {
+        k: max(float(np.max(np.abs(m[k].astype(float) - c[k].astype(float)), initial=0.0)) for m, c in pairs)
+        for k in pairs[0][0]
+    }
 
 
 def _assert_agree(parts, obs=OBS_ATOL, passive=PASSIVE_OBS_ATOL, force_n=FORCE_ATOL_N, position_m=POSITION_ATOL_M):
@@ -116,8 +129,13 @@ def float64_parts(built) -> dict:
     import sys
 
     env = os.environ | {"JAX_ENABLE_X64": "1"}
-    done = subprocess.run([sys.executable, "-c", _FLOAT64_PARITY, str(Path(__file__).parent), "ball", "B",
-                           str(built["ball"][0])], capture_output=True, text=True, env=env, timeout=600)
+    done = subprocess.run(
+        [sys.executable, "-c", _FLOAT64_PARITY, str(Path(__file__).parent), "ball", "B", str(built["ball"][0])],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     return json.loads(done.stdout.strip().splitlines()[-1])
 
@@ -138,8 +156,9 @@ def test_the_engine_comparison_can_fail(float64_parts):
     assert parts["obs"] > 1e3 * TIGHT and parts["base_pose"] > 1e3 * TIGHT and parts["feet"] > 1e3 * TIGHT, parts
 
 
-ROUGH_TILES = dict(num_levels=2, num_columns=2, tile_size_m=4.0, border_m=2.0, platform_m=1.0,
-                   proportions=(1, 1, 0, 0, 0, 0))
+ROUGH_TILES = dict(
+    num_levels=2, num_columns=2, tile_size_m=4.0, border_m=2.0, platform_m=1.0, proportions=(1, 1, 0, 0, 0, 0)
+)
 """Four tiles (smooth and rough slopes, difficulty 0 and 0.5): the smallest terrain with slopes
 under the feet, so that MJX compiles in a minute."""
 
@@ -164,8 +183,13 @@ def test_engines_are_the_same_physics_in_float64_on_adaptive_feet(built):
     import subprocess
     import sys
 
-    done = subprocess.run([sys.executable, "-c", _FLOAT64_AOF, str(Path(__file__).parent), str(built["aof"][0])],
-                          capture_output=True, text=True, env=os.environ | {"JAX_ENABLE_X64": "1"}, timeout=800)
+    done = subprocess.run(
+        [sys.executable, "-c", _FLOAT64_AOF, str(Path(__file__).parent), str(built["aof"][0])],
+        capture_output=True,
+        text=True,
+        env=os.environ | {"JAX_ENABLE_X64": "1"},
+        timeout=800,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     parts = json.loads(done.stdout.strip().splitlines()[-1])
     _assert_agree(parts, obs=TIGHT, passive=TIGHT, force_n=TIGHT, position_m=TIGHT)
@@ -209,16 +233,20 @@ def test_engines_agree_on_a_heightfield(built, feet, policy):
     would fail. Measured 2026-11-28 (4 robots, 2 policy steps, action seeds 1-3): AOF PH with
     spheres, feet 0.3-3.7 um apart, base up to 0.24 um, observations up to 2.7e-4, foot forces up to
     0.9 N, the same contacts (control: feet 15-18 mm, base 1.9-2.7 mm, observations 0.48-0.87); with
-    boxes feet 2.3-6.3 mm, base 0.2-1.35 mm, forces up to 700 N. Rough ball P: to 1e-5 at three robots; the fourth lands on a
-    platform's edge (C: a second contact on the slope's prism, normal tilted 27 deg; MJX: one), feet
-    1.3 mm apart (control 11-13 mm), observations 0.025."""
+    boxes feet 2.3-6.3 mm, base 0.2-1.35 mm, forces up to 700 N. Rough ball P: to 1e-5 at three
+    robots; the fourth lands on a platform's edge (C: a second contact on the slope's prism, normal
+    tilted 27 deg; MJX: one), feet 1.3 mm apart (control 11-13 mm), observations 0.025."""
     import os
     import subprocess
     import sys
 
-    done = subprocess.run([sys.executable, "-c", _FLOAT64_ROUGH, str(Path(__file__).parent), feet, policy,
-                           str(built[feet][0])], capture_output=True, text=True,
-                          env=os.environ | {"JAX_ENABLE_X64": "1"}, timeout=1100)
+    done = subprocess.run(
+        [sys.executable, "-c", _FLOAT64_ROUGH, str(Path(__file__).parent), feet, policy, str(built[feet][0])],
+        capture_output=True,
+        text=True,
+        env=os.environ | {"JAX_ENABLE_X64": "1"},
+        timeout=1100,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     out = json.loads(done.stdout.strip().splitlines()[-1])
     same, control = out["same"], out["one_more_step"]
@@ -287,8 +315,10 @@ def test_c_engine_feet_carry_the_robots_weight(built, feet):
     assert np.all(forces > 0.1 * weight_n), forces  # each foot carries its share
     assert float(state.done) == 0.0
     qpos = state.pipeline_state.qpos.at[2].set(0.05)  # the base box reaches below the floor
-    sunk = env.physics.forward(env.mjx_model, env.physics.place(state.pipeline_state, qpos, state.pipeline_state.qvel,
-                                                                 state.pipeline_state.ctrl))
+    sunk = env.physics.forward(
+        env.mjx_model,
+        env.physics.place(state.pipeline_state, qpos, state.pipeline_state.qvel, state.pipeline_state.ctrl),
+    )
     base, _ = env.contact_flags(sunk)
     assert bool(base)
 

@@ -9,7 +9,6 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from conftest import float64_stance
 from footforge import envs
 from footforge.envs import anymal, observation_layout, rewards
 from footforge.envs.anymal import GEOM_BASE
@@ -18,14 +17,29 @@ from footforge.envs.contacts import ground_contacts
 from footforge.envs.locomotion import LocomotionEnv
 from footforge.errors import InputError
 
+from conftest import float64_stance
+
 
 def test_registry_and_its_errors():
     assert [r for r in envs.registry() if r[0] == "flat"] == [
-        ("flat", "ball", "B"), ("flat", "aff", "B"), ("flat", "aff", "BH"), ("flat", "aof", "B"), ("flat", "aof", "BH")]
+        ("flat", "ball", "B"),
+        ("flat", "aff", "B"),
+        ("flat", "aff", "BH"),
+        ("flat", "aof", "B"),
+        ("flat", "aof", "BH"),
+    ]
     assert [r for r in envs.registry() if r[0] == "rough"] == [
-        ("rough", "ball", "B"), ("rough", "ball", "P"), ("rough", "aff", "B"), ("rough", "aff", "P"),
-        ("rough", "aff", "BH"), ("rough", "aff", "PH"), ("rough", "aof", "B"), ("rough", "aof", "P"),
-        ("rough", "aof", "BH"), ("rough", "aof", "PH")]
+        ("rough", "ball", "B"),
+        ("rough", "ball", "P"),
+        ("rough", "aff", "B"),
+        ("rough", "aff", "P"),
+        ("rough", "aff", "BH"),
+        ("rough", "aff", "PH"),
+        ("rough", "aof", "B"),
+        ("rough", "aof", "P"),
+        ("rough", "aof", "BH"),
+        ("rough", "aof", "PH"),
+    ]
     with pytest.raises(InputError, match="not available for the flat task"):
         envs.default_config("flat", "aof", "P")
     with pytest.raises(InputError, match="ball foot has none"):
@@ -52,8 +66,11 @@ def test_observation_layout_is_documented_and_sized():
     assert "pd_target" not in dict(observation_layout.layout(flat, 16))
     # Each group is declared once, in ObservationConfig: its reading function says what it holds
     # and in which unit, and every group is read by some policy type.
-    groups = [f.name for f in dataclasses.fields(ObservationConfig) if isinstance(getattr(bh.observations, f.name),
-                                                                                ObservationTerm)]
+    groups = [
+        f.name
+        for f in dataclasses.fields(ObservationConfig)
+        if isinstance(getattr(bh.observations, f.name), ObservationTerm)
+    ]
     assert all(observation_layout.description(bh, name) for name in groups)
     read = {name for config in (b, bh, velocity, rough) for name, _ in observation_layout.layout(config, 16)}
     assert read == set(groups)
@@ -70,8 +87,9 @@ def rollouts(built):
     out = {}
     for feet, policy in RICHEST.items():
         config = envs.default_config("flat", feet, policy)
-        env = envs.make("flat", feet, policy, build_dir=str(built[feet][0]),
-                        pushes=replace(config.pushes, enabled=False))
+        env = envs.make(
+            "flat", feet, policy, build_dir=str(built[feet][0]), pushes=replace(config.pushes, enabled=False)
+        )
         step = jax.jit(env.step)
         states = [jax.jit(env.reset)(jax.random.PRNGKey(0))]
         for k in jax.random.split(jax.random.PRNGKey(1), 3):
@@ -105,43 +123,57 @@ def test_reset_and_step_every_registered_env(rollouts, built):
         # prefix of the richest one's (noise off).
         quiet = replace(env.config.observations, noise=False)
         full = LocomotionEnv(replace(env.config, observations=quiet), env.robot).observe(
-            states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
+            states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0)
+        )
         # Position actions: the last step's targets are default + 0.5 x its clipped action within
         # the joint ranges. With ObservationConfig.pd_targets (for velocity actions) the PD
         # targets' slice holds them minus the defaults: what the joint angles do not reveal, as
         # they lag the targets by torque / kp.
         lo, hi = env.robot.q_limits[:, 0], env.robot.q_limits[:, 1]
-        last = np.clip(np.asarray(jax.random.normal(jax.random.split(jax.random.PRNGKey(1), 3)[-1],
-                                                    (env.action_size,))), -1.0, 1.0)  # the fixture's last action
+        last = np.clip(
+            np.asarray(jax.random.normal(jax.random.split(jax.random.PRNGKey(1), 3)[-1], (env.action_size,))), -1.0, 1.0
+        )  # the fixture's last action
         target = np.clip(np.asarray(env.robot.default_q, np.float64) + 0.5 * last, lo, hi)
         np.testing.assert_allclose(states[-1].info["target"], target, atol=1e-5)
         seeing = LocomotionEnv(replace(env.config, observations=replace(quiet, pd_targets=True)), env.robot)
         layout = observation_layout.layout(seeing.config, n_passive)
-        start = sum(w for _, w in layout[:[n for n, _ in layout].index("pd_target")])
+        start = sum(w for _, w in layout[: [n for n, _ in layout].index("pd_target")])
         seen = seeing.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
-        np.testing.assert_allclose(seen[start:start + 12], target - env.robot.default_q, atol=1e-5)
+        np.testing.assert_allclose(seen[start : start + 12], target - env.robot.default_q, atol=1e-5)
         q = np.asarray(states[-1].pipeline_state.qpos[env.robot.actuated_qpos])
         assert np.abs(target - q).max() > 0.05
         for task, f, policy in envs.registry():
             if task == "flat" and f == feet:
-                other = LocomotionEnv(replace(envs.default_config("flat", feet, policy), observations=quiet,
-                                              build_dir=str(built[feet][0])), env.robot)
+                other = LocomotionEnv(
+                    replace(
+                        envs.default_config("flat", feet, policy), observations=quiet, build_dir=str(built[feet][0])
+                    ),
+                    env.robot,
+                )
                 obs = other.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
                 assert obs.shape == (other.observation_size,)
-                np.testing.assert_allclose(obs, full[:other.observation_size], atol=1e-6)
+                np.testing.assert_allclose(obs, full[: other.observation_size], atol=1e-6)
 
 
 def test_reward_terms_on_known_states():
     cfg = RewardConfig(tracking_sigma=0.25, base_height_target_m=0.52)
     Q = rewards.Quantities
-    assert float(rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([1.0, 0.0, 0.0])), cfg)) == pytest.approx(1.0)
-    assert float(rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([0.5, 0.0, 0.0])), cfg)) == pytest.approx(math.exp(-1))
-    assert float(rewards.yaw_rate(Q(command=jp.array([0.0, 0.0, 0.5]), ang_vel=jp.zeros(3)), cfg)) == pytest.approx(math.exp(-1))
+    assert float(
+        rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([1.0, 0.0, 0.0])), cfg)
+    ) == pytest.approx(1.0)
+    assert float(
+        rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([0.5, 0.0, 0.0])), cfg)
+    ) == pytest.approx(math.exp(-1))
+    assert float(rewards.yaw_rate(Q(command=jp.array([0.0, 0.0, 0.5]), ang_vel=jp.zeros(3)), cfg)) == pytest.approx(
+        math.exp(-1)
+    )
     assert float(rewards.lin_vel_z(Q(lin_vel=jp.array([0.0, 0.0, 0.3])), cfg)) == pytest.approx(0.09)
     assert float(rewards.ang_vel_xy(Q(ang_vel=jp.array([0.1, 0.2, 5.0])), cfg)) == pytest.approx(0.05)
     assert float(rewards.orientation(Q(gravity=jp.array([0.0, 0.0, -1.0])), cfg)) == 0.0
     tilt = math.radians(30)  # base rolled by 30 deg: gravity has sin(30) along base y
-    assert float(rewards.orientation(Q(gravity=jp.array([0.0, math.sin(tilt), -math.cos(tilt)])), cfg)) == pytest.approx(0.25)
+    assert float(
+        rewards.orientation(Q(gravity=jp.array([0.0, math.sin(tilt), -math.cos(tilt)])), cfg)
+    ) == pytest.approx(0.25)
     assert float(rewards.base_height(Q(base_height=0.42), cfg)) == pytest.approx(0.01)
     assert float(rewards.torques(Q(torques=jp.full(12, 10.0)), cfg)) == pytest.approx(1200.0)
     assert float(rewards.joint_acc(Q(joint_vel=jp.ones(12), last_joint_vel=jp.zeros(12)), cfg)) == pytest.approx(12.0)
@@ -149,13 +181,27 @@ def test_reward_terms_on_known_states():
     assert float(rewards.hip(Q(haa_offset=jp.array([0.1, -0.1, 0.0, 0.0])), cfg)) == pytest.approx(0.2)
     # Each term is declared once, in RewardConfig: its function is the one above, its scale a number.
     terms = rewards.terms(cfg)
-    assert list(terms) == ["lin_vel_xy", "yaw_rate", "lin_vel_z", "ang_vel_xy", "orientation", "base_height",
-                           "torques", "joint_acc", "action_rate", "hip", "feet_air_time", "stand_still"]
+    assert list(terms) == [
+        "lin_vel_xy",
+        "yaw_rate",
+        "lin_vel_z",
+        "ang_vel_xy",
+        "orientation",
+        "base_height",
+        "torques",
+        "joint_acc",
+        "action_rate",
+        "hip",
+        "feet_air_time",
+        "stand_still",
+    ]
     assert all(term.compute is getattr(rewards, name) and isinstance(term.scale, float) for name, term in terms.items())
     assert cfg.feet_air_time.scale == cfg.stand_still.scale == 0.0  # not among the paper's terms: off unless asked for
     # stand_still: |q - default| summed, only under a planar command below 0.1 m/s.
     offset = jp.array([0.1, -0.2, 0.0] * 4)
-    assert float(rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.05, 0.05, 0.8])), cfg)) == pytest.approx(1.2)
+    assert float(
+        rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.05, 0.05, 0.8])), cfg)
+    ) == pytest.approx(1.2)
     assert float(rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.3, 0.0, 0.0])), cfg)) == 0.0
 
 
@@ -172,8 +218,10 @@ def test_feet_air_time_pays_touchdowns_after_long_enough_steps():
     info = LocomotionEnv._no_steps()
     touchdowns = []
     for contact in zip(lf, rf, [True] * len(lf), [True] * len(lf)):
-        stub = SimpleNamespace(foot_contacts=lambda data, c=contact: jp.array(c),
-                               config=SimpleNamespace(policy_dt=dt, rewards=RewardConfig().with_scales(feet_air_time=1.0)))
+        stub = SimpleNamespace(
+            foot_contacts=lambda data, c=contact: jp.array(c),
+            config=SimpleNamespace(policy_dt=dt, rewards=RewardConfig().with_scales(feet_air_time=1.0)),
+        )
         out = LocomotionEnv._feet_steps(stub, None, info)
         info = {k: out[k] for k in info}
         touchdowns.append(np.asarray(out["touchdown_air_time"]))
@@ -201,8 +249,9 @@ def test_base_and_knee_contacts_are_measured_on_flat_ground(rollouts):
     """The base's and thighs' colliders are off in MJX (they only end episodes, and were most of
     the contact slots every Newton iteration solves): their ground contact is geometric. Checked
     against CPU MuJoCo's own collisions on the build's full model, pose by pose."""
-    import mujoco
     from types import SimpleNamespace
+
+    import mujoco
 
     from footforge.envs.anymal import GEOM_FOOT, load_robot
 
@@ -213,7 +262,8 @@ def test_base_and_knee_contacts_are_measured_on_flat_ground(rollouts):
     assert body.sum() >= 5 and not (mjx_model.geom_contype[body] | mjx_model.geom_conaffinity[body]).any()
     assert (full.geom_contype[body] | full.geom_conaffinity[body]).all()
     assert int(mjx_model.geom_contype.sum() + mjx_model.geom_conaffinity.sum()) < int(
-        full.geom_contype.sum() + full.geom_conaffinity.sum())
+        full.geom_contype.sum() + full.geom_conaffinity.sum()
+    )
     data = mujoco.MjData(full)
 
     def both(z, quat=(1.0, 0.0, 0.0, 0.0)):  # (geometric flags, MuJoCo's contact flags) at one pose
@@ -273,8 +323,7 @@ def test_position_actions_set_the_target_and_velocity_actions_integrate_onto_it(
     velocity = LocomotionEnv(replace(env.config, action="velocity", action_scale=13.5), env.robot)
     previous = np.asarray(state.info["target"])
     integrated = velocity.joint_targets(previous, velocity.clip_action(action))
-    np.testing.assert_allclose(integrated, np.clip(previous + 13.5 * clipped * env.config.policy_dt, lo, hi),
-                               atol=1e-6)
+    np.testing.assert_allclose(integrated, np.clip(previous + 13.5 * clipped * env.config.policy_dt, lo, hi), atol=1e-6)
     np.testing.assert_allclose(velocity.joint_targets(previous, jp.zeros(12)), np.clip(previous, lo, hi), atol=1e-7)
 
 
@@ -284,8 +333,10 @@ def zero_action_episodes(rollouts):
     (footforge.validate.stance.env_stance: figures after the first 0.5 s)."""
     from footforge.validate.stance import env_stance
 
-    return {feet: env_stance(env, states[0], seconds=env.config.episode_length_s - env.config.policy_dt, step=step)
-            for feet, (env, states, step) in rollouts.items()}
+    return {
+        feet: env_stance(env, states[0], seconds=env.config.episode_length_s - env.config.policy_dt, step=step)
+        for feet, (env, states, step) in rollouts.items()
+    }
 
 
 @pytest.fixture(scope="module")
@@ -368,11 +419,18 @@ def test_contact_models_are_refused_where_they_diverge(built):
         assert (stance.contact_model, stance.sim_dt, stance.decimation) == ("stance", 0.0025, 8)
         assert (stance.solver_iterations, stance.solver_ls_iterations) == (float32_iterations, 16)
         assert stance.policy_dt == pytest.approx(config.policy_dt)
-        with pytest.raises(InputError, match=rf"solver_iterations >= {float32_iterations} and solver_ls_iterations "
-                                             rf">= 16 in float32 physics .* on {feet} feet"):
+        with pytest.raises(
+            InputError,
+            match=rf"solver_iterations >= {float32_iterations} and solver_ls_iterations "
+            rf">= 16 in float32 physics .* on {feet} feet",
+        ):
             load_robot(replace(stance, solver_iterations=float32_iterations - 1))
         stiff = envs.with_float64_physics(stance)
-        assert (stiff.float64_physics, stiff.solver_iterations, stiff.solver_ls_iterations) == (True, float64_iterations, 16)
+        assert (stiff.float64_physics, stiff.solver_iterations, stiff.solver_ls_iterations) == (
+            True,
+            float64_iterations,
+            16,
+        )
         if float64_iterations > float32_iterations:
             with pytest.raises(InputError, match="solver_iterations >= 16 .* in float64 physics") as e:
                 load_robot(replace(stance, float64_physics=True))
@@ -462,8 +520,14 @@ def test_privileged_critic_observations(built):
     """EnvConfig.privileged_critic: Brax's dict observation, the policy's slice unchanged and the
     critic's extra slice physical: at rest the feet carry the robot's weight."""
     config = envs.default_config("flat", "ball", "B")
-    env = envs.make("flat", "ball", "B", build_dir=str(built["ball"][0]), privileged_critic=True,
-                    pushes=replace(config.pushes, enabled=False))
+    env = envs.make(
+        "flat",
+        "ball",
+        "B",
+        build_dir=str(built["ball"][0]),
+        privileged_critic=True,
+        pushes=replace(config.pushes, enabled=False),
+    )
     n = env.observation_size["state"][0]
     assert n == 48 and env.observation_size["privileged_state"] == (n + 3 + 4 + 140 + 1,)
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
@@ -507,7 +571,9 @@ def test_a_build_that_does_not_fit_is_refused_with_the_rebuild_command(built, tm
         "holds the 'ball' variant, not 'aff'": (variant_of(lambda d: None), "aff"),
         "built by an older footforge (build format 1": (variant_of(lambda d: d.update(format=1)), "ball"),
         f"input 'params' ({params}) changed since": (
-            variant_of(lambda d: d["inputs"].update(params={"path": str(params), "sha256": "0" * 64})), "ball"),
+            variant_of(lambda d: d["inputs"].update(params={"path": str(params), "sha256": "0" * 64})),
+            "ball",
+        ),
     }
     for expected, (folder, feet) in cases.items():
         config = replace(envs.default_config("flat", feet, "B"), build_dir=str(folder))
@@ -518,8 +584,10 @@ def test_a_build_that_does_not_fit_is_refused_with_the_rebuild_command(built, tm
 
 
 def _signature(state):
-    return [(jax.tree_util.keystr(path), x.shape, x.dtype, x.weak_type)
-            for path, x in jax.tree_util.tree_flatten_with_path(state)[0]]
+    return [
+        (jax.tree_util.keystr(path), x.shape, x.dtype, x.weak_type)
+        for path, x in jax.tree_util.tree_flatten_with_path(state)[0]
+    ]
 
 
 def test_step_returns_the_types_it_takes(rollouts):
@@ -540,11 +608,13 @@ def test_a_non_finite_reward_term_or_state_ends_the_episode_as_diverged(rollouts
     state = states[1]
     assert float(step(state, jp.zeros(12)).metrics["diverged"]) == 0.0
     data = state.pipeline_state
-    poisoned = {"inf term": state.replace(info=state.info | {"last_joint_vel": jp.full(12, jp.inf, jp.float32)}),
-                "NaN term": state.replace(info=state.info | {"last_joint_vel": jp.full(12, jp.nan, jp.float32)}),
-                "NaN state": state.replace(pipeline_state=data.replace(qvel=data.qvel.at[6].set(jp.nan))),
-                # blown up but finite, as AOF's physics did in the H100 campaign (EnvConfig.diverged_speed)
-                "huge speed": state.replace(pipeline_state=data.replace(qvel=data.qvel.at[0].set(1e8)))}
+    poisoned = {
+        "inf term": state.replace(info=state.info | {"last_joint_vel": jp.full(12, jp.inf, jp.float32)}),
+        "NaN term": state.replace(info=state.info | {"last_joint_vel": jp.full(12, jp.nan, jp.float32)}),
+        "NaN state": state.replace(pipeline_state=data.replace(qvel=data.qvel.at[6].set(jp.nan))),
+        # blown up but finite, as AOF's physics did in the H100 campaign (EnvConfig.diverged_speed)
+        "huge speed": state.replace(pipeline_state=data.replace(qvel=data.qvel.at[0].set(1e8))),
+    }
     for name, bad in poisoned.items():
         after = step(bad, jp.zeros(12))
         assert float(after.metrics["diverged"]) == 1.0, name
@@ -558,8 +628,11 @@ def test_evaluation_reports_robots_whose_simulation_diverged(built, monkeypatch)
     """footforge.rl.evaluate counts the diverged robots (among the falls) and comparison.md shows them."""
     from footforge.rl import evaluate as evaluation
 
-    config = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]),
-                     pushes=replace(envs.default_config("flat", "ball", "B").pushes, enabled=False))
+    config = replace(
+        envs.default_config("flat", "ball", "B"),
+        build_dir=str(built["ball"][0]),
+        pushes=replace(envs.default_config("flat", "ball", "B").pushes, enabled=False),
+    )
 
     class Diverging(LocomotionEnv):
         """Robot 0's joint_acc term becomes NaN at its third step (its state stays finite)."""
@@ -574,8 +647,9 @@ def test_evaluation_reports_robots_whose_simulation_diverged(built, monkeypatch)
             return state.replace(info=state.info | {"robot": (rng[-1] % 2).astype(jp.int32)})
 
     env = Diverging(config)
-    monkeypatch.setattr(evaluation, "_policy_and_env", lambda *args: (
-        lambda obs, key: (jp.zeros(12), {}), config, "ball", 0.1, env))
+    monkeypatch.setattr(
+        evaluation, "_policy_and_env", lambda *args: (lambda obs, key: (jp.zeros(12), {}), config, "ball", 0.1, env)
+    )
     keys = jax.random.split(jax.random.PRNGKey(0), 4)  # evaluate's keys: which robots are "robot 0"
     zero = int(sum(int(jax.random.split(k)[0][-1] % 2 == 0) for k in keys))
     result = evaluation.evaluate("policy", num_envs=4, seed=0)
@@ -602,8 +676,15 @@ def test_falls_are_timed_and_attributed_to_the_pushes_and_new_commands_before_th
     assert falls_after([2.0, 4.0], [1.5, 3.0, 4.5], window_s=1.0) == [2.0, 4.0]
     assert falls_after([1.0], [1.5]) == []  # before the event: not its fall
     assert AFTER_EVENT_S == pytest.approx(2.0)
-    result = {"falls": 2, "num_envs": 4, "fall_times_s": [2.0, 4.0], "push_times_s": [1.5], "falls_after_push": 1,
-              "command_times_s": [3.0], "falls_after_command": 1}
+    result = {
+        "falls": 2,
+        "num_envs": 4,
+        "fall_times_s": [2.0, 4.0],
+        "push_times_s": [1.5],
+        "falls_after_push": 1,
+        "command_times_s": [3.0],
+        "falls_after_command": 1,
+    }
     assert falls_cell(result) == "2/4 (within 2 s of: 1 a push, 1 a new command)"
     assert falls_cell({"falls": 2, "num_envs": 4}) == "2/4"  # an evaluation written before fall times
     assert falls_cell(result | {"falls": 0, "fall_times_s": []}) == "0/4"
@@ -675,8 +756,13 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     stance = envs.with_float64_physics(envs.with_contact_model(ball, "stance"))
     assert (stance.solver_iterations, stance.solver_ls_iterations) == (8, 16)
     stance_on_aof = envs.on_feet(stance, "aof")
-    assert (stance_on_aof.contact_model, stance_on_aof.solver_iterations, stance_on_aof.solver_ls_iterations,
-            stance_on_aof.sim_dt, stance_on_aof.decimation) == ("stance", 16, 16, 0.0025, 8)
+    assert (
+        stance_on_aof.contact_model,
+        stance_on_aof.solver_iterations,
+        stance_on_aof.solver_ls_iterations,
+        stance_on_aof.sim_dt,
+        stance_on_aof.decimation,
+    ) == ("stance", 16, 16, 0.0025, 8)
     built_configs = []
     monkeypatch.setattr("footforge.rl.policy_files.load_policy", lambda d: (None, ball, None))
     monkeypatch.setattr("footforge.envs.from_config", lambda c: built_configs.append(c) or c)
@@ -700,8 +786,11 @@ def test_the_warp_backend_is_refused_where_it_cannot_run(built, tmp_path, capsys
     import importlib.util
 
     find_spec = importlib.util.find_spec
-    monkeypatch.setattr(importlib.util, "find_spec",
-                        lambda name, *args: None if name in ("warp", "mujoco_warp") else find_spec(name, *args))
+    monkeypatch.setattr(
+        importlib.util,
+        "find_spec",
+        lambda name, *args: None if name in ("warp", "mujoco_warp") else find_spec(name, *args),
+    )
     config = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]), mjx_impl="warp")
     with pytest.raises(InputError, match="warp") as e:
         envs.from_config(config)
@@ -709,8 +798,22 @@ def test_the_warp_backend_is_refused_where_it_cannot_run(built, tmp_path, capsys
     from footforge.cli.train import main
 
     run = tmp_path / "run"
-    code = main("flat", "", ["--feet", "ball", "--build-root", str(built["ball"][0].parent), "--out", str(run),
-                             "--mjx-impl", "warp", "--timesteps", "100"])
+    code = main(
+        "flat",
+        "",
+        [
+            "--feet",
+            "ball",
+            "--build-root",
+            str(built["ball"][0].parent),
+            "--out",
+            str(run),
+            "--mjx-impl",
+            "warp",
+            "--timesteps",
+            "100",
+        ],
+    )
     assert code == 2 and "mjx_impl 'warp'" in " ".join(capsys.readouterr().err.split())
     assert not run.exists()
 

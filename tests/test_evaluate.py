@@ -2,6 +2,7 @@
 
 import pytest
 
+
 def test_the_slippage_index_measures_a_foot_moved_by_a_known_distance():
     """A stance foot dragged 3 cm over a step in which the base travels 0.5 m counts 0.03 / 0.5; a foot
     that lifts off or lands within the step (in the air at one end) does not count; a fallen robot's
@@ -12,9 +13,9 @@ def test_the_slippage_index_measures_a_foot_moved_by_a_known_distance():
 
     before = np.zeros((4, 2))
     after = before.copy()
-    after[0] = [0.03, 0.0]        # LF dragged 3 cm, on the ground at both ends
-    after[1] = [0.0, 0.20]        # RF swung 20 cm: lifts off before the step ends
-    after[2] = [0.12, 0.0]        # LH lands during the step
+    after[0] = [0.03, 0.0]  # LF dragged 3 cm, on the ground at both ends
+    after[1] = [0.0, 0.20]  # RF swung 20 cm: lifts off before the step ends
+    after[2] = [0.12, 0.0]  # LH lands during the step
     on_before = np.array([True, True, False, True])
     on_after = np.array([True, False, True, True])  # RH stays, unmoved
     slip = float(foot_slip(before, after, on_before, on_after))

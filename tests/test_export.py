@@ -13,11 +13,10 @@ import onnx
 import onnxruntime
 import pytest
 
-from footforge import constants as C
-from footforge import envs
-from footforge.rl import train
+from footforge import constants as C, envs
 from footforge.cli.main import main
 from footforge.envs import observation_layout
+from footforge.rl import train
 from footforge.rl.train import PPOConfig, load_policy
 
 TOLERANCE = 1e-5
@@ -48,8 +47,12 @@ def _perturbed_policy(env_config, ppo, out_dir, observation_size, seed=0):
     params[1] = jax.tree.map(lambda x: x + jp.asarray(rng.normal(0.0, 0.1, x.shape), x.dtype), params[1])
     factory = train.network_factory(ppo, env_config.privileged_critic)
     staging = out_dir.with_name(out_dir.name + "_staging")
-    brax_checkpoint.save(str(staging), 0, tuple(params), brax_checkpoint.network_config(
-        observation_size, 12, ppo.normalize_observations, factory))
+    brax_checkpoint.save(
+        str(staging),
+        0,
+        tuple(params),
+        brax_checkpoint.network_config(observation_size, 12, ppo.normalize_observations, factory),
+    )
     shutil.copytree(staging / f"{0:012d}", out_dir)
     shutil.copy(fresh / "footforge.json", out_dir / "footforge.json")
     return out_dir
@@ -115,7 +118,9 @@ def test_onnx_matches_the_jax_policy_on_random_observations(tmp_path, capsys, ca
     assert meta["default_joint_angles_rad"] == [C.DEFAULT_JOINT_ANGLES_RAD[j] for j in C.ACTUATED_JOINTS]
     assert meta["action"]["model"] == env_config.action and meta["action"]["scale"] == env_config.action_scale
     assert meta["action"]["clip"] == env_config.action_clip
-    assert meta["pd_gains"]["kp_nm_per_rad"] == C.KP_NM_PER_RAD and meta["pd_gains"]["kd_nms_per_rad"] == C.KD_NMS_PER_RAD
+    assert (
+        meta["pd_gains"]["kp_nm_per_rad"] == C.KP_NM_PER_RAD and meta["pd_gains"]["kd_nms_per_rad"] == C.KD_NMS_PER_RAD
+    )
     assert meta["control_period_s"] == pytest.approx(env_config.sim_dt * env_config.decimation)
     layout = meta["observation"]["layout"]
     n_passive = (size - observation_layout.size(env_config, 0)) // 2
@@ -141,8 +146,11 @@ def ball_build(tmp_path_factory):
 def test_onnx_matches_the_jax_policy_on_a_recorded_rollout(tmp_path, ball_build):
     """The flat ball B policy walks 40 policy steps in MJX under its JAX actions (pushed at once,
     under a command); onnxruntime, fed the recorded observations, gives the same actions."""
-    env_config = replace(envs.default_config("flat", "ball", "B"), build_dir=str(ball_build),
-                         pushes=replace(envs.default_config("flat", "ball", "B").pushes, interval_s=0.2))
+    env_config = replace(
+        envs.default_config("flat", "ball", "B"),
+        build_dir=str(ball_build),
+        pushes=replace(envs.default_config("flat", "ball", "B").pushes, interval_s=0.2),
+    )
     ppo = PPOConfig(policy_hidden_layers=(64, 32), value_hidden_layers=(8,))
     policy_dir = _perturbed_policy(env_config, ppo, tmp_path / "policy", observation_layout.size(env_config, 0), seed=5)
     out = tmp_path / "deploy" / "anymal.onnx"
@@ -169,8 +177,12 @@ def test_onnx_matches_the_jax_policy_on_a_recorded_rollout(tmp_path, ball_build)
 
 def test_bad_input_is_a_one_line_error_and_writes_nothing(tmp_path, capsys, monkeypatch):
     env_config = envs.default_config("flat", "ball", "B")
-    policy_dir = train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
-                                      tmp_path / "policy", observation_layout.size(env_config, 0))
+    policy_dir = train.initial_policy(
+        env_config,
+        PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
+        tmp_path / "policy",
+        observation_layout.size(env_config, 0),
+    )
     (tmp_path / "not_a_policy").mkdir()
     (tmp_path / "a_file").write_text("x")
     (tmp_path / "a_folder").mkdir()
@@ -221,13 +233,18 @@ def test_a_file_footforge_did_not_write_is_never_replaced(tmp_path, capsys):
     """--out naming a user's file (notes, or an ONNX model from elsewhere) is refused, exit 2, the
     file untouched; footforge's own export is replaced; --force replaces anything."""
     env_config = envs.default_config("flat", "ball", "B")
-    policy_dir = train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
-                                      tmp_path / "policy", observation_layout.size(env_config, 0))
+    policy_dir = train.initial_policy(
+        env_config,
+        PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
+        tmp_path / "policy",
+        observation_layout.size(env_config, 0),
+    )
     notes = tmp_path / "todo.txt"
     notes.write_text("my notes")
     foreign = tmp_path / "theirs.onnx"
-    onnx.save_model(onnx.helper.make_model(onnx.helper.make_graph([], "g", [], []), producer_name="someone"),
-                    str(foreign))
+    onnx.save_model(
+        onnx.helper.make_model(onnx.helper.make_graph([], "g", [], []), producer_name="someone"), str(foreign)
+    )
     foreign_bytes = foreign.read_bytes()
     assert main(["export", str(policy_dir), "--out", str(foreign)]) == 2
     err = capsys.readouterr().err
@@ -248,16 +265,23 @@ def test_commands_take_a_run_folder_for_its_policy(tmp_path, capsys):
     policy/; a run that has not written one yet is named as such (exit 2)."""
     run = tmp_path / "run"
     env_config = envs.default_config("flat", "ball", "B")
-    train.initial_policy(env_config, PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)), run / "policy",
-                         observation_layout.size(env_config, 0))
+    train.initial_policy(
+        env_config,
+        PPOConfig(policy_hidden_layers=(8,), value_hidden_layers=(8,)),
+        run / "policy",
+        observation_layout.size(env_config, 0),
+    )
     assert train.policy_folder(run) == run / "policy" and train.policy_folder(run / "policy") == run / "policy"
     assert main(["export", str(run), "--out", str(tmp_path / "p.onnx")]) == 0
     assert onnx.load(str(tmp_path / "p.onnx")).producer_name == "footforge"
     unfinished = tmp_path / "unfinished"
     train.prepare_run_dir(unfinished)
     (unfinished / "config.json").write_text("{}")
-    for argv in (["export", str(unfinished)], ["evaluate", "--policy", str(unfinished), "--out", str(tmp_path / "e")],
-                 ["evaluate-closed-chain", "--policy", str(unfinished), "--out", str(tmp_path / "c")]):
+    for argv in (
+        ["export", str(unfinished)],
+        ["evaluate", "--policy", str(unfinished), "--out", str(tmp_path / "e")],
+        ["evaluate-closed-chain", "--policy", str(unfinished), "--out", str(tmp_path / "c")],
+    ):
         capsys.readouterr()
         assert main(argv) == 2, argv
         err = capsys.readouterr().err

@@ -2,9 +2,8 @@
 the sole as a box or as spheres or capsules on the box's bottom face, with or without the parts
 above the sole colliding."""
 
-from pathlib import Path
-
 import json
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -12,13 +11,15 @@ import pytest
 import yaml
 
 from footforge.errors import InputError
-from footforge.mjcf.foot import collision_points, sole_primitives
 from footforge.inputs.params import FootContact, default_params_path, load_params
+from footforge.mjcf.foot import collision_points, sole_primitives
 
-SHAPES = {"box": {"sole": "box", "upper_collisions": True},
-          "box_sole_only": {"sole": "box", "upper_collisions": False},
-          "spheres": {"sole": "spheres", "grid": [2, 2], "radius_m": 0.01, "upper_collisions": False},
-          "capsules": {"sole": "capsules", "grid": [1, 2], "radius_m": 0.01, "upper_collisions": False}}
+SHAPES = {
+    "box": {"sole": "box", "upper_collisions": True},
+    "box_sole_only": {"sole": "box", "upper_collisions": False},
+    "spheres": {"sole": "spheres", "grid": [2, 2], "radius_m": 0.01, "upper_collisions": False},
+    "capsules": {"sole": "capsules", "grid": [1, 2], "radius_m": 0.01, "upper_collisions": False},
+}
 
 
 SOLE_LIFT_M = 0.015
@@ -48,8 +49,15 @@ def builds(tmp_path_factory, coacd_cache):
         params = _params_with(root, contact)
         for variant in ("aff", "aof"):
             out[variant, shape] = root / f"{variant}_{shape}"
-            build(BuildOptions(variant=variant, out_dir=out[variant, shape], params=params, cache_dir=coacd_cache,
-                               formats=("mjcf",)))
+            build(
+                BuildOptions(
+                    variant=variant,
+                    out_dir=out[variant, shape],
+                    params=params,
+                    cache_dir=coacd_cache,
+                    formats=("mjcf",),
+                )
+            )
     return out
 
 
@@ -68,8 +76,13 @@ def test_primitives_lie_on_the_box_bottom_face(shape):
     pts = np.array(pts)
     bottom = center[2] - half[2]
     assert pts[:, 2].min() == pytest.approx(bottom, abs=1e-12)
-    lowest = [min(np.asarray(e, float)[2] - r for e in ([g["pos"]] if shape == "spheres" else
-                                                       [g["fromto"][:3], g["fromto"][3:]])) for g in geoms]
+    lowest = [
+        min(
+            np.asarray(e, float)[2] - r
+            for e in ([g["pos"]] if shape == "spheres" else [g["fromto"][:3], g["fromto"][3:]])
+        )
+        for g in geoms
+    ]
     np.testing.assert_allclose(lowest, bottom, atol=1e-12)  # every one touches a flat floor
     np.testing.assert_allclose(pts[:, :2].min(0), center[:2] - half[:2], atol=1e-12)  # reach the edges
     np.testing.assert_allclose(pts[:, :2].max(0), center[:2] + half[:2], atol=1e-12)
@@ -84,8 +97,11 @@ def test_only_the_sole_collides_and_mass_is_unchanged(builds, shape):
         np.testing.assert_array_equal(new.body_inertia, box.body_inertia)
         colliding = [new.geom(g).name for g in range(new.ngeom) if new.geom_contype[g] or new.geom_conaffinity[g]]
         foot = [n for n in colliding if "_foot/" in n]
-        expected_type = {"box_sole_only": mujoco.mjtGeom.mjGEOM_BOX, "spheres": mujoco.mjtGeom.mjGEOM_SPHERE,
-                         "capsules": mujoco.mjtGeom.mjGEOM_CAPSULE}[shape]
+        expected_type = {
+            "box_sole_only": mujoco.mjtGeom.mjGEOM_BOX,
+            "spheres": mujoco.mjtGeom.mjGEOM_SPHERE,
+            "capsules": mujoco.mjtGeom.mjGEOM_CAPSULE,
+        }[shape]
         assert foot and all(n.split("/")[1].startswith("sole") for n in foot), foot
         assert all(new.geom_type[new.geom(n).id] == expected_type for n in foot)
         per_plate = {"box_sole_only": 1, "spheres": 4, "capsules": 2}[shape]
@@ -94,9 +110,15 @@ def test_only_the_sole_collides_and_mass_is_unchanged(builds, shape):
         assert report["foot"]["sole_clearance_m"] is None  # nothing else collides
         assert report["foot"]["contact"]["sole"] == SHAPES[shape]["sole"]
         assert report["foot"]["contact"]["upper_collisions"] is False
+
         # The leg's own colliders (shanks, thighs, base) are those of the box build.
-        legs = lambda m: sorted(m.geom(g).name for g in range(m.ngeom)
-                                if (m.geom_contype[g] or m.geom_conaffinity[g]) and "_foot/" not in m.geom(g).name)
+        def legs(m):
+            return sorted(
+                m.geom(g).name
+                for g in range(m.ngeom)
+                if (m.geom_contype[g] or m.geom_conaffinity[g]) and "_foot/" not in m.geom(g).name
+            )
+
         assert legs(new) == legs(box)
 
 
@@ -143,17 +165,20 @@ def test_shipped_parameters_read(tmp_path):
     assert load_params(path).foot_contact == {"aff": old, "aof": old}
 
 
-@pytest.mark.parametrize("contact, key, message", [
-    ({"sole": "cubes"}, "aff.collision.sole", "unknown sole contact 'cubes'"),
-    ({"sole": "spheres", "grid": [0, 2]}, "aff.collision.grid", "bad grid"),
-    ({"sole": "spheres", "grid": [2.5, 2]}, "aff.collision.grid", "bad grid"),
-    ({"sole": "spheres", "grid": "2x2"}, "aff.collision.grid", "expected a list of 2 numbers"),
-    ({"sole": "spheres", "radius_m": -1}, "aff.collision.radius_m", "below"),
-    ({"sole": "spheres", "upper_collisions": "no"}, "aff.collision.upper_collisions", "true or false"),
-    ({"sole": "spheres", "size": 3}, "aff.collision", "unknown keys ['size']"),
-    ({"sole": "box", "grid": [2, 2]}, "aff.collision.grid", "a box sole has no grid or radius"),
-    ("box", "aff.collision", "expected a mapping"),
-])
+@pytest.mark.parametrize(
+    "contact, key, message",
+    [
+        ({"sole": "cubes"}, "aff.collision.sole", "unknown sole contact 'cubes'"),
+        ({"sole": "spheres", "grid": [0, 2]}, "aff.collision.grid", "bad grid"),
+        ({"sole": "spheres", "grid": [2.5, 2]}, "aff.collision.grid", "bad grid"),
+        ({"sole": "spheres", "grid": "2x2"}, "aff.collision.grid", "expected a list of 2 numbers"),
+        ({"sole": "spheres", "radius_m": -1}, "aff.collision.radius_m", "below"),
+        ({"sole": "spheres", "upper_collisions": "no"}, "aff.collision.upper_collisions", "true or false"),
+        ({"sole": "spheres", "size": 3}, "aff.collision", "unknown keys ['size']"),
+        ({"sole": "box", "grid": [2, 2]}, "aff.collision.grid", "a box sole has no grid or radius"),
+        ("box", "aff.collision", "expected a mapping"),
+    ],
+)
 def test_bad_contact_parameters_name_the_key(tmp_path, contact, key, message):
     with pytest.raises(InputError) as e:
         load_params(_params_with(tmp_path, contact, variants=("aff",)))
@@ -166,8 +191,21 @@ def test_radius_wider_than_the_plate_is_refused(tmp_path, coacd_cache, capsys):
 
     path = _params_with(tmp_path, {"sole": "spheres", "radius_m": 0.04}, variants=("aof",))
     out = tmp_path / "out"
-    code = main(["build", "--variant", "aof", "--format", "mjcf", "--params", str(path), "--out", str(out),
-                 "--cache-dir", str(coacd_cache)])
+    code = main(
+        [
+            "build",
+            "--variant",
+            "aof",
+            "--format",
+            "mjcf",
+            "--params",
+            str(path),
+            "--out",
+            str(out),
+            "--cache-dir",
+            str(coacd_cache),
+        ]
+    )
     captured = capsys.readouterr()
     text = " ".join((captured.out + captured.err).split())  # rich wraps long lines
     assert code == 2 and "aof.collision.radius_m" in text and "Traceback" not in text

@@ -102,8 +102,9 @@ def test_a_standing_closed_chain_reads_its_stance_like_a_standing_aof(built, ful
         mujoco.mj_resetDataKeyframe(m, data, m.key("stand").id)
         for _ in range(int(round(0.5 / m.opt.timestep))):
             mujoco.mj_step(m, data)
-        readings[feet] = (imu(data)[0] if feet == "full"
-                          else np.array([data.qpos[m.joint(n).qposadr[0]] for n in names])).reshape(4, 4)
+        readings[feet] = (
+            imu(data)[0] if feet == "full" else np.array([data.qpos[m.joint(n).qposadr[0]] for n in names])
+        ).reshape(4, 4)
     full_angles, aof_angles = readings["full"], readings["aof"]
     arch_stop = model.jnt_range[model.joint("LF_foot/front_arch").id, 1]
     ankle_stop = aof.jnt_range[aof.joint("LF_foot/ankle_pitch").id, 1]
@@ -136,8 +137,11 @@ def _on_a_step(model_path, under: str, height_m: float = 0.02) -> tuple[mujoco.M
     mujoco.mj_forward(model, data)
     mount = data.xpos[model.body("LF_foot/mount").id]
     side = 1.0 if under == "front" else -1.0
-    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, height_m / 2],
-                            pos=[mount[0] + 0.01 + side * 0.1, mount[1], height_m / 2])
+    spec.worldbody.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=[0.1, 0.1, height_m / 2],
+        pos=[mount[0] + 0.01 + side * 0.1, mount[1], height_m / 2],
+    )
     model = spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("stand").id)
@@ -162,8 +166,11 @@ def test_the_half_of_the_sole_resting_on_a_step_reads_flat(built, under):
     sole = mount @ pin.utils.rotate("y", pitch) @ pin.utils.rotate("x", roll)
     # AOF's front plate reaches back from its hinge (-x), turned about +y; the back plate reaches
     # forward (+x), turned about -y.
-    plate = sole @ (pin.utils.rotate("y", front) @ [-1.0, 0.0, 0.0] if under == "front"
-                     else pin.utils.rotate("y", -back) @ [1.0, 0.0, 0.0])
+    plate = sole @ (
+        pin.utils.rotate("y", front) @ [-1.0, 0.0, 0.0]
+        if under == "front"
+        else pin.utils.rotate("y", -back) @ [1.0, 0.0, 0.0]
+    )
     assert abs(plate[2]) < math.sin(math.radians(1.0)), (under, np.degrees([pitch, roll, front, back]))
 
     def in_mount(body):
@@ -174,11 +181,12 @@ def test_the_half_of_the_sole_resting_on_a_step_reads_flat(built, under):
     mujoco.mj_kinematics(model, reference)
     ref_mount = reference.xmat[model.body("LF_foot/mount").id].reshape(3, 3)
     line = in_mount("front_roll") - in_mount("back_roll")
-    ref_line = ref_mount.T @ (reference.xpos[model.body("LF_foot/front_roll").id]
-                              - reference.xpos[model.body("LF_foot/back_roll").id])
+    ref_line = ref_mount.T @ (
+        reference.xpos[model.body("LF_foot/front_roll").id] - reference.xpos[model.body("LF_foot/back_roll").id]
+    )
     assert pitch == pytest.approx(math.atan2(-line[2], line[0]) - math.atan2(-ref_line[2], ref_line[0]), abs=1e-9)
     to_sole = (pin.utils.rotate("y", pitch) @ pin.utils.rotate("x", roll)).T
     chord_front = to_sole @ (in_mount("chain_middle_5") - in_mount("chain_middle_2"))  # pins 2 to 5: links 2-4
-    chord_back = to_sole @ (in_mount("chain_middle_6") - in_mount("chain_middle_9"))   # pins 9 to 6: links 8-6
+    chord_back = to_sole @ (in_mount("chain_middle_6") - in_mount("chain_middle_9"))  # pins 9 to 6: links 8-6
     assert front == pytest.approx(math.atan2(chord_front[2], -chord_front[0]), abs=1e-9)
     assert back == pytest.approx(math.atan2(chord_back[2], chord_back[0]), abs=1e-9)

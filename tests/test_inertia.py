@@ -29,12 +29,10 @@ def box_inertia(mass, x, y, z):
 # The public SoftFoot-Q ankle: Izz 1.0468e-6 is a typo for 4.0468e-6.
 ANKLE_MASS = 0.0181
 ANKLE_COM = (0.0, 0.0, 0.0154)
-ANKLE_TYPO = 1e-6 * np.array([[4.4972, -0.0012, -0.0027],
-                              [-0.0012, 1.8785, 0.0005],
-                              [-0.0027, 0.0005, 1.0468]])
+ANKLE_TYPO = 1e-6 * np.array([[4.4972, -0.0012, -0.0027], [-0.0012, 1.8785, 0.0005], [-0.0027, 0.0005, 1.0468]])
 
 
-def from_moments(moments, rotation=np.eye(3)):
+def from_moments(moments, rotation=np.eye(3)):  # noqa: B008  (read, never changed)
     return rotation @ np.diag(moments) @ rotation.T
 
 
@@ -45,15 +43,19 @@ HATCH = from_moments([1e-20, -1e-19, 3e-03])
 
 # -- good inertias -------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("mass, com, inertia", [
-    (2.0, (0.1, -0.2, 0.05), box_inertia(2.0, 0.3, 0.2, 0.1)),
-    # A rod of radius 2 mm and length 0.5 m: moments 1e-6 and 0.0208, ratio 5e-5.
-    (1.0, (0.0, 0.0, 0.25), np.diag([1.0 / 12 * 0.25 + 1e-6, 1.0 / 12 * 0.25 + 1e-6, 2e-6])),
-    # A point-like sphere: 1 g, radius 1 mm.
-    (1e-3, (0.0, 0.0, 0.0), 0.4 * 1e-3 * 1e-6 * np.eye(3)),
-    # The ankle with the CAD value of Izz.
-    (ANKLE_MASS, ANKLE_COM, ANKLE_TYPO + np.diag([0, 0, 3e-6])),
-])
+
+@pytest.mark.parametrize(
+    "mass, com, inertia",
+    [
+        (2.0, (0.1, -0.2, 0.05), box_inertia(2.0, 0.3, 0.2, 0.1)),
+        # A rod of radius 2 mm and length 0.5 m: moments 1e-6 and 0.0208, ratio 5e-5.
+        (1.0, (0.0, 0.0, 0.25), np.diag([1.0 / 12 * 0.25 + 1e-6, 1.0 / 12 * 0.25 + 1e-6, 2e-6])),
+        # A point-like sphere: 1 g, radius 1 mm.
+        (1e-3, (0.0, 0.0, 0.0), 0.4 * 1e-3 * 1e-6 * np.eye(3)),
+        # The ankle with the CAD value of Izz.
+        (ANKLE_MASS, ANKLE_COM, ANKLE_TYPO + np.diag([0, 0, 3e-6])),
+    ],
+)
 def test_physical_inertias_pass(mass, com, inertia):
     assert inertia_defects(mass, com, inertia) == []
 
@@ -67,11 +69,11 @@ def test_rotated_box_passes():
 
 # -- each defect ---------------------------------------------------------------------------------
 
+
 def test_non_positive_mass():
     defects = inertia_defects(0.0, (0, 0, 0), box_inertia(1.0, 0.1, 0.1, 0.1))
     assert codes(defects) == ["non_positive_mass"]
-    assert codes(inertia_defects(-1.0, (0, 0, 0), box_inertia(1.0, 0.1, 0.1, 0.1))) == [
-        "non_positive_mass"]
+    assert codes(inertia_defects(-1.0, (0, 0, 0), box_inertia(1.0, 0.1, 0.1, 0.1))) == ["non_positive_mass"]
 
 
 def test_non_finite_stops_the_checks():
@@ -80,8 +82,7 @@ def test_non_finite_stops_the_checks():
     defects = inertia_defects(1.0, (0, 0, 0), inertia)
     assert codes(defects) == ["non_finite"]
     assert "inertia" in defects[0].values
-    assert codes(inertia_defects(np.inf, (0, 0, 0), box_inertia(1.0, .1, .1, .1))) == [
-        "non_finite"]
+    assert codes(inertia_defects(np.inf, (0, 0, 0), box_inertia(1.0, 0.1, 0.1, 0.1))) == ["non_finite"]
 
 
 def test_not_symmetric():
@@ -97,17 +98,14 @@ def test_ankle_typo_breaks_the_triangle_inequality():
     assert codes(defects) == ["triangle_inequality", "pseudo_inertia_not_psd"]
     triangle = defects[0]
     assert "4.50e-06 > 1.88e-06 + 1.05e-06" in triangle.message
-    assert triangle.values["excess"] == pytest.approx(4.4972e-6 - 1.8785e-6 - 1.0468e-6,
-                                                      rel=1e-3)
+    assert triangle.values["excess"] == pytest.approx(4.4972e-6 - 1.8785e-6 - 1.0468e-6, rel=1e-3)
     # The pseudo-inertia's second moment about the COM along x is (Iyy + Izz - Ixx) / 2 < 0.
-    assert min(defects[1].values["second_moments"]) == pytest.approx(
-        (1.8785e-6 + 1.0468e-6 - 4.4972e-6) / 2, rel=1e-3)
+    assert min(defects[1].values["second_moments"]) == pytest.approx((1.8785e-6 + 1.0468e-6 - 4.4972e-6) / 2, rel=1e-3)
 
 
 def test_anymal_depth_camera_breaks_the_triangle_inequality():
     rotation = random_rotation(np.random.default_rng(1))
-    defects = inertia_defects(0.1, (0.01, 0, 0), from_moments(
-        [8.67e-06, 6.69e-04, 1.37e-03], rotation))
+    defects = inertia_defects(0.1, (0.01, 0, 0), from_moments([8.67e-06, 6.69e-04, 1.37e-03], rotation))
     assert "triangle_inequality" in codes(defects)
     assert "not_positive_definite" not in codes(defects)
 
@@ -117,15 +115,13 @@ def test_anymal_hatch_is_not_positive_definite():
     assert codes(defects)[0] == "not_positive_definite"
     assert "eigenvalues" in defects[0].values
     # Moments (0, 0, 3e-3) also break the triangle inequality: 3e-3 > 0 + 0.
-    assert set(codes(defects)) == {"not_positive_definite", "triangle_inequality",
-                                   "pseudo_inertia_not_psd"}
+    assert set(codes(defects)) == {"not_positive_definite", "triangle_inequality", "pseudo_inertia_not_psd"}
 
 
 def test_thin_rod_limit_is_realizable_but_not_positive_definite():
     # Moments (0, a, a): a line mass. Physically realizable (pseudo-inertia PSD, triangle holds
     # with equality) but a simulator needs positive moments.
-    assert codes(inertia_defects(1.0, (0, 0, 0.1), np.diag([0.0, 1e-3, 1e-3]))) == [
-        "not_positive_definite"]
+    assert codes(inertia_defects(1.0, (0, 0, 0.1), np.diag([0.0, 1e-3, 1e-3]))) == ["not_positive_definite"]
 
 
 def test_pseudo_inertia_matches_the_formula():
@@ -151,14 +147,17 @@ def test_principal_moments_follow_the_coordinate_axes():
 
 # -- balance_inertia -----------------------------------------------------------------------------
 
-@pytest.mark.parametrize("name, mass, com, inertia", [
-    ("ankle", ANKLE_MASS, ANKLE_COM, ANKLE_TYPO),
-    ("camera", 0.1, (0.01, 0.0, 0.0), CAMERA),
-    ("hatch", 0.1, (0.0, 0.0, 0.05), HATCH),
-    ("asymmetric", 1.0, (0, 0, 0),
-     box_inertia(1.0, .1, .2, .3) + np.triu(np.full((3, 3), 1e-4), 1)),
-    ("negative", 1.0, (0, 0, 0), np.diag([-1e-3, 2e-3, 2.5e-3])),
-])
+
+@pytest.mark.parametrize(
+    "name, mass, com, inertia",
+    [
+        ("ankle", ANKLE_MASS, ANKLE_COM, ANKLE_TYPO),
+        ("camera", 0.1, (0.01, 0.0, 0.0), CAMERA),
+        ("hatch", 0.1, (0.0, 0.0, 0.05), HATCH),
+        ("asymmetric", 1.0, (0, 0, 0), box_inertia(1.0, 0.1, 0.2, 0.3) + np.triu(np.full((3, 3), 1e-4), 1)),
+        ("negative", 1.0, (0, 0, 0), np.diag([-1e-3, 2e-3, 2.5e-3])),
+    ],
+)
 def test_balance_inertia_repairs(name, mass, com, inertia):
     assert inertia_defects(mass, com, inertia), name
     balanced = balance_inertia(inertia)
@@ -173,8 +172,7 @@ def test_balance_inertia_raises_the_smallest_moment_and_keeps_the_axes():
     balanced = balance_inertia(from_moments([4.4972e-6, 1.8785e-6, 1.0468e-6], rotation))
     back = rotation.T @ balanced @ rotation  # in the original principal axes
     margin = 1e-6 * 4.4972e-6
-    np.testing.assert_allclose(back, np.diag([4.4972e-6, 1.8785e-6, 2.6187e-6 + margin]),
-                               atol=1e-17)
+    np.testing.assert_allclose(back, np.diag([4.4972e-6, 1.8785e-6, 2.6187e-6 + margin]), atol=1e-17)
 
 
 def test_balance_inertia_keeps_the_raised_moment_below_the_largest():
@@ -200,6 +198,7 @@ def test_balance_inertia_rejects_non_finite():
 
 
 # -- the full condition against the eigen-criteria ------------------------------------------------
+
 
 def random_body(rng: np.random.Generator, physical: bool):
     """A random body: moments drawn at a random size and orientation, then the largest pushed
@@ -228,8 +227,7 @@ def test_pseudo_inertia_criterion_agrees_with_the_eigen_criteria():
         mass, com, inertia, _ = random_body(rng, physical)
         defects = set(codes(inertia_defects(mass, com, inertia)))
         eigen_ok = not defects & {"not_positive_definite", "triangle_inequality"}
-        assert ("pseudo_inertia_not_psd" not in defects) == eigen_ok == physical, (
-            mass, com, inertia)
+        assert ("pseudo_inertia_not_psd" not in defects) == eigen_ok == physical, (mass, com, inertia)
 
 
 def test_physical_bodies_are_sums_of_point_masses():
@@ -242,8 +240,7 @@ def test_physical_bodies_are_sums_of_point_masses():
         mass, com, inertia, _ = random_body(rng, physical=True)
         moments, axes = principal_moments(inertia)
         second = 0.5 * moments.sum() - moments
-        points = [com + sign * np.sqrt(3 * s / mass) * axes[:, k]
-                  for k, s in enumerate(second) for sign in (1, -1)]
+        points = [com + sign * np.sqrt(3 * s / mass) * axes[:, k] for k, s in enumerate(second) for sign in (1, -1)]
         j_points = sum(mass / 6 * np.outer(np.append(p, 1), np.append(p, 1)) for p in points)
         j = pseudo_inertia(mass, com, inertia)
         np.testing.assert_allclose(j_points, j, rtol=1e-9, atol=1e-12 * np.abs(j).max())

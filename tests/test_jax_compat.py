@@ -25,8 +25,14 @@ def _real():
 
 
 def _tree():
-    return {"w": jp.arange(6.0).reshape(2, 3), "n": np.int32(7), "s": 1.5, "b": np.array([True, False]),
-            "steps": jp.zeros((), jp.uint32), "nested": (jp.ones(4, jp.bfloat16), [np.float64(2.0)])}
+    return {
+        "w": jp.arange(6.0).reshape(2, 3),
+        "n": np.int32(7),
+        "s": 1.5,
+        "b": np.array([True, False]),
+        "steps": jp.zeros((), jp.uint32),
+        "nested": (jp.ones(4, jp.bfloat16), [np.float64(2.0)]),
+    }
 
 
 def _check_same(ours, real):
@@ -180,8 +186,9 @@ def test_evaluator_with_a_committed_first_state_compiles_its_unroll_once():
         return lambda obs, key: (jp.zeros(obs.shape[:-1] + (1,)) + params, {})
 
     def second_evaluation_compiles() -> int:
-        evaluator = acting.Evaluator(env, policy_factory, num_eval_envs=2, episode_length=5, action_repeat=1,
-                                     key=jax.random.PRNGKey(0))
+        evaluator = acting.Evaluator(
+            env, policy_factory, num_eval_envs=2, episode_length=5, action_repeat=1, key=jax.random.PRNGKey(0)
+        )
         # Parameters committed to the device, as Brax's PPO hands them over (unpmapped).
         params = jax.device_put(jp.float32(0.0), jax.local_devices()[0])
         evaluator.run_evaluation(params, {})

@@ -70,9 +70,9 @@ def test_the_layering_check_sees_an_upward_import(tmp_path):
 
 def test_readme_architecture_lists_every_module():
     readme = (REPO / "README.md").read_text()
-    section = readme[readme.index("## Architecture"):]
-    tree = section[section.index("```") + 3:]
-    tree = tree[:tree.index("```")]
+    section = readme[readme.index("## Architecture") :]
+    tree = section[section.index("```") + 3 :]
+    tree = tree[: tree.index("```")]
     listed, folder = set(), None
     for line in tree.splitlines()[1:]:
         match = re.match(r"^( +)(\S+)", line)
@@ -83,10 +83,10 @@ def test_readme_architecture_lists_every_module():
             folder = name[:-1] if indent == 2 else folder
         else:
             listed.add(f"{folder}/{name}" if indent == 4 else name)
-    actual = {str(p.relative_to(PACKAGE)) for p in _modules()
-              if not (p.name == "__init__.py" and p.parent != PACKAGE)}
-    assert listed == actual, (f"missing from the README: {sorted(actual - listed)}; "
-                              f"listed but absent: {sorted(listed - actual)}")
+    actual = {str(p.relative_to(PACKAGE)) for p in _modules() if not (p.name == "__init__.py" and p.parent != PACKAGE)}
+    assert listed == actual, (
+        f"missing from the README: {sorted(actual - listed)}; listed but absent: {sorted(listed - actual)}"
+    )
 
 
 def test_the_package_exports_its_entry_points_lazily():
@@ -95,12 +95,14 @@ def test_the_package_exports_its_entry_points_lazily():
     import subprocess
     import sys
 
-    code = ("import sys, footforge; assert 'mujoco' not in sys.modules and 'jax' not in sys.modules; "
-            "import footforge.envs.config; assert 'jax' not in sys.modules; "
-            "from footforge.build.pipeline import BuildOptions; from footforge.envs import make; "
-            "from footforge.rl.train import load_policy; "
-            "assert footforge.BuildOptions is BuildOptions and footforge.make_env is make "
-            "and footforge.load_policy is load_policy; print(sorted(footforge.__all__))")
+    code = (
+        "import sys, footforge; assert 'mujoco' not in sys.modules and 'jax' not in sys.modules; "
+        "import footforge.envs.config; assert 'jax' not in sys.modules; "
+        "from footforge.build.pipeline import BuildOptions; from footforge.envs import make; "
+        "from footforge.rl.train import load_policy; "
+        "assert footforge.BuildOptions is BuildOptions and footforge.make_env is make "
+        "and footforge.load_policy is load_policy; print(sorted(footforge.__all__))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=120)
     assert out.returncode == 0, out.stderr
     assert "ValidateOptions" in out.stdout and "check_description" in out.stdout
@@ -117,8 +119,12 @@ def test_each_enumeration_is_spelled_once():
         if path.name == "variants.py" and path.parent.name == "footforge":
             continue
         tree = ast.parse(path.read_text())
-        tested = {id(c) for n in ast.walk(tree) if isinstance(n, ast.Compare)
-                  and any(isinstance(op, (ast.In, ast.NotIn)) for op in n.ops) for c in n.comparators}
+        tested = {
+            id(c)
+            for n in ast.walk(tree)
+            if isinstance(n, ast.Compare) and any(isinstance(op, (ast.In, ast.NotIn)) for op in n.ops)
+            for c in n.comparators
+        }
         for node in ast.walk(tree):
             if isinstance(node, (ast.Tuple, ast.List, ast.Set)) and len(node.elts) >= (2 if id(node) in tested else 3):
                 names = {e.value for e in node.elts if isinstance(e, ast.Constant)}
@@ -148,10 +154,16 @@ def _import_graph(package: Path) -> dict[str, set[str]]:
     for module, path in modules.items():
         out = set()
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module and \
-                    node.module.split(".")[0] == package.name:
-                out |= {f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in modules else known(node.module)
-                        for a in node.names}
+            if (
+                isinstance(node, ast.ImportFrom)
+                and node.level == 0
+                and node.module
+                and node.module.split(".")[0] == package.name
+            ):
+                out |= {
+                    f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in modules else known(node.module)
+                    for a in node.names
+                }
             elif isinstance(node, ast.Import):
                 out |= {known(a.name) for a in node.names if a.name.split(".")[0] == package.name}
         graph[module] = out - {module, ""}
@@ -213,7 +225,12 @@ def test_private_mjx_state_is_read_only_in_its_adapter():
     """`mujoco.mjx._src` and the `_impl` fields of MJX's Model and Data are used in
     footforge/envs/mjx_private.py alone (tests/test_mjx_private.py pins them)."""
     private = re.compile(r"mjx\._src|\._impl\b|\b_impl=")
-    found = [f"{p.relative_to(REPO)}:{n}" for p in _modules() if p != PACKAGE / "envs" / "mjx_private.py"
-             for n, line in enumerate(p.read_text().splitlines(), 1) if private.search(line)]
+    found = [
+        f"{p.relative_to(REPO)}:{n}"
+        for p in _modules()
+        if p != PACKAGE / "envs" / "mjx_private.py"
+        for n, line in enumerate(p.read_text().splitlines(), 1)
+        if private.search(line)
+    ]
     assert not found, "read MJX's private state through footforge.envs.mjx_private:\n" + "\n".join(found)
     assert private.search("support = mujoco.mjx._src.support") and private.search("data._impl.contact")

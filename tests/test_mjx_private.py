@@ -67,5 +67,6 @@ def test_heightfield_bounds_read_and_replace(settled):
     bounds[model.geom("brick").id] = 0.042
     replaced = mjx_private.with_heightfield_bounds(mjx_model, bounds)
     assert mjx_private.heightfield_bounds(replaced)[model.geom("brick").id] == pytest.approx(0.042)
-    assert mjx_private.heightfield_bounds(mjx_model)[model.geom("brick").id] == pytest.approx(model.geom_rbound[
-        model.geom("brick").id])  # a copy: the original model keeps its bounds
+    assert mjx_private.heightfield_bounds(mjx_model)[model.geom("brick").id] == pytest.approx(
+        model.geom_rbound[model.geom("brick").id]
+    )  # a copy: the original model keeps its bounds

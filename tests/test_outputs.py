@@ -67,8 +67,9 @@ def test_validate_refuses_folder_with_user_files(capsys, monkeypatch, user_folde
 
 def test_evaluate_pipeline_refuses_folder_with_user_files(capsys, monkeypatch, user_folder):
     monkeypatch.setattr("footforge.rl.evaluate.evaluate", never)
-    code = load_pipeline("evaluate").main(["--policy", str(user_folder / "policy"), "--feet", "aff",
-                                            "--out", str(user_folder)])
+    code = load_pipeline("evaluate").main(
+        ["--policy", str(user_folder / "policy"), "--feet", "aff", "--out", str(user_folder)]
+    )
     text = capsys.readouterr().err
     assert code == 2, text
     assert f"--out {user_folder}" in text and "--force" in text and len(text.strip().splitlines()) == 1
@@ -77,8 +78,9 @@ def test_evaluate_pipeline_refuses_folder_with_user_files(capsys, monkeypatch, u
 
 def test_closed_chain_pipeline_refuses_folder_with_user_files(capsys, monkeypatch, user_folder):
     monkeypatch.setattr("footforge.rl.evaluate_closed_chain.evaluate_closed_chain", never)
-    code = load_pipeline("evaluate_closed_chain").main(["--policy", str(user_folder / "policy"),
-                                                        "--out", str(user_folder)])
+    code = load_pipeline("evaluate_closed_chain").main(
+        ["--policy", str(user_folder / "policy"), "--out", str(user_folder)]
+    )
     text = capsys.readouterr().err
     assert code == 2, text
     assert "--force" in text and (user_folder / "thesis.tex").is_file()
@@ -294,8 +296,9 @@ sys.stdin.read()  # until killed
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_validate_pool_workers_exit_when_parent_is_killed(tmp_path):
     env = os.environ | {"PYTHONPATH": str(REPO)}
-    parent = subprocess.Popen([sys.executable, "-c", PARENT_WITH_POOL], stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, text=True, env=env)
+    parent = subprocess.Popen(
+        [sys.executable, "-c", PARENT_WITH_POOL], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env
+    )
     workers = [int(p) for p in parent.stdout.readline().split()]
     assert workers and all(not process_gone(w) for w in workers)
     assert kill_parent_and_wait_for(parent, workers) == []
@@ -330,8 +333,9 @@ def test_coacd_worker_exits_when_build_is_killed(tmp_path):
     deadline = time.monotonic() + 30
     workers = []
     while time.monotonic() < deadline and not workers:
-        workers = [c for c in children_of(parent.pid)
-                   if "spawn_main" in Path(f"/proc/{c}/cmdline").read_text(errors="replace")]
+        workers = [
+            c for c in children_of(parent.pid) if "spawn_main" in Path(f"/proc/{c}/cmdline").read_text(errors="replace")
+        ]
         time.sleep(0.2)
     assert workers, "the CoACD worker did not start"
     time.sleep(2)  # into the fake CoACD's GIL-holding loop

@@ -60,8 +60,9 @@ def test_the_build_extra_is_what_footforge_extras_checks_and_the_tests_install_i
     assert not core & listed
 
 
-@pytest.mark.parametrize("argv", [["build", "--variant", "aof"], ["validate", "--variant", "aff"],
-                                  ["check", "foot.urdf"]])
+@pytest.mark.parametrize(
+    "argv", [["build", "--variant", "aof"], ["validate", "--variant", "aff"], ["check", "foot.urdf"]]
+)
 def test_a_job_of_the_build_extra_without_it_names_the_extra_and_exits_2(argv, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setitem(sys.modules, "coacd", None)  # as a core install lacks it: `import coacd` raises
@@ -102,8 +103,14 @@ parsers()
 assert main(["--help"]) == 0
 assert main(["build", "--variant", "aof"]) == 2
 """
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=300,
-                         env={**os.environ, "MUJOCO_GL": "disable"})
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=300,
+        env={**os.environ, "MUJOCO_GL": "disable"},
+    )
     assert out.returncode == 0, out.stderr
     assert "footforge build: error: footforge build needs footforge's build extra" in out.stderr
     assert INSTALL in out.stderr and "Traceback" not in out.stderr

@@ -10,12 +10,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from conftest import REPO
 from PIL import Image
 
 import footforge
 from footforge import envs
 from footforge.errors import InputError
+
+from conftest import REPO
 
 POLICY = REPO / "policies/flat_ball_B/policy"
 """A ball-feet flat B policy, 12.4 M steps on an H100 under commands of up to 1 m/s: it walks
@@ -25,8 +26,14 @@ PLAY = str(REPO / "pipelines/play.py")
 
 def _play(*args, mujoco_gl="disable", timeout=300) -> subprocess.CompletedProcess:
     # MuJoCo reads MUJOCO_GL once, at import: every run is a process of its own.
-    return subprocess.run([sys.executable, PLAY, *map(str, args)], env={**os.environ, "MUJOCO_GL": mujoco_gl},
-                          capture_output=True, text=True, timeout=timeout, cwd=REPO)
+    return subprocess.run(
+        [sys.executable, PLAY, *map(str, args)],
+        env={**os.environ, "MUJOCO_GL": mujoco_gl},
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=REPO,
+    )
 
 
 def _backend() -> str | None:
@@ -49,8 +56,18 @@ def test_headless_ball_policy_stands_and_is_filmed(built, tmp_path):
     video, log = tmp_path / "stand.gif", tmp_path / "stand.json"
     backend = _backend()
     video_args = ["--video", video, "--width", 96, "--height", 64] if backend else []
-    proc = _play(POLICY, "--headless", "--seconds", 1, "--build-root", built["ball"][0].parent, "--log", log,
-                 *video_args, mujoco_gl=backend or "disable")
+    proc = _play(
+        POLICY,
+        "--headless",
+        "--seconds",
+        1,
+        "--build-root",
+        built["ball"][0].parent,
+        "--log",
+        log,
+        *video_args,
+        mujoco_gl=backend or "disable",
+    )
     assert proc.returncode == 0, proc.stderr
     data = _states(log)
     assert (data["feet"], data["trained_on"], data["steps"], data["falls"]) == ("ball", "ball", 50, 0)
@@ -87,8 +104,20 @@ def test_headless_ball_policy_walks_forward_by_the_verdict(built, tmp_path):
     command for 4 s in CPU MuJoCo moves forward at about that speed, every foot stepping, and play
     says so in one line and in its log."""
     log = tmp_path / "walk.json"
-    proc = _play(POLICY, "--headless", "--seconds", 4, "--command", 0.6, 0, 0, "--build-root",
-                 built["ball"][0].parent, "--log", log)
+    proc = _play(
+        POLICY,
+        "--headless",
+        "--seconds",
+        4,
+        "--command",
+        0.6,
+        0,
+        0,
+        "--build-root",
+        built["ball"][0].parent,
+        "--log",
+        log,
+    )
     assert proc.returncode == 0, proc.stderr
     walking = _states(log)["walking"]
     assert walking["verdict"] == "walks", walking
@@ -103,8 +132,9 @@ def test_headless_on_the_closed_chain(built, tmp_path):
     """The ball policy on the 34-joint closed chain at its build's 0.25 ms (80 physics steps per
     policy step) through the same runner: finite and standing for half a second."""
     log = tmp_path / "full.json"
-    proc = _play(POLICY, "--headless", "--feet", "full", "--seconds", 0.5, "--build-root", built["full"][0].parent,
-                 "--log", log)
+    proc = _play(
+        POLICY, "--headless", "--feet", "full", "--seconds", 0.5, "--build-root", built["full"][0].parent, "--log", log
+    )
     assert proc.returncode == 0, proc.stderr
     data = _states(log)
     assert (data["feet"], data["trained_on"], data["steps"]) == ("full", "ball", 25)
@@ -125,8 +155,18 @@ def test_onnx_file_and_policy_folder_act_alike(tmp_path):
     onnx_file = load_policy(export(POLICY, tmp_path / "policy.onnx"))
     saved = load_policy_config(POLICY)
     for config in (folder.config, onnx_file.config):
-        for field in ("task", "feet", "policy", "action", "action_scale", "action_clip", "sim_dt", "decimation",
-                      "observations", "height_scan"):
+        for field in (
+            "task",
+            "feet",
+            "policy",
+            "action",
+            "action_scale",
+            "action_clip",
+            "sim_dt",
+            "decimation",
+            "observations",
+            "height_scan",
+        ):
             assert getattr(config, field) == getattr(saved, field), field
     obs = np.random.default_rng(0).normal(size=(3, folder.metadata["observation"]["size"])).astype(np.float32)
     np.testing.assert_array_equal(folder.actions(obs), onnx_file.actions(obs))
@@ -157,35 +197,46 @@ def test_haptic_policies_keep_their_own_feet_or_the_closed_chain():
     assert check_feet(b, "aof") == "aof"
 
 
-@pytest.mark.parametrize("case, expected", [
-    ("missing", "no such policy folder or file"),
-    ("plain folder", "not a footforge policy (no footforge.json)"),
-    ("text file", "neither a policy folder nor an .onnx file"),
-    ("broken onnx", "cannot be read as ONNX"),
-    ("unknown feet", "unknown feet 'claws'"),
-    ("mp4", "play writes an animated GIF only"),
-    ("no folder", "does not exist"),
-    ("video without headless", "--video and --log are for --headless runs"),
-    ("no display", "no display for MuJoCo's viewer"),
-    ("bad seconds", "--seconds must be positive"),
-])
+@pytest.mark.parametrize(
+    "case, expected",
+    [
+        ("missing", "no such policy folder or file"),
+        ("plain folder", "not a footforge policy (no footforge.json)"),
+        ("text file", "neither a policy folder nor an .onnx file"),
+        ("broken onnx", "cannot be read as ONNX"),
+        ("unknown feet", "unknown feet 'claws'"),
+        ("mp4", "play writes an animated GIF only"),
+        ("no folder", "does not exist"),
+        ("video without headless", "--video and --log are for --headless runs"),
+        ("no display", "no display for MuJoCo's viewer"),
+        ("bad seconds", "--seconds must be positive"),
+    ],
+)
 def test_bad_inputs_exit_2_with_a_message(tmp_path, case, expected):
     (tmp_path / "folder").mkdir()
     (tmp_path / "notes.txt").write_text("hello")
     (tmp_path / "broken.onnx").write_bytes(b"\x00not protobuf\xff" * 10)
-    args = {"missing": [tmp_path / "none", "--headless"],
-            "plain folder": [tmp_path / "folder", "--headless"],
-            "text file": [tmp_path / "notes.txt", "--headless"],
-            "broken onnx": [tmp_path / "broken.onnx", "--headless"],
-            "unknown feet": [POLICY, "--headless", "--feet", "claws"],
-            "mp4": [POLICY, "--headless", "--video", tmp_path / "walk.mp4"],
-            "no folder": [POLICY, "--headless", "--video", tmp_path / "none/walk.gif"],
-            "video without headless": [POLICY, "--video", tmp_path / "walk.gif"],
-            "no display": [POLICY],
-            "bad seconds": [POLICY, "--headless", "--seconds", 0]}[case]
+    args = {
+        "missing": [tmp_path / "none", "--headless"],
+        "plain folder": [tmp_path / "folder", "--headless"],
+        "text file": [tmp_path / "notes.txt", "--headless"],
+        "broken onnx": [tmp_path / "broken.onnx", "--headless"],
+        "unknown feet": [POLICY, "--headless", "--feet", "claws"],
+        "mp4": [POLICY, "--headless", "--video", tmp_path / "walk.mp4"],
+        "no folder": [POLICY, "--headless", "--video", tmp_path / "none/walk.gif"],
+        "video without headless": [POLICY, "--video", tmp_path / "walk.gif"],
+        "no display": [POLICY],
+        "bad seconds": [POLICY, "--headless", "--seconds", 0],
+    }[case]
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    proc = subprocess.run([sys.executable, PLAY, *map(str, args)], env={**env, "MUJOCO_GL": "disable"},
-                          capture_output=True, text=True, timeout=120, cwd=REPO)
+    proc = subprocess.run(
+        [sys.executable, PLAY, *map(str, args)],
+        env={**env, "MUJOCO_GL": "disable"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=REPO,
+    )
     assert proc.returncode == 2, proc.stderr
     assert expected in proc.stderr and "Traceback" not in proc.stderr
     assert proc.stderr.startswith("footforge play: error: ")
@@ -199,7 +250,7 @@ def test_viewer_loop_takes_keys_and_steps(built, monkeypatch):
     import mujoco
     import mujoco.viewer
 
-    from footforge.rl.play import Player, PlayConfig, load_policy, play_interactive
+    from footforge.rl.play import PlayConfig, Player, load_policy, play_interactive
 
     player = Player(load_policy(POLICY), PlayConfig(build_root=built["ball"][0].parent))
     seen = []
@@ -226,6 +277,7 @@ def test_viewer_loop_takes_keys_and_steps(built, monkeypatch):
 
                 def __exit__(self, *exc):
                     return False
+
             return Lock()
 
         def is_running(self):

@@ -12,9 +12,19 @@ from footforge.rl.train import PPOConfig, to_dict
 
 
 def _result(policy, feet, offset, trained_on="aof"):
-    return {"policy": str(policy), "trained_on": trained_on, "feet": feet, "policy_type": "B", "num_envs": 8,
-            "seconds": 2.0, "seed": 0, "task": "flat", "slippage": 0.125 + offset, "falls": 1,
-            "indices": {name: {"mean": 0.1 * k + offset, "std": 0.01 * k} for k, name in enumerate(INDICES, 1)}}
+    return {
+        "policy": str(policy),
+        "trained_on": trained_on,
+        "feet": feet,
+        "policy_type": "B",
+        "num_envs": 8,
+        "seconds": 2.0,
+        "seed": 0,
+        "task": "flat",
+        "slippage": 0.125 + offset,
+        "falls": 1,
+        "indices": {name: {"mean": 0.1 * k + offset, "std": 0.01 * k} for k, name in enumerate(INDICES, 1)},
+    }
 
 
 def test_card_of_a_trained_run(tmp_path):
@@ -22,15 +32,40 @@ def test_card_of_a_trained_run(tmp_path):
     policy = run / "policy"
     policy.mkdir(parents=True)
     env, ppo = envs.default_config("flat", "aof", "B"), PPOConfig(num_timesteps=1_000_000)
-    machine = {"backend": "gpu", "devices": 1, "device_kind": "NVIDIA H100", "processes": 1, "cpu_cores": 16,
-               "platform": "Linux-6.1", "jax": "0.9.2"}
-    (policy / "footforge.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo), "global_step": 983_040,
-                                                       "wall_s": 7384.0, "machine": machine}))
-    (run / "progress.json").write_text(json.dumps({"global_step": 983_040, "resumes": 1, "stopped": "wall-time budget",
-                                                   "metrics": {"eval/episode_reward": 12.5,
-                                                               "eval/avg_episode_length": 1000.0}}))
-    files = ["comparison.png", "contacts_0.png", "push_response_0.png", "contacts_1.png", "push_response_1.png",
-             "video_1.gif", "strip_1.png", "video_10.gif"]
+    machine = {
+        "backend": "gpu",
+        "devices": 1,
+        "device_kind": "NVIDIA H100",
+        "processes": 1,
+        "cpu_cores": 16,
+        "platform": "Linux-6.1",
+        "jax": "0.9.2",
+    }
+    (policy / "footforge.json").write_text(
+        json.dumps(
+            {"env": to_dict(env), "ppo": to_dict(ppo), "global_step": 983_040, "wall_s": 7384.0, "machine": machine}
+        )
+    )
+    (run / "progress.json").write_text(
+        json.dumps(
+            {
+                "global_step": 983_040,
+                "resumes": 1,
+                "stopped": "wall-time budget",
+                "metrics": {"eval/episode_reward": 12.5, "eval/avg_episode_length": 1000.0},
+            }
+        )
+    )
+    files = [
+        "comparison.png",
+        "contacts_0.png",
+        "push_response_0.png",
+        "contacts_1.png",
+        "push_response_1.png",
+        "video_1.gif",
+        "strip_1.png",
+        "video_10.gif",
+    ]
     results = [_result(policy, "aof", 0.0), _result(policy, "aff", 0.5)]
     results[0]["walking"] = {"line": "walks: trot, forward error 0.09 m/s"}  # evaluate()'s verdict
     card = policy_card(policy, list(enumerate(results)), files)
@@ -46,11 +81,21 @@ def test_card_of_a_trained_run(tmp_path):
         assert cells[0].startswith(f"{results[0]['indices'][name]['mean']:.4g} ± ")
         assert cells[1].startswith(f"{results[1]['indices'][name]['mean']:.4g} ± ")
     assert "on aff feet (zero-shot)" in card and "| falls | 1/8 | 1/8 |" in card
-    assert "- on aof feet: 8 robots, 2 s, seed 0, physics mjx, 1 fell; walks: trot, forward error 0.09 m/s" in card.splitlines()
+    assert (
+        "- on aof feet: 8 robots, 2 s, seed 0, physics mjx, 1 fell; walks: trot, forward error 0.09 m/s"
+        in card.splitlines()
+    )
     assert "| verdict | walks: trot, forward error 0.09 m/s | not judged |" in card
     links = re.findall(r"\]\(([^)]+)\)", card)
-    assert links == ["comparison.png", "contacts_0.png", "push_response_0.png", "contacts_1.png",
-                     "push_response_1.png", "video_1.gif", "strip_1.png"]  # not video_10: another result's
+    assert links == [
+        "comparison.png",
+        "contacts_0.png",
+        "push_response_0.png",
+        "contacts_1.png",
+        "push_response_1.png",
+        "video_1.gif",
+        "strip_1.png",
+    ]  # not video_10: another result's
 
 
 def test_card_of_a_fine_tuned_run_counts_the_source_s_steps(tmp_path):
@@ -59,10 +104,14 @@ def test_card_of_a_fine_tuned_run_counts_the_source_s_steps(tmp_path):
     policy = run / "policy"
     policy.mkdir(parents=True)
     env, ppo = envs.default_config("flat", "aof", "B"), PPOConfig(num_timesteps=4_000_000)
-    (policy / "footforge.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo),
-                                                       "global_step": 3_526_656}))
-    (run / "config.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo),
-                                                 "initialised_from": {"run": "/runs/aof", "step": 10_027_008}}))
+    (policy / "footforge.json").write_text(
+        json.dumps({"env": to_dict(env), "ppo": to_dict(ppo), "global_step": 3_526_656})
+    )
+    (run / "config.json").write_text(
+        json.dumps(
+            {"env": to_dict(env), "ppo": to_dict(ppo), "initialised_from": {"run": "/runs/aof", "step": 10_027_008}}
+        )
+    )
     card = policy_card(policy, [(0, _result(policy, "aof", 0.0))], [])
     assert "| started from | step 10,027,008 of /runs/aof (--init-from): 13,553,664 steps in all |" in card
     (run / "config.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo)}))

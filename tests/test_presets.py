@@ -5,15 +5,15 @@ shipped run is its recorded recipe."""
 
 import json
 from dataclasses import replace
-from pathlib import Path
 
 import pytest
-from conftest import REPO
 
 from footforge import envs
 from footforge.errors import InputError
 from footforge.rl import presets
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict, to_dict
+
+from conftest import REPO
 
 
 @pytest.mark.parametrize("task, name", [(t, n) for t in presets.PRESETS for n in presets.PRESETS[t]])
@@ -47,17 +47,20 @@ def test_the_cpu_preset_is_what_the_shipped_cpu_policies_trained_on():
     assert env.commands.resample_s == envs.FLAT_COMMAND_RESAMPLE_S
 
 
-@pytest.mark.parametrize("override, read", [
-    ("ppo.entropy_cost=0.003", lambda e, p: p.entropy_cost == 0.003),
-    ("ppo.num_timesteps=2e6", lambda e, p: p.num_timesteps == 2_000_000 and isinstance(p.num_timesteps, int)),
-    ("ppo.policy_hidden_layers=512,256,128", lambda e, p: p.policy_hidden_layers == (512, 256, 128)),
-    ("ppo.policy_mean_clip=1.5", lambda e, p: p.policy_mean_clip == 1.5),
-    ("env.commands.lin_vel_x_range=-0.5,1.5", lambda e, p: e.commands.lin_vel_x_range == (-0.5, 1.5)),
-    ("env.rewards.feet_air_time.scale=0.25", lambda e, p: e.rewards.feet_air_time.scale == 0.25),
-    ("env.pushes.enabled=false", lambda e, p: e.pushes.enabled is False),
-    ("env.randomization.friction_range=0.5,1.25", lambda e, p: e.randomization.friction_range == (0.5, 1.25)),
-    ("env.action=velocity", lambda e, p: e.action == "velocity"),
-])
+@pytest.mark.parametrize(
+    "override, read",
+    [
+        ("ppo.entropy_cost=0.003", lambda e, p: p.entropy_cost == 0.003),
+        ("ppo.num_timesteps=2e6", lambda e, p: p.num_timesteps == 2_000_000 and isinstance(p.num_timesteps, int)),
+        ("ppo.policy_hidden_layers=512,256,128", lambda e, p: p.policy_hidden_layers == (512, 256, 128)),
+        ("ppo.policy_mean_clip=1.5", lambda e, p: p.policy_mean_clip == 1.5),
+        ("env.commands.lin_vel_x_range=-0.5,1.5", lambda e, p: e.commands.lin_vel_x_range == (-0.5, 1.5)),
+        ("env.rewards.feet_air_time.scale=0.25", lambda e, p: e.rewards.feet_air_time.scale == 0.25),
+        ("env.pushes.enabled=false", lambda e, p: e.pushes.enabled is False),
+        ("env.randomization.friction_range=0.5,1.25", lambda e, p: e.randomization.friction_range == (0.5, 1.25)),
+        ("env.action=velocity", lambda e, p: e.action == "velocity"),
+    ],
+)
 def test_an_override_sets_one_leaf_as_its_field_s_type(override, read):
     base_env, base_ppo = presets.resolve("flat", "aof", "B", "cpu")
     env, ppo = presets.resolve("flat", "aof", "B", "cpu", [override])
@@ -65,35 +68,43 @@ def test_an_override_sets_one_leaf_as_its_field_s_type(override, read):
     # Nothing else moved: config.json's forms differ in that one leaf.
     from footforge.rl.config import config_differences
 
-    changed = config_differences({"env": to_dict(base_env), "ppo": to_dict(base_ppo)},
-                                 {"env": to_dict(env), "ppo": to_dict(ppo)})
+    changed = config_differences(
+        {"env": to_dict(base_env), "ppo": to_dict(base_ppo)}, {"env": to_dict(env), "ppo": to_dict(ppo)}
+    )
     assert [c.split(":")[0] for c in changed] == [override.split("=")[0]]
 
 
 def test_the_contact_model_override_brings_its_physics():
     env, _ = presets.resolve("flat", "aof", "B", "cpu", ["env.contact_model=stance"])
     default, _ = presets.resolve("flat", "aof", "B", "default")
-    assert (env.contact_model, env.sim_dt, env.decimation, env.solver_iterations, env.solver_ls_iterations) == \
-           (default.contact_model, default.sim_dt, default.decimation, default.solver_iterations,
-            default.solver_ls_iterations)
+    assert (env.contact_model, env.sim_dt, env.decimation, env.solver_iterations, env.solver_ls_iterations) == (
+        default.contact_model,
+        default.sim_dt,
+        default.decimation,
+        default.solver_iterations,
+        default.solver_ls_iterations,
+    )
     assert env.sim_dt < presets.resolve("flat", "aof", "B", "cpu")[0].sim_dt
 
 
-@pytest.mark.parametrize("override, words", [
-    ("ppo.entropy=0.1", "did you mean entropy_cost"),
-    ("env.commands.resample_s=often", "'often' is not a number"),
-    ("ppo.num_envs=1.5", "not a whole number"),
-    ("env.commands=3", "'commands' is a section"),
-    ("env.commands.resample_s.x=3", "'resample_s' is a value"),
-    ("env.feet=ball", "fix: --feet"),
-    ("env.physics=mjx", "fix: --physics"),
-    ("env.action=run", "one of velocity, position"),
-    ("env.pushes.enabled=maybe", "true or false"),
-    ("env.commands.lin_vel_x_range=1", "2 comma-separated numbers"),
-    ("ppo.num_envs=none", "cannot be none"),
-    ("entropy_cost=0.1", "SECTION.FIELD=VALUE"),
-    ("ppo.entropy_cost", "SECTION.FIELD=VALUE"),
-])
+@pytest.mark.parametrize(
+    "override, words",
+    [
+        ("ppo.entropy=0.1", "did you mean entropy_cost"),
+        ("env.commands.resample_s=often", "'often' is not a number"),
+        ("ppo.num_envs=1.5", "not a whole number"),
+        ("env.commands=3", "'commands' is a section"),
+        ("env.commands.resample_s.x=3", "'resample_s' is a value"),
+        ("env.feet=ball", "fix: --feet"),
+        ("env.physics=mjx", "fix: --physics"),
+        ("env.action=run", "one of velocity, position"),
+        ("env.pushes.enabled=maybe", "true or false"),
+        ("env.commands.lin_vel_x_range=1", "2 comma-separated numbers"),
+        ("ppo.num_envs=none", "cannot be none"),
+        ("entropy_cost=0.1", "SECTION.FIELD=VALUE"),
+        ("ppo.entropy_cost", "SECTION.FIELD=VALUE"),
+    ],
+)
 def test_a_bad_override_is_an_input_error_that_names_it(override, words):
     with pytest.raises(InputError) as e:
         presets.resolve("flat", "aof", "B", "cpu", [override])
@@ -109,8 +120,9 @@ def test_an_unknown_preset_lists_the_task_s():
 def test_overrides_between_give_the_configuration_back(preset_name):
     """A configuration made from one preset is reached from another by the overrides derived
     between them (the contact model's physics included)."""
-    env, ppo = presets.resolve("flat", "aff", "B", "forward", ["env.float64_physics=true", "ppo.seed=3",
-                                                              "env.rewards.base_height.scale=-5"])
+    env, ppo = presets.resolve(
+        "flat", "aff", "B", "forward", ["env.float64_physics=true", "ppo.seed=3", "env.rewards.base_height.scale=-5"]
+    )
     overrides = presets.overrides_between(env, ppo, preset_name)
     assert presets.resolve("flat", "aff", "B", preset_name, overrides) == (env, ppo)
     assert ("ppo.seed=3" in overrides) and not any(o.startswith("env.feet") for o in overrides)
@@ -137,6 +149,7 @@ def test_each_shipped_run_is_its_recorded_recipe(config_file):
 
 # --- footforge train --preset/--set ---
 
+
 def _capture_train(monkeypatch):
     """footforge train's call of rl.train.train recorded instead of made (test_train's helper)."""
     from test_train import _capture_train as capture
@@ -149,19 +162,49 @@ def test_train_resolves_preset_flags_and_sets_in_order_and_records_them(built, t
 
     seen = _capture_train(monkeypatch)
     root = ["--feet", "ball", "--build-root", str(built["ball"][0].parent)]
-    assert main("flat", "", [*root, "--out", str(tmp_path / "a"), "--preset", "cpu", "--num-envs", "16",
-                             "--batch-size", "8", "--set", "ppo.entropy_cost=0.01", "--set",
-                             "env.commands.resample_s=10"], prog="footforge train flat") == 0
+    assert (
+        main(
+            "flat",
+            "",
+            [
+                *root,
+                "--out",
+                str(tmp_path / "a"),
+                "--preset",
+                "cpu",
+                "--num-envs",
+                "16",
+                "--batch-size",
+                "8",
+                "--set",
+                "ppo.entropy_cost=0.01",
+                "--set",
+                "env.commands.resample_s=10",
+            ],
+            prog="footforge train flat",
+        )
+        == 0
+    )
     recipe = seen["kwargs"]["recipe"]
-    assert recipe == {"preset": "cpu", "overrides": ["ppo.num_envs=16", "ppo.batch_size=8", "ppo.entropy_cost=0.01",
-                                                     "env.commands.resample_s=10", "ppo.num_eval_envs=16"]}
+    assert recipe == {
+        "preset": "cpu",
+        "overrides": [
+            "ppo.num_envs=16",
+            "ppo.batch_size=8",
+            "ppo.entropy_cost=0.01",
+            "env.commands.resample_s=10",
+            "ppo.num_eval_envs=16",
+        ],
+    }
     env, ppo = presets.resolve("flat", "ball", "B", "cpu", recipe["overrides"])
     assert seen["ppo"] == ppo and replace(seen["env"], physics=env.physics, build_dir=None) == env
     assert ppo.entropy_cost == 0.01 and env.commands.resample_s == 10 and env.contact_model == "fast"
     assert "preset cpu, overrides ppo.num_envs=16" in capsys.readouterr().out
     # A --set after a flag wins: the order is the preset, the flags, then --set.
-    assert main("flat", "", [*root, "--out", str(tmp_path / "b"), "--preset", "cpu", "--seed", "1", "--set",
-                             "ppo.seed=2"]) == 0
+    assert (
+        main("flat", "", [*root, "--out", str(tmp_path / "b"), "--preset", "cpu", "--seed", "1", "--set", "ppo.seed=2"])
+        == 0
+    )
     assert seen["ppo"].seed == 2
 
 
@@ -169,8 +212,15 @@ def test_a_bad_set_is_refused_before_anything_is_announced(built, tmp_path, monk
     from footforge.cli.train import main
 
     seen = _capture_train(monkeypatch)
-    assert main("flat", "", ["--feet", "ball", "--out", str(tmp_path / "a"), "--set", "ppo.entropy=0.1"],
-                prog="footforge train flat") == 2
+    assert (
+        main(
+            "flat",
+            "",
+            ["--feet", "ball", "--out", str(tmp_path / "a"), "--set", "ppo.entropy=0.1"],
+            prog="footforge train flat",
+        )
+        == 2
+    )
     out, err = capsys.readouterr()
     assert "footforge train flat: error: --set ppo.entropy=0.1" in err and "entropy_cost" in err
     assert "robots on" not in out and not seen and not (tmp_path / "a").exists()
@@ -180,21 +230,60 @@ def test_a_resume_with_another_recipe_names_the_differences(built, tmp_path, mon
     from footforge.cli.train import main
     from footforge.rl import train
 
-    cfg, ppo = presets.resolve("flat", "ball", "B", "cpu", ["ppo.num_envs=8", "ppo.batch_size=8",
-                                                            "ppo.num_minibatches=1"])
+    cfg, ppo = presets.resolve(
+        "flat", "ball", "B", "cpu", ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1"]
+    )
     run = train.prepare_run_dir(tmp_path / "run")
-    (run / "config.json").write_text(json.dumps({"env": to_dict(replace(cfg, build_dir=str(built["ball"][0]))),
-                                                 "ppo": to_dict(ppo)}))
+    (run / "config.json").write_text(
+        json.dumps({"env": to_dict(replace(cfg, build_dir=str(built["ball"][0]))), "ppo": to_dict(ppo)})
+    )
     seen = _capture_train(monkeypatch)
     assert main("flat", "", ["--out", str(run), "--resume", "--preset", "default"]) == 2
     err = capsys.readouterr().err
     assert "not the run's configuration" in err and "ppo.num_envs: 8 in the run, 2048 now" in err
-    assert main("flat", "", ["--out", str(run), "--resume", "--preset", "cpu", "--set", "ppo.num_envs=8",
-                             "--set", "ppo.batch_size=8", "--set", "ppo.num_minibatches=1",
-                             "--set", "ppo.entropy_cost=0.01"]) == 2
+    assert (
+        main(
+            "flat",
+            "",
+            [
+                "--out",
+                str(run),
+                "--resume",
+                "--preset",
+                "cpu",
+                "--set",
+                "ppo.num_envs=8",
+                "--set",
+                "ppo.batch_size=8",
+                "--set",
+                "ppo.num_minibatches=1",
+                "--set",
+                "ppo.entropy_cost=0.01",
+            ],
+        )
+        == 2
+    )
     assert "ppo.entropy_cost: 0.001 in the run, 0.01 now" in capsys.readouterr().err
-    assert main("flat", "", ["--out", str(run), "--resume", "--preset", "cpu", "--set", "ppo.num_envs=8",
-                             "--set", "ppo.batch_size=8", "--set", "ppo.num_minibatches=1"]) == 0
+    assert (
+        main(
+            "flat",
+            "",
+            [
+                "--out",
+                str(run),
+                "--resume",
+                "--preset",
+                "cpu",
+                "--set",
+                "ppo.num_envs=8",
+                "--set",
+                "ppo.batch_size=8",
+                "--set",
+                "ppo.num_minibatches=1",
+            ],
+        )
+        == 0
+    )
     assert seen["ppo"] == ppo
 
 
@@ -214,31 +303,47 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
         env = env_config_from_dict(saved["env"])
         return replace(env, physics="mjx", build_dir=None), from_dict(PPOConfig, saved["ppo"])
 
-    env, ppo, recipe = module.configure("ball", "full", "today+fast+airtime=0+resample=10+entropy=0.001",
-                                        ["ppo.num_timesteps=3870720", "ppo.checkpoint_every_steps=258048"])
+    env, ppo, recipe = module.configure(
+        "ball",
+        "full",
+        "today+fast+airtime=0+resample=10+entropy=0.001",
+        ["ppo.num_timesteps=3870720", "ppo.checkpoint_every_steps=258048"],
+    )
     assert (env, ppo) == shipped("flat_ball_B_cpu")
     assert presets.resolve("flat", "ball", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
     assert module.configure("ball", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])[:2] == (env, ppo)
     assert shipped("flat_aff_B") == presets.resolve("flat", "aff", "B", "cpu")
-    env, ppo, _ = module.configure("aof", "full", "today+fast+airtime=0+entropy=0.001",
-                                   ["ppo.num_timesteps=10000000", "ppo.checkpoint_every_steps=258048"])
+    env, ppo, _ = module.configure(
+        "aof",
+        "full",
+        "today+fast+airtime=0+entropy=0.001",
+        ["ppo.num_timesteps=10000000", "ppo.checkpoint_every_steps=258048"],
+    )
     assert (env, ppo) == shipped("flat_aof_B") == presets.resolve("flat", "aof", "B", "cpu")
 
 
-@pytest.mark.parametrize("override, read", [
-    ("env.observations.base_lin_vel.noise=0.2", lambda e, p: e.observations.base_lin_vel.noise == 0.2),
-    ("env.observations.command.scale=1,1,0.5", lambda e, p: e.observations.command.scale == (1.0, 1.0, 0.5)),
-    ("ppo.seed=12345678901234567891", lambda e, p: p.seed == 12345678901234567891),
-])
+@pytest.mark.parametrize(
+    "override, read",
+    [
+        ("env.observations.base_lin_vel.noise=0.2", lambda e, p: e.observations.base_lin_vel.noise == 0.2),
+        ("env.observations.command.scale=1,1,0.5", lambda e, p: e.observations.command.scale == (1.0, 1.0, 0.5)),
+        ("ppo.seed=12345678901234567891", lambda e, p: p.seed == 12345678901234567891),
+    ],
+)
 def test_observation_groups_and_exact_integers_are_overridden(override, read):
     """An observation group's scale and noise (fields typed for type checkers only) take overrides, and
     a whole number is read exactly, not through a float."""
     assert read(*presets.resolve("flat", "aof", "B", "cpu", [override]))
 
 
-@pytest.mark.parametrize("override, words", [("ppo.learning_rate=nan", "finite"),
-                                             ("env.terrain.seed=3", "rough task's"),
-                                             ("env.curriculum.initial_max_level=2", "rough task's")])
+@pytest.mark.parametrize(
+    "override, words",
+    [
+        ("ppo.learning_rate=nan", "finite"),
+        ("env.terrain.seed=3", "rough task's"),
+        ("env.curriculum.initial_max_level=2", "rough task's"),
+    ],
+)
 def test_overrides_that_would_do_nothing_or_poison_training_are_refused(override, words):
     with pytest.raises(InputError, match=words):
         presets.resolve("flat", "aof", "B", "cpu", [override])
@@ -252,15 +357,41 @@ def test_a_resume_with_set_alone_compares_with_the_run_s_own_preset(built, tmp_p
     from footforge.cli.train import main
     from footforge.rl import train
 
-    cfg, ppo = presets.resolve("flat", "ball", "B", "cpu", ["ppo.num_envs=8", "ppo.batch_size=8",
-                                                            "ppo.num_minibatches=1"])
+    cfg, ppo = presets.resolve(
+        "flat", "ball", "B", "cpu", ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1"]
+    )
     run = train.prepare_run_dir(tmp_path / "run")
-    (run / "config.json").write_text(json.dumps({
-        "env": to_dict(replace(cfg, build_dir=str(built["ball"][0]))), "ppo": to_dict(ppo),
-        "recipe": {"preset": "cpu", "overrides": ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1"]}}))
+    (run / "config.json").write_text(
+        json.dumps(
+            {
+                "env": to_dict(replace(cfg, build_dir=str(built["ball"][0]))),
+                "ppo": to_dict(ppo),
+                "recipe": {
+                    "preset": "cpu",
+                    "overrides": ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1"],
+                },
+            }
+        )
+    )
     seen = _capture_train(monkeypatch)
-    assert main("flat", "", ["--out", str(run), "--resume", "--set", "ppo.num_envs=8", "--set", "ppo.batch_size=8",
-                             "--set", "ppo.num_minibatches=1"]) == 0
+    assert (
+        main(
+            "flat",
+            "",
+            [
+                "--out",
+                str(run),
+                "--resume",
+                "--set",
+                "ppo.num_envs=8",
+                "--set",
+                "ppo.batch_size=8",
+                "--set",
+                "ppo.num_minibatches=1",
+            ],
+        )
+        == 0
+    )
     assert seen["ppo"] == ppo
     assert main("flat", "", ["--out", str(run), "--resume", "--set", "ppo.num_timesteps=20000000"]) == 2
     assert "with --timesteps" in capsys.readouterr().err
@@ -270,10 +401,17 @@ def test_a_resume_that_extends_the_run_records_the_new_total_in_its_recipe(built
     """After --resume --timesteps N the recorded recipe still resolves to config.json."""
     from footforge.rl import train
 
-    cfg, ppo = presets.resolve("flat", "ball", "B", "cpu", ["ppo.num_envs=8", "ppo.batch_size=8",
-                                                            "ppo.num_minibatches=1", "ppo.checkpoint_every_steps=32"])
-    recipe = {"preset": "cpu", "overrides": ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1",
-                                             "ppo.checkpoint_every_steps=32"]}
+    cfg, ppo = presets.resolve(
+        "flat",
+        "ball",
+        "B",
+        "cpu",
+        ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1", "ppo.checkpoint_every_steps=32"],
+    )
+    recipe = {
+        "preset": "cpu",
+        "overrides": ["ppo.num_envs=8", "ppo.batch_size=8", "ppo.num_minibatches=1", "ppo.checkpoint_every_steps=32"],
+    }
     cfg = replace(cfg, build_dir=str(built["ball"][0]))
     monkeypatch.setattr(train, "_resume_state", lambda *a: (64, None, 0, 0.0))
     monkeypatch.setattr(train, "_run_ppo", lambda *a, **k: {})

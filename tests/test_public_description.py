@@ -16,19 +16,25 @@ import trimesh
 import yaml
 
 from footforge.cli.main import main
-from footforge.models.collision import DecompositionConfig, decompose
-from footforge.inputs.description import load_description
 from footforge.errors import InputError
+from footforge.inputs.description import load_description
 from footforge.inputs.foot_root import select_foot_root
-from footforge.models.mesh_simplify import simplify_to_budget
 from footforge.inputs.urdf_lint import check_urdf
+from footforge.models.collision import DecompositionConfig, decompose
+from footforge.models.mesh_simplify import simplify_to_budget
 
 from conftest import REPO
 
 FIXTURE = Path(__file__).parent / "fixtures" / "public_softfoot"
 PUBLIC_SIDECAR = REPO / "descriptions" / "softfoot_q" / "public_sidecar.yaml"
-BOX_MM = {"ankle": (40, 40, 30), "front_arch_front": (70, 28, 20), "front_arch_back": (70, 28, 20),
-          "roll_link_v04": (15, 50, 25), "inner_chain": (11, 12, 12), "outer_chain": (17, 21, 12)}
+BOX_MM = {
+    "ankle": (40, 40, 30),
+    "front_arch_front": (70, 28, 20),
+    "front_arch_back": (70, 28, 20),
+    "roll_link_v04": (15, 50, 25),
+    "inner_chain": (11, 12, 12),
+    "outer_chain": (17, 21, 12),
+}
 """Collision boxes of the fixture's parts, mm (the package's meshes are in mm, scaled by .001)."""
 
 
@@ -70,9 +76,24 @@ def test_public_rig_builds_in_one_command(capsys, tmp_path, public_pkg):
     """world -> floating leg -> foot: the shipped sidecar is picked up, the rig dropped, the
     repeated origins and the ankle inertia repaired (before: 'sidecar file not found')."""
     out = tmp_path / "out"
-    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--format", "mjcf",
-                     "--description", robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
-                     "--package-path", public_pkg, "--repair", "--out", out, "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aof",
+        "--foot-only",
+        "--format",
+        "mjcf",
+        "--description",
+        robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+        "--package-path",
+        public_pkg,
+        "--repair",
+        "--out",
+        out,
+        "--cache-dir",
+        tmp_path / "c",
+    )
     assert code == 0, text
     report = yaml.safe_load((out / "build_report.json").read_text())
     assert report["inputs"]["sidecar"]["path"] == str(PUBLIC_SIDECAR.resolve())
@@ -80,6 +101,7 @@ def test_public_rig_builds_in_one_command(capsys, tmp_path, public_pkg):
     assert "root link 'softfoot_ankle_base_link'" in repairs and "world" in repairs and "leg_link" in repairs
     assert "repeated <origin>" in repairs and "softfoot_ankle_link" in repairs
     import mujoco
+
     model = mujoco.MjModel.from_xml_path(str(out / "foot.xml"))
     assert model.body(1).name == "softfoot_ankle_base_link"
 
@@ -88,10 +110,26 @@ def test_fixed_world_root_is_dropped_without_root_link(capsys, tmp_path, public_
     """A foot fixed to `world` and no root_link in the sidecar: `world` and its fixed joint are
     dropped (before: a dm_control traceback on the body named 'world', after CoACD)."""
     out = tmp_path / "out"
-    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--format", "mjcf",
-                     "--description", robot_file(public_pkg, "fixed_softfoot.urdf.xacro"),
-                     "--sidecar", sidecar_copy(tmp_path, root_link=None),
-                     "--package-path", public_pkg, "--repair", "--out", out, "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aof",
+        "--foot-only",
+        "--format",
+        "mjcf",
+        "--description",
+        robot_file(public_pkg, "fixed_softfoot.urdf.xacro"),
+        "--sidecar",
+        sidecar_copy(tmp_path, root_link=None),
+        "--package-path",
+        public_pkg,
+        "--repair",
+        "--out",
+        out,
+        "--cache-dir",
+        tmp_path / "c",
+    )
     assert code == 0, text
     assert "Traceback" not in text
     report = yaml.safe_load((out / "build_report.json").read_text())
@@ -108,10 +146,24 @@ def test_moving_rig_without_root_link_asks_for_it(tmp_path, public_pkg):
 def test_root_link_typo_names_the_sidecar_key(capsys, tmp_path, public_pkg):
     """root_link was parsed and ignored: a wrong one went unnoticed."""
     sidecar = sidecar_copy(tmp_path, root_link="softfoot_ankle_bse_link")
-    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--repair",
-                     "--description", robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
-                     "--sidecar", sidecar, "--package-path", public_pkg,
-                     "--out", tmp_path / "out", "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aof",
+        "--foot-only",
+        "--repair",
+        "--description",
+        robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+        "--sidecar",
+        sidecar,
+        "--package-path",
+        public_pkg,
+        "--out",
+        tmp_path / "out",
+        "--cache-dir",
+        tmp_path / "c",
+    )
     assert code == 2, text
     assert "root_link" in text and str(sidecar) in text and "softfoot_ankle_base_link" in text
     assert not (tmp_path / "c").exists(), "checked before CoACD"
@@ -125,10 +177,24 @@ def test_sidecar_name_typo_blames_the_sidecar(capsys, tmp_path, public_pkg):
     data["closures"][2]["link"] = "softfoot_left_chain_9"
     sidecar = tmp_path / "typo.sidecar.yaml"
     sidecar.write_text(yaml.safe_dump(data))
-    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--repair",
-                     "--description", robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
-                     "--sidecar", sidecar, "--package-path", public_pkg,
-                     "--out", tmp_path / "out", "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aof",
+        "--foot-only",
+        "--repair",
+        "--description",
+        robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+        "--sidecar",
+        sidecar,
+        "--package-path",
+        public_pkg,
+        "--out",
+        tmp_path / "out",
+        "--cache-dir",
+        tmp_path / "c",
+    )
     assert code == 2, text
     assert str(sidecar) in text
     assert "arch_joints[0]" in text and "softfoot_front_arch_joint" in text
@@ -150,8 +216,9 @@ def test_repair_fixes_name_the_flag(public_pkg):
 
 def test_coacd_timeout_names_the_flag(tmp_path):
     """The timeout message said 'simplify the mesh' and never named --coacd-timeout."""
-    l_shape = trimesh.util.concatenate([trimesh.creation.box((30, 10, 10)),
-                                        trimesh.creation.box((10, 30, 10)).apply_translation((10, 10, 0))])
+    l_shape = trimesh.util.concatenate(
+        [trimesh.creation.box((30, 10, 10)), trimesh.creation.box((10, 30, 10)).apply_translation((10, 10, 0))]
+    )
     mesh = tmp_path / "l.stl"
     l_shape.export(mesh)
     with pytest.raises(InputError) as e:
@@ -186,11 +253,20 @@ def test_progress_names_each_mesh(tmp_path, public_pkg):
     from footforge.build import BuildOptions, build
 
     lines = []
-    report = build(BuildOptions(variant="aof", out_dir=tmp_path / "out", foot_only=True, formats=("mjcf",),
-                                foot_description=robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
-                                package_paths=(public_pkg,), repair=True, cache_dir=tmp_path / "c"),
-                   progress=lines.append)
-    per_mesh = [l for l in lines if l.startswith("decompose collision meshes: ")]
+    report = build(
+        BuildOptions(
+            variant="aof",
+            out_dir=tmp_path / "out",
+            foot_only=True,
+            formats=("mjcf",),
+            foot_description=robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+            package_paths=(public_pkg,),
+            repair=True,
+            cache_dir=tmp_path / "c",
+        ),
+        progress=lines.append,
+    )
+    per_mesh = [line for line in lines if line.startswith("decompose collision meshes: ")]
     assert per_mesh[0] == "decompose collision meshes: 1/6 ankle.stl"
     assert len(per_mesh) == 6 and per_mesh[-1].startswith("decompose collision meshes: 6/6 ")
     assert all(m["seconds"] >= 0 for m in report["collision"]["meshes"])
@@ -203,8 +279,22 @@ def test_four_feet_rig_with_the_shipped_sidecar_says_copy_it(capsys, tmp_path, p
     rig = robot_file(public_pkg, "floating_softfoot.urdf.xacro")
     four = rig.with_name("four_softfeet.urdf.xacro")
     four.write_text(rig.read_text().replace('name="softfoot"', 'name="softfoot_1"'))
-    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--repair", "--description", four,
-                     "--package-path", public_pkg, "--out", tmp_path / "out", "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aof",
+        "--foot-only",
+        "--repair",
+        "--description",
+        four,
+        "--package-path",
+        public_pkg,
+        "--out",
+        tmp_path / "out",
+        "--cache-dir",
+        tmp_path / "c",
+    )
     assert code == 2, text
     assert "softfoot_1_ankle_base_link" in text and "root_link" in text
     assert "copy" in text and "--sidecar" in text
@@ -213,8 +303,21 @@ def test_four_feet_rig_with_the_shipped_sidecar_says_copy_it(capsys, tmp_path, p
 def test_macro_file_alone_is_explained(capsys, tmp_path, public_pkg):
     """The package's macro file expands to an empty robot: say so, instead of blaming root_link."""
     macros = public_pkg / "softfoot_thing_description" / "model" / "softfoot_thing.urdf.xacro"
-    code, text = run(capsys, "build", "--variant", "aof", "--foot-only", "--description", macros,
-                     "--package-path", public_pkg, "--out", tmp_path / "out", "--cache-dir", tmp_path / "c")
+    code, text = run(
+        capsys,
+        "build",
+        "--variant",
+        "aof",
+        "--foot-only",
+        "--description",
+        macros,
+        "--package-path",
+        public_pkg,
+        "--out",
+        tmp_path / "out",
+        "--cache-dir",
+        tmp_path / "c",
+    )
     assert code == 2, text
     assert "no links" in text and "macro" in text and str(macros) in text
 
@@ -239,8 +342,15 @@ def test_check_with_the_public_sidecar_closes_the_loops(capsys, public_pkg):
         path.write_text(path.read_text().replace('<origin xyz="0 0 0" rpy="0 0 0"/>', ""))
     inertia = model / "softfoot_thing_inertia.xacro"
     inertia.write_text(inertia.read_text().replace('zz="1.0468"', 'zz="4.0468"'))
-    code, text = run(capsys, "check", robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
-                     "--package-path", public_pkg, "--sidecar", PUBLIC_SIDECAR)
+    code, text = run(
+        capsys,
+        "check",
+        robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+        "--package-path",
+        public_pkg,
+        "--sidecar",
+        PUBLIC_SIDECAR,
+    )
     assert code == 0, text
     gaps = [float(line.split("gap ")[1].split(" m")[0]) for line in text.splitlines() if "gap" in line]
     assert len(gaps) == 3 and max(gaps) < 1e-9, text
@@ -253,10 +363,27 @@ def test_public_description_validates_with_the_build_flags(capsys, tmp_path, pub
     import json
 
     out = tmp_path / "report"
-    code, text = run(capsys, "validate", "--variant", "aof", "--scenarios", "flat_2cm", "--jobs", "1",
-                     "--description", robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
-                     "--package-path", public_pkg, "--repair", "--face-budget", "1000",
-                     "--cache-dir", tmp_path / "c", "--out", out)
+    code, text = run(
+        capsys,
+        "validate",
+        "--variant",
+        "aof",
+        "--scenarios",
+        "flat_2cm",
+        "--jobs",
+        "1",
+        "--description",
+        robot_file(public_pkg, "floating_softfoot.urdf.xacro"),
+        "--package-path",
+        public_pkg,
+        "--repair",
+        "--face-budget",
+        "1000",
+        "--cache-dir",
+        tmp_path / "c",
+        "--out",
+        out,
+    )
     report = json.loads((out / "report.json").read_text())
     assert code == (0 if report["passed"] else 1), text
     assert report["inputs"]["foot_description"]["path"].endswith("floating_softfoot.urdf.xacro")

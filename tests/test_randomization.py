@@ -8,13 +8,13 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from footforge import constants as C
-from footforge import envs
+from footforge import constants as C, envs
 from footforge.envs.config import RandomizationConfig
 from footforge.envs.randomization import randomizer
 
-FULL = RandomizationConfig(friction_range=(0.5, 1.25), payload_mass_kg_range=(-1.0, 1.0),
-                           motor_strength_range=(0.9, 1.1))
+FULL = RandomizationConfig(
+    friction_range=(0.5, 1.25), payload_mass_kg_range=(-1.0, 1.0), motor_strength_range=(0.9, 1.1)
+)
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +36,9 @@ def test_draws_are_per_robot_in_range_and_reproducible(env):
     # Payload: the robot's total mass changes by exactly the draw, within +-1 kg.
     base = env.robot.model.body(C.BASE_BODY).id
     added = np.asarray(batched.body_mass.sum(axis=1)) - float(env.sys.body_mass.sum())
-    np.testing.assert_allclose(added, np.asarray(batched.body_mass[:, base]) - float(env.sys.body_mass[base]), atol=1e-5)
+    np.testing.assert_allclose(
+        added, np.asarray(batched.body_mass[:, base]) - float(env.sys.body_mass[base]), atol=1e-5
+    )
     assert -1.0 <= added.min() and added.max() <= 1.0 and added.std() > 0.2
     # Motor strength: kp, kv and the torque limit scaled by one factor per robot.
     kp = np.asarray(batched.actuator_gainprm[:, :, 0]) / float(env.sys.actuator_gainprm[0, 0])
@@ -45,8 +47,9 @@ def test_draws_are_per_robot_in_range_and_reproducible(env):
     np.testing.assert_allclose(kp, kv, rtol=1e-5)
     np.testing.assert_allclose(kp, limit, rtol=1e-5)
     assert 0.9 <= kp.min() and kp.max() <= 1.1
-    np.testing.assert_allclose(-np.asarray(batched.actuator_biasprm[:, :, 1]), np.asarray(batched.actuator_gainprm[:, :, 0]),
-                               rtol=1e-6)  # still a PD at the target
+    np.testing.assert_allclose(
+        -np.asarray(batched.actuator_biasprm[:, :, 1]), np.asarray(batched.actuator_gainprm[:, :, 0]), rtol=1e-6
+    )  # still a PD at the target
 
 
 def test_nothing_randomised_gives_no_function(built):
@@ -97,8 +100,16 @@ def test_the_c_engine_steps_each_robot_with_its_own_model(built):
 
     draws = RandomizationConfig(friction_range=None, payload_mass_kg_range=(-1.0, 1.0), motor_strength_range=(0.9, 1.1))
     config = envs.default_config("flat", "ball", "B")
-    env = envs.make("flat", "ball", "B", build_dir=str(built["ball"][0]), physics="mujoco", randomization=draws,
-                    reset=ResetConfig((1.0, 1.0), 0.0), pushes=replace(config.pushes, enabled=False))
+    env = envs.make(
+        "flat",
+        "ball",
+        "B",
+        build_dir=str(built["ball"][0]),
+        physics="mujoco",
+        randomization=draws,
+        reset=ResetConfig((1.0, 1.0), 0.0),
+        pushes=replace(config.pushes, enabled=False),
+    )
     keys = jax.random.split(jax.random.PRNGKey(1), 4)
     wrapped = wrap_for_training(env, 1000, randomization_fn=functools.partial(randomizer(env), rng=keys))
     state = jax.jit(wrapped.reset)(jax.random.split(jax.random.PRNGKey(2), 4))

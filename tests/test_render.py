@@ -8,8 +8,9 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO
 from PIL import Image
+
+from conftest import REPO
 
 # A red box on a checkered floor; an offscreen buffer smaller than the frames asked for below.
 RENDER = """
@@ -42,8 +43,9 @@ print(json.dumps({"frames": len(frames), "offwidth": int(model.vis.global_.offwi
 
 def _run(code: str, mujoco_gl: str, *args: str) -> subprocess.CompletedProcess:
     env = {**os.environ, "MUJOCO_GL": mujoco_gl}
-    return subprocess.run([sys.executable, "-c", code, *args], env=env, capture_output=True, text=True,
-                          timeout=120, cwd=REPO)
+    return subprocess.run(
+        [sys.executable, "-c", code, *args], env=env, capture_output=True, text=True, timeout=120, cwd=REPO
+    )
 
 
 @pytest.mark.parametrize("backend", ["osmesa", "egl"])
@@ -54,8 +56,9 @@ def test_render_writes_gif_and_strip_or_names_the_fix(tmp_path, backend):
     if "error" in result:  # a machine without this backend's library: the message says what to install
         assert f"MUJOCO_GL={backend}" in result["error"] and "libosmesa6" in result["error"]
         assert not list(tmp_path.iterdir())
-        pytest.skip(f"no MUJOCO_GL={backend} library on this machine (its message names the fix, checked): "
-                    f"frames not rendered")
+        pytest.skip(
+            f"no MUJOCO_GL={backend} library on this machine (its message names the fix, checked): frames not rendered"
+        )
     assert result == {"frames": 5, "offwidth": 64}  # every 2nd of 10; the caller's model unchanged
     with Image.open(tmp_path / "video.gif") as gif:
         assert (gif.n_frames, gif.size, gif.info["duration"], gif.info["loop"]) == (5, (96, 64), 100, 0)
@@ -69,8 +72,10 @@ def test_render_writes_gif_and_strip_or_names_the_fix(tmp_path, backend):
 
 
 def test_disabled_rendering_is_an_input_error():
-    code = ("from footforge.errors import InputError\nfrom footforge.rl.render import check_renderer\n"
-            "try:\n    check_renderer()\nexcept InputError as e:\n    print(e)\n")
+    code = (
+        "from footforge.errors import InputError\nfrom footforge.rl.render import check_renderer\n"
+        "try:\n    check_renderer()\nexcept InputError as e:\n    print(e)\n"
+    )
     proc = _run(code, "disable")
     assert proc.returncode == 0 and not proc.stderr, proc.stderr
     assert "cannot render offscreen with MUJOCO_GL=disable" in proc.stdout
@@ -79,9 +84,22 @@ def test_disabled_rendering_is_an_input_error():
 
 def test_evaluate_video_without_renderer_exits_2_before_any_work(tmp_path):
     out = tmp_path / "evaluation"
-    proc = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(tmp_path / "none"),
-                           "--video", "1", "--out", str(out)], env={**os.environ, "MUJOCO_GL": "disable"},
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "pipelines/evaluate.py"),
+            "--policy",
+            str(tmp_path / "none"),
+            "--video",
+            "1",
+            "--out",
+            str(out),
+        ],
+        env={**os.environ, "MUJOCO_GL": "disable"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 2
     assert "MUJOCO_GL=disable" in proc.stderr and "Traceback" not in proc.stderr
     assert not out.exists()
@@ -92,8 +110,24 @@ def test_video_without_a_backend_named_says_which_variable_to_set(tmp_path):
     backend, not that MUJOCO_GL=disable (a value the user never set) cannot render."""
     out = tmp_path / "evaluation"
     env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
-    proc = subprocess.run([sys.executable, "-m", "footforge.cli", "evaluate", "--policy", str(tmp_path / "none"),
-                           "--video", "1", "--out", str(out)], env=env, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "footforge.cli",
+            "evaluate",
+            "--policy",
+            str(tmp_path / "none"),
+            "--video",
+            "1",
+            "--out",
+            str(out),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "needs an OpenGL backend named in MUJOCO_GL, and none is set" in proc.stderr
     assert "MUJOCO_GL=egl footforge" in proc.stderr and "MUJOCO_GL=disable" not in proc.stderr
@@ -109,11 +143,15 @@ def test_importing_footforge_leaves_mujoco_gl_as_the_user_has_it():
 
     probe = "import os, {module}; print(os.environ.get('MUJOCO_GL'))"
     unset = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
-    for module, env, expected in (("footforge", unset, "None"), ("footforge.cli.main", unset, "disable"),
-                                  ("footforge.cli.train", unset, "disable"),
-                                  ("footforge.cli.main", {**unset, "MUJOCO_GL": "glfw"}, "glfw")):
-        run = subprocess.run([sys.executable, "-c", probe.format(module=module)], env=env, capture_output=True,
-                             text=True, timeout=300)
+    for module, env, expected in (
+        ("footforge", unset, "None"),
+        ("footforge.cli.main", unset, "disable"),
+        ("footforge.cli.train", unset, "disable"),
+        ("footforge.cli.main", {**unset, "MUJOCO_GL": "glfw"}, "glfw"),
+    ):
+        run = subprocess.run(
+            [sys.executable, "-c", probe.format(module=module)], env=env, capture_output=True, text=True, timeout=300
+        )
         assert run.returncode == 0 and run.stdout.strip().splitlines()[-1] == expected, (module, run.stdout, run.stderr)
 
 

@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 from brax.envs.base import Env, State
 from mujoco import mjx
-from conftest import REPO, float64_stance
 
 from footforge import envs
 from footforge.envs import curriculum, observation_layout
@@ -24,6 +23,8 @@ from footforge.envs.config import CurriculumConfig
 from footforge.envs.contacts import foot_contacts, ground_contacts
 from footforge.envs.terrain import TerrainConfig, column_kinds
 from footforge.envs.wrappers import wrap_for_training
+
+from conftest import REPO, float64_stance
 
 # 3 levels x 6 columns of 4 m tiles: every kind, a terrain of 161 x 281 samples.
 SMALL = TerrainConfig(num_levels=3, num_columns=6, tile_size_m=4.0, border_m=2.0, platform_m=1.5)
@@ -37,8 +38,14 @@ def rough(built):
     out = {}
     for feet, policy in RICHEST.items():
         config = envs.default_config("rough", feet, policy)
-        env = envs.make("rough", feet, policy, build_dir=str(built[feet][0]), terrain=SMALL,
-                        pushes=replace(config.pushes, enabled=False))  # standing tests measure stance
+        env = envs.make(
+            "rough",
+            feet,
+            policy,
+            build_dir=str(built[feet][0]),
+            terrain=SMALL,
+            pushes=replace(config.pushes, enabled=False),
+        )  # standing tests measure stance
         step = jax.jit(env.step)
         states = [jax.jit(env.reset)(jax.random.PRNGKey(0))]
         for k in jax.random.split(jax.random.PRNGKey(1), 3):
@@ -67,8 +74,14 @@ def test_reset_and_step_every_feet_and_policy_type(rough, built):
         for task, f, policy in envs.registry():
             if task != "rough" or f != feet:
                 continue
-            other = envs.make("rough", feet, policy, build_dir=str(built[feet][0]), terrain=SMALL,
-                              observations=replace(env.config.observations, noise=False))
+            other = envs.make(
+                "rough",
+                feet,
+                policy,
+                build_dir=str(built[feet][0]),
+                terrain=SMALL,
+                observations=replace(env.config.observations, noise=False),
+            )
             obs = other.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
             assert obs.shape == (observation_layout.size(other.config, len(other.robot.passive_qpos)),)
             assert bool(jp.isfinite(obs).all()), (feet, policy)
@@ -101,9 +114,11 @@ def test_no_foot_starts_inside_a_slope(built):
     lowest foot collider point as high above its ground as in the stand on flat ground, and MuJoCo
     finds no foot contact deeper than the stand's own. The control: the same spawns without that lift
     (the reset before 2026-11-28 kept the lowest foot *site*, not collider point, at its stand
-    height above the ground) starts soles more than 5 mm inside the slopes, where MuJoCo's C engine pushed one out with 4.8e5 N."""
-    tiles = TerrainConfig(num_levels=2, num_columns=2, tile_size_m=4.0, border_m=2.0, platform_m=0.5,
-                          proportions=(1, 1, 0, 0, 0, 0))
+    height above the ground) starts soles more than 5 mm inside the slopes, where MuJoCo's C engine
+    pushed one out with 4.8e5 N."""
+    tiles = TerrainConfig(
+        num_levels=2, num_columns=2, tile_size_m=4.0, border_m=2.0, platform_m=0.5, proportions=(1, 1, 0, 0, 0, 0)
+    )
     env = envs.make("rough", "aof", "P", build_dir=str(built["aof"][0]), terrain=tiles, physics="mujoco")
     keys = jax.random.split(jax.random.PRNGKey(0), 16)
     states = jax.jit(jax.vmap(lambda k: env.reset_on_tile(k, 1, 0)))(keys)  # difficulty 0.5: slope 0.2
@@ -118,8 +133,12 @@ def test_no_foot_starts_inside_a_slope(built):
         data = mujoco.MjData(model)
         data.qpos[:] = qpos
         mujoco.mj_forward(model, data)
-        feet = [c.dist for c in data.contact[:data.ncon]
-                if (env.robot.geom_category[c.geom] >= GEOM_FOOT).any() and (env.robot.geom_category[c.geom] < GEOM_SHANK).any()]
+        feet = [
+            c.dist
+            for c in data.contact[: data.ncon]
+            if (env.robot.geom_category[c.geom] >= GEOM_FOOT).any()
+            and (env.robot.geom_category[c.geom] < GEOM_SHANK).any()
+        ]
         assert min(feet, default=0.0) > env._stand_foot_clearance - 1e-3
         before = qpos.copy()  # the old reset: the lowest foot *site* as high above its ground as in the stand
         before[2] += stand_sites - _lowest_site_clearance(env, qpos)
@@ -139,14 +158,22 @@ def test_sole_boxes_become_spheres_on_the_heightfield_without_changing_the_robot
     flat = envs.make("flat", feet, "B", build_dir=str(built[feet][0]), physics="mujoco").robot.model
     for attribute in ("body_mass", "body_ipos", "body_inertia", "body_subtreemass"):
         np.testing.assert_array_equal(getattr(spheres, attribute), getattr(boxes, attribute))
-    sole_boxes = [g for g in range(boxes.ngeom) if boxes.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX
-                  and "_foot/sole" in boxes.body(boxes.geom_bodyid[g]).name and boxes.geom_conaffinity[g]]
+    sole_boxes = [
+        g
+        for g in range(boxes.ngeom)
+        if boxes.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX
+        and "_foot/sole" in boxes.body(boxes.geom_bodyid[g]).name
+        and boxes.geom_conaffinity[g]
+    ]
     assert len(sole_boxes) == {"aff": 4, "aof": 8}[feet]
     assert sum(flat.geom_type == mujoco.mjtGeom.mjGEOM_BOX) == sum(boxes.geom_type == mujoco.mjtGeom.mjGEOM_BOX)
     for g in sole_boxes:
         body = boxes.geom_bodyid[g]
-        balls = [h for h in range(spheres.ngeom) if spheres.geom_bodyid[h] == body
-                 and spheres.geom_type[h] == mujoco.mjtGeom.mjGEOM_SPHERE]
+        balls = [
+            h
+            for h in range(spheres.ngeom)
+            if spheres.geom_bodyid[h] == body and spheres.geom_type[h] == mujoco.mjtGeom.mjGEOM_SPHERE
+        ]
         assert len(balls) == 6
         centre, half = boxes.geom_pos[g], boxes.geom_size[g]
         for h in balls:
@@ -154,8 +181,14 @@ def test_sole_boxes_become_spheres_on_the_heightfield_without_changing_the_robot
             assert r == 0.008
             assert spheres.geom_pos[h][2] - r == pytest.approx(centre[2] - half[2], abs=1e-9)  # on the bottom face
             assert np.all(np.abs(spheres.geom_pos[h][:2] - centre[:2]) <= half[:2] - r + 1e-9)  # inside it
-            for attribute in ("geom_friction", "geom_solref", "geom_solimp", "geom_condim", "geom_contype",
-                              "geom_conaffinity"):
+            for attribute in (
+                "geom_friction",
+                "geom_solref",
+                "geom_solimp",
+                "geom_condim",
+                "geom_contype",
+                "geom_conaffinity",
+            ):
                 np.testing.assert_array_equal(getattr(spheres, attribute)[h], getattr(boxes, attribute)[g])
 
 
@@ -196,6 +229,7 @@ def test_box_heightfield_subgrids_are_fitted_without_losing_a_contact(built):
 
     def subgrids(m):
         return sorted(k.subgrid_size for k in collision_driver._geom_groups(m) if k.subgrid_size)
+
     assert subgrids(default) == [(2, 2), (3, 3), (4, 4)]  # front soles, back soles, shank tubes
     assert subgrids(fitted) == [(2, 2), (4, 4)]
     rng = np.random.default_rng(0)
@@ -204,9 +238,11 @@ def test_box_heightfield_subgrids_are_fitted_without_losing_a_contact(built):
     for _ in range(64):
         q = np.array(env.robot.stand_qpos)
         q[:2] = env.terrain.tile_center(rng.integers(SMALL.num_levels), rng.integers(SMALL.num_columns)) + rng.uniform(
-            -1.5, 1.5, 2)
-        mujoco.mju_euler2Quat(q[3:7], np.array([rng.normal(0, 0.15), rng.normal(0, 0.15), rng.uniform(-np.pi, np.pi)]),
-                              "xyz")
+            -1.5, 1.5, 2
+        )
+        mujoco.mju_euler2Quat(
+            q[3:7], np.array([rng.normal(0, 0.15), rng.normal(0, 0.15), rng.uniform(-np.pi, np.pi)]), "xyz"
+        )
         q[7:] += rng.normal(0, 0.1, len(q) - 7)
         cpu = mujoco.MjData(model)
         cpu.qpos[:] = q
@@ -219,13 +255,19 @@ def test_box_heightfield_subgrids_are_fitted_without_losing_a_contact(built):
         def one(qpos):
             d = mjx.kinematics(m, mjx.make_data(m).replace(qpos=qpos))
             return collision_driver.collision(m, d)._impl.contact
+
         c = jax.jit(jax.vmap(one))(jp.asarray(np.array(poses), jp.float32))
         return np.asarray(c.geom), np.asarray(c.dist), np.asarray(c.pos)
+
     (ga, da, pa), (gb, db, pb) = contacts(default), contacts(fitted)
     found = 0
     for robot in range(len(poses)):  # the slots' order follows MJX's grouping, which changed
-        a = sorted((tuple(ga[robot, i]), float(da[robot, i]), tuple(pa[robot, i])) for i in np.flatnonzero(da[robot] < 0))
-        b = sorted((tuple(gb[robot, i]), float(db[robot, i]), tuple(pb[robot, i])) for i in np.flatnonzero(db[robot] < 0))
+        a = sorted(
+            (tuple(ga[robot, i]), float(da[robot, i]), tuple(pa[robot, i])) for i in np.flatnonzero(da[robot] < 0)
+        )
+        b = sorted(
+            (tuple(gb[robot, i]), float(db[robot, i]), tuple(pb[robot, i])) for i in np.flatnonzero(db[robot] < 0)
+        )
         assert a == b, robot
         found += len(a)
     assert found > 100
@@ -254,8 +296,9 @@ def test_height_scan_agrees_with_mujoco_ray_casts(rough):
         for value, (x, y) in zip(scan, world):
             if abs(value) >= obs_cfg.height_clip_m:
                 continue  # clipped: carries no height
-            distance = mujoco.mj_ray(model, cpu, np.array([x, y, 20.0]), np.array([0.0, 0.0, -1.0]), floor_only, 1, -1,
-                                     geom_id)
+            distance = mujoco.mj_ray(
+                model, cpu, np.array([x, y, 20.0]), np.array([0.0, 0.0, -1.0]), floor_only, 1, -1, geom_id
+            )
             ray_height = 20.0 - distance
             scan_height = z - obs_cfg.height_offset_m - value
             assert abs(scan_height - ray_height) < 0.005, (x, y)
@@ -272,6 +315,7 @@ def test_base_and_knee_contacts_are_measured_on_the_terrain(rough):
     def flags():  # MuJoCo's poses, laid out as MJX's
         mujoco.mj_forward(model, cpu)
         return env.contact_flags(SimpleNamespace(geom_xpos=cpu.geom_xpos, geom_xmat=cpu.geom_xmat.reshape(-1, 3, 3)))
+
     base, knees = flags()
     assert not bool(base) and int(knees) == 0
     ground = env.terrain.height_at(*cpu.qpos[:2])
@@ -308,14 +352,20 @@ def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):
     info = state.info
     last = env.config.episode_steps - 1
     # Far from its spawn at the time-out: promoted, respawned on the next level's tile.
-    far = info | {"episode_step": jp.array(last, jp.int32), "level": jp.array(0, jp.int32),
-                  "spawn_xy": info["spawn_xy"] + jp.array([3.0, 0.0])}
+    far = info | {
+        "episode_step": jp.array(last, jp.int32),
+        "level": jp.array(0, jp.int32),
+        "spawn_xy": info["spawn_xy"] + jp.array([3.0, 0.0]),
+    }
     after = step(state.replace(info=far), jp.zeros(12))
     assert float(after.done) == 1.0 and float(after.info["time_out"]) == 1.0
     assert int(after.info["level"]) == 1 and int(after.info["column"]) == int(info["column"])
     assert float(after.metrics["terrain/level_per_step"]) == 0.0  # the metric is the ended episode's
     centre = np.array(env.terrain.tile_center(1, int(info["column"])))
-    assert np.linalg.norm(np.asarray(after.pipeline_state.qpos[:2]) - centre) <= env.config.curriculum.spawn_radius_m + 1e-5
+    assert (
+        np.linalg.norm(np.asarray(after.pipeline_state.qpos[:2]) - centre)
+        <= env.config.curriculum.spawn_radius_m + 1e-5
+    )
     np.testing.assert_allclose(after.pipeline_state.qpos[:2], after.info["spawn_xy"], atol=1e-6)
     assert int(after.info["episode_step"]) == 0
     # The restart draws the joint state (OmniIsaacGymEnvs' reset): base at rest, joint velocities
@@ -325,8 +375,11 @@ def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):
     factor = np.asarray(after.info["target"]) / env.robot.default_q
     assert 0.5 - 1e-6 <= factor.min() and factor.max() <= 1.5 + 1e-6 and factor.std() > 0.01
     # Idle under a 1 m/s command: demoted.
-    idle = info | {"episode_step": jp.array(last, jp.int32), "level": jp.array(2, jp.int32),
-                   "command": jp.array([1.0, 0.0, 0.0])}
+    idle = info | {
+        "episode_step": jp.array(last, jp.int32),
+        "level": jp.array(2, jp.int32),
+        "command": jp.array([1.0, 0.0, 0.0]),
+    }
     after = step(state.replace(info=idle), jp.zeros(12))
     assert int(after.info["level"]) == 1
     # Mid-episode nothing moves.
@@ -351,7 +404,8 @@ def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
     assert min(heights) > 0.25, (feet, min(heights))
 
 
-@pytest.mark.contact_physics  # a subprocess per feet (x64 is process-wide), each compiling one rough environment: 3-6 minutes
+# A subprocess per feet (x64 is process-wide), each compiling one rough environment: 3-6 minutes.
+@pytest.mark.contact_physics
 @pytest.mark.timeout(1800)
 @pytest.mark.parametrize("feet", list(RICHEST))
 def test_the_stance_holds_on_level_0_in_float64(built, feet):
@@ -408,8 +462,8 @@ def test_the_adaptive_feet_stand_on_level_0_in_float32(built, feet):
     seeds 0-2 and 4-7 sank 1.5-2.0 mm and slid 3.5-6.2 mm (MJX's heightfield manifold re-picking its
     points under a sole box, each jump a load float32 solves inexactly). With the sole spheres
     (EnvConfig.heightfield_soles, since 2026-11-28) all eight AOF spawns sank 1.8-2.0 mm and slid
-    3.7-4.5 mm, AFF's 1.2-1.5 and 3.1-4.9 (benchmarks/engines_2026-11-28/stance_sole_spheres.jsonl). What this guards: the
-    build's contact solref in float32 let AOF slide 8.0 mm at seed 1 and raised the others
+    3.7-4.5 mm, AFF's 1.2-1.5 and 3.1-4.9 (benchmarks/engines_2026-11-28/stance_sole_spheres.jsonl).
+    What this guards: the build's contact solref in float32 let AOF slide 8.0 mm at seed 1 and raised the others
     (benchmarks/log/2026-11-21_to_26.md), a regression of every spawn that the medians catch."""
     import jax
 
@@ -426,7 +480,9 @@ def test_the_adaptive_feet_stand_on_level_0_in_float32(built, feet):
     drops = [r.drop_after_settle_m for r in results]
     slips = [r.slip_after_settle_m for r in results]
     assert np.median(drops) < 0.010 and np.median(slips) < 0.005, (drops, slips)
-    outside = [seed for seed, r in enumerate(results) if r.drop_after_settle_m >= 0.010 or r.slip_after_settle_m >= 0.008]
+    outside = [
+        seed for seed, r in enumerate(results) if r.drop_after_settle_m >= 0.010 or r.slip_after_settle_m >= 0.008
+    ]
     assert len(outside) <= 1, (outside, drops, slips)
 
 
@@ -434,12 +490,20 @@ class _Counter(Env):
     """A stand-in environment: its state counts steps and it ends every third step."""
 
     def reset(self, rng):
-        return State(pipeline_state=None, obs=jp.zeros(1), reward=jp.zeros(()), done=jp.zeros(()), metrics={},
-                     info={"count": jp.zeros(())})
+        return State(
+            pipeline_state=None,
+            obs=jp.zeros(1),
+            reward=jp.zeros(()),
+            done=jp.zeros(()),
+            metrics={},
+            info={"count": jp.zeros(())},
+        )
 
     def step(self, state, action):
         count = state.info["count"] + 1
-        return state.replace(obs=count[None], done=(count % 3 == 0).astype(jp.float32), info={**state.info, "count": count})
+        return state.replace(
+            obs=count[None], done=(count % 3 == 0).astype(jp.float32), info={**state.info, "count": count}
+        )
 
     observation_size, action_size, backend = 1, 1, "mjx"
 
@@ -462,12 +526,40 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     multi-accelerator path), a perceptive policy on ball feet."""
     out = tmp_path / "run"
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
-    cmd = [sys.executable, str(REPO / "pipelines/train_rough.py"), "--feet", "ball", "--policy", "P",
-           "--terrain", "num_levels=2", "--terrain", "tile_size_m=4", "--terrain", "border_m=1",
-           "--terrain", "platform_m=1.5",
-           "--build-root", str(built["ball"][0].parent), "--out", str(out), "--num-envs", "4", "--unroll-length", "4",
-           "--batch-size", "4", "--minibatches", "1", "--eval-envs", "2", "--checkpoint-every", "16",
-           "--timesteps", "32"]
+    cmd = [
+        sys.executable,
+        str(REPO / "pipelines/train_rough.py"),
+        "--feet",
+        "ball",
+        "--policy",
+        "P",
+        "--terrain",
+        "num_levels=2",
+        "--terrain",
+        "tile_size_m=4",
+        "--terrain",
+        "border_m=1",
+        "--terrain",
+        "platform_m=1.5",
+        "--build-root",
+        str(built["ball"][0].parent),
+        "--out",
+        str(out),
+        "--num-envs",
+        "4",
+        "--unroll-length",
+        "4",
+        "--batch-size",
+        "4",
+        "--minibatches",
+        "1",
+        "--eval-envs",
+        "2",
+        "--checkpoint-every",
+        "16",
+        "--timesteps",
+        "32",
+    ]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=1200)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert (out / "terrain.png").stat().st_size > 10_000
@@ -479,10 +571,17 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     # Three robots do not split over two devices: a clear error (in a new run folder: the run's
     # own is refused without --resume or --force).
     cmd[cmd.index("--out") + 1] = str(tmp_path / "other")
-    bad = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--num-envs", "3", "--batch-size", "3"], env=env,
-                         capture_output=True, text=True, timeout=300)
+    bad = subprocess.run(
+        cmd[:-2] + ["--timesteps", "32", "--num-envs", "3", "--batch-size", "3"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert bad.returncode == 2 and "multiple of the number of JAX devices" in bad.stderr
-    typo = subprocess.run(cmd[:-2] + ["--timesteps", "32", "--terrain", "levels=3"], capture_output=True, text=True, timeout=300)
+    typo = subprocess.run(
+        cmd[:-2] + ["--timesteps", "32", "--terrain", "levels=3"], capture_output=True, text=True, timeout=300
+    )
     assert typo.returncode == 2 and "FIELD one of num_levels" in typo.stderr
 
 
@@ -497,9 +596,25 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
     initial_policy(config, default_ppo("rough"), tmp_path / "policy", observation_size=188)
     report = tmp_path / "eval"
     robots = SMALL.num_levels * SMALL.num_columns
-    code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(tmp_path / "policy"),
-                           "--num-envs", str(robots), "--seconds", "0.2", "--build-root",
-                           str(built["ball"][0].parent), "--out", str(report)], capture_output=True, text=True, timeout=600)
+    code = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "pipelines/evaluate.py"),
+            "--policy",
+            str(tmp_path / "policy"),
+            "--num-envs",
+            str(robots),
+            "--seconds",
+            "0.2",
+            "--build-root",
+            str(built["ball"][0].parent),
+            "--out",
+            str(report),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert code.returncode == 0, code.stderr[-3000:]
     result = json.loads((report / "metrics.json").read_text())[0]
     assert result["task"] == "rough" and result["feet"] == "ball" and result["seconds"] == 0.2
@@ -543,7 +658,9 @@ def test_shank_tubes_collide_with_the_terrain_as_capsules(built):
         data.qpos[2] += float(env.terrain_height(data.qpos[:2]))
         mujoco.mj_kinematics(model, data)
         axis_z = data.geom_xmat[capsules].reshape(-1, 3, 3)[:, 2, 2]  # z of each capsule's axis
-        lowest = data.geom_xpos[capsules, 2] - np.abs(axis_z) * model.geom_size[capsules, 1] - model.geom_size[capsules, 0]
+        lowest = (
+            data.geom_xpos[capsules, 2] - np.abs(axis_z) * model.geom_size[capsules, 1] - model.geom_size[capsules, 0]
+        )
         ground = np.array([float(env.terrain_height(data.geom_xpos[g, :2])) for g in capsules])
         data.qpos[2] -= (lowest - ground).min() + 0.005
         mujoco.mj_forward(model, data)
@@ -555,8 +672,9 @@ def test_shank_tubes_collide_with_the_terrain_as_capsules(built):
         deepest = min(depth.values())
         assert deepest == pytest.approx(-0.005, abs=1e-3), (feet, depth)
         # The environment's contact counts, given only the tube contacts: no foot, no knee, no base.
-        tube = [i for i, c in enumerate(data.contact[: data.ncon])
-                if {int(c.geom1), int(c.geom2)} & set(capsules.tolist())]
+        tube = [
+            i for i, c in enumerate(data.contact[: data.ncon]) if {int(c.geom1), int(c.geom2)} & set(capsules.tolist())
+        ]
         geoms = jp.asarray(np.array([data.contact.geom[i] for i in tube]))
         dist = jp.asarray(np.array([data.contact.dist[i] for i in tube]))
         category = jp.asarray(env.robot.geom_category)
@@ -578,6 +696,7 @@ def test_rough_step_returns_the_types_it_takes(rough):
     """As the flat environment's (tests/test_envs.py): one compilation of step."""
     for feet, (_, states, step) in rough.items():
         for state in states[1:]:
-            assert [(x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(state)] == \
-                   [(x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(states[0])], feet
+            assert [(x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(state)] == [
+                (x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(states[0])
+            ], feet
         assert step._cache_size() == 1, feet

@@ -5,10 +5,11 @@ feet and walks there by the verdict its evaluation recorded."""
 import json
 
 import pytest
-from conftest import REPO
 
 from footforge.rl.checkpoints import checkpoint_problem
 from footforge.rl.policy_files import load_policy_parameters
+
+from conftest import REPO
 
 SHIPPED = sorted(p.name for p in (REPO / "policies").iterdir() if (p / "policy").is_dir())
 
@@ -31,7 +32,7 @@ def test_a_shipped_policy_loads_and_walks_on_its_own_feet(name):
     (own,) = [r for r in evaluated if r["feet"] == saved.env.feet]
     assert own["walking"]["verdict"] == "walks" and own["num_envs"] >= 32 and own["seconds"] >= 20
     text = (folder / "evaluation/policy_card.md").read_text()
-    line = next(l for l in text.splitlines() if l.startswith(f"- on {saved.env.feet} feet:"))
+    line = next(row for row in text.splitlines() if row.startswith(f"- on {saved.env.feet} feet:"))
     assert "walks:" in line, line
 
 
@@ -43,8 +44,24 @@ def test_an_evaluation_repeats_byte_for_byte(tmp_path):
     from footforge.cli.main import main
 
     def run(out, seed):
-        assert main(["evaluate", "--policy", str(REPO / "policies/flat_ball_B"), "--num-envs", "4", "--seconds",
-                     "2", "--seed", str(seed), "--out", str(tmp_path / out)]) == 0
+        assert (
+            main(
+                [
+                    "evaluate",
+                    "--policy",
+                    str(REPO / "policies/flat_ball_B"),
+                    "--num-envs",
+                    "4",
+                    "--seconds",
+                    "2",
+                    "--seed",
+                    str(seed),
+                    "--out",
+                    str(tmp_path / out),
+                ]
+            )
+            == 0
+        )
         return (tmp_path / out / "metrics.json").read_bytes()
 
     first = run("a", 0)

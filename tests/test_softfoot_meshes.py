@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 import trimesh  # noqa: E402  (a hard dependency: its absence is a failure, not a skip)
 
 MESH_DIR = Path(__file__).parents[1] / "descriptions/softfoot_q/meshes"
@@ -85,6 +84,7 @@ def test_generator_reproduces_committed_files(tmp_path):
 
 def test_coacd_splits_outer_link():
     import coacd
+
     coacd.set_log_level("error")
     m = _load("outer_link")
     parts = coacd.run_coacd(

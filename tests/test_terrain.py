@@ -16,14 +16,20 @@ SMALL = TerrainConfig(num_levels=5, num_columns=6, tile_size_m=4.0, border_m=1.0
 def tile(terrain, level, column):
     n = terrain.config.samples_per_tile
     i0, j0 = terrain.border_samples + column * n, terrain.border_samples + level * n
-    return terrain.heights_m[i0:i0 + n, j0:j0 + n]
+    return terrain.heights_m[i0 : i0 + n, j0 : j0 + n]
 
 
 def test_every_kind_has_a_column_in_the_configured_proportions():
     assert sorted(set(column_kinds(SMALL))) == sorted(KINDS)
     kinds = column_kinds(TerrainConfig())  # the default: 20 columns
     assert len(kinds) == 20 and {k: kinds.count(k) for k in KINDS} == {
-        "smooth_slope": 2, "rough_slope": 2, "stairs_up": 5, "stairs_down": 5, "discrete": 4, "stepping_stones": 2}
+        "smooth_slope": 2,
+        "rough_slope": 2,
+        "stairs_up": 5,
+        "stairs_down": 5,
+        "discrete": 4,
+        "stepping_stones": 2,
+    }
     only_stairs = column_kinds(replace(SMALL, proportions=(0, 0, 1, 1, 0, 0)))
     assert set(only_stairs) == {"stairs_up", "stairs_down"}
 
@@ -37,21 +43,25 @@ def test_heights_stay_within_each_kinds_bounds_and_platforms_are_flat():
     for level in range(c.num_levels):
         d = c.difficulty(level)
         step = c.stair_height_m[0] + c.stair_height_m[1] * d
-        bound = {"smooth_slope": c.max_slope * d * half_run,
-                 "rough_slope": c.max_slope * d * half_run + c.rough_noise_m,
-                 "stairs_up": np.floor(half_run / c.stair_width_m) * step,
-                 "stairs_down": np.floor(half_run / c.stair_width_m) * step,
-                 "discrete": c.obstacle_height_m[0] + c.obstacle_height_m[1] * d,
-                 "stepping_stones": c.pit_depth_m}
+        bound = {
+            "smooth_slope": c.max_slope * d * half_run,
+            "rough_slope": c.max_slope * d * half_run + c.rough_noise_m,
+            "stairs_up": np.floor(half_run / c.stair_width_m) * step,
+            "stairs_down": np.floor(half_run / c.stair_width_m) * step,
+            "discrete": c.obstacle_height_m[0] + c.obstacle_height_m[1] * d,
+            "stepping_stones": c.pit_depth_m,
+        }
         for column, kind in enumerate(terrain.column_kinds):
             h = tile(terrain, level, column)
             assert np.abs(h).max() <= bound[kind] + c.vertical_resolution_m, (level, kind)
             n = c.samples_per_tile
-            centre = h[n // 2 - 4:n // 2 + 4, n // 2 - 4:n // 2 + 4]  # within the 1 m platform
+            centre = h[n // 2 - 4 : n // 2 + 4, n // 2 - 4 : n // 2 + 4]  # within the 1 m platform
             assert np.ptp(centre) == 0.0, (level, kind)
     # Quantised to the vertical resolution; the border is flat at 0.
-    assert np.allclose(terrain.heights_m / c.vertical_resolution_m, np.round(terrain.heights_m / c.vertical_resolution_m))
-    assert not terrain.heights_m[:terrain.border_samples].any()
+    assert np.allclose(
+        terrain.heights_m / c.vertical_resolution_m, np.round(terrain.heights_m / c.vertical_resolution_m)
+    )
+    assert not terrain.heights_m[: terrain.border_samples].any()
 
 
 def test_stair_heights_follow_the_difficulty_formula():
@@ -61,7 +71,7 @@ def test_stair_heights_follow_the_difficulty_formula():
         expected = c.stair_height_m[0] + c.stair_height_m[1] * c.difficulty(level)  # 0.05 + 0.175 d
         for kind, sign in (("stairs_up", -1), ("stairs_down", 1)):
             h = tile(terrain, level, terrain.column_kinds.index(kind))
-            line = h[c.samples_per_tile // 2, c.samples_per_tile // 2:]  # centre to the +x edge
+            line = h[c.samples_per_tile // 2, c.samples_per_tile // 2 :]  # centre to the +x edge
             risers = np.diff(line)[np.diff(line) != 0]
             assert np.allclose(-sign * risers, expected, atol=c.vertical_resolution_m / 2 + 1e-9), (level, kind, risers)
             # Treads are the configured width (the outermost one meets the tile's edge).
@@ -94,19 +104,29 @@ def test_surface_height_matches_mujoco_ray_casts(tmp_path):
     # The same function in JAX (the environments' height scan) agrees with numpy to float32's
     # precision on grid coordinates of a few hundred samples (~1e-5 of a cell, times the slope).
     import jax.numpy as jp
-    np.testing.assert_allclose(np.asarray(surface_height(jp.asarray(terrain.heights_m), terrain.origin_xy,
-                                                         terrain.resolution_m, jp.asarray(points), jp)),
-                               [terrain.height_at(x, y) for x, y in points], atol=1e-4)
+
+    np.testing.assert_allclose(
+        np.asarray(
+            surface_height(
+                jp.asarray(terrain.heights_m), terrain.origin_xy, terrain.resolution_m, jp.asarray(points), jp
+            )
+        ),
+        [terrain.height_at(x, y) for x, y in points],
+        atol=1e-4,
+    )
     preview(terrain, tmp_path / "terrain.png")
     assert (tmp_path / "terrain.png").stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("field, value, message", [
-    ("num_levels", 0, "num_levels must be at least 1"),
-    ("tile_size_m", -1.0, "tile_size_m must be positive"),
-    ("proportions", (1, 1), "proportions must be 6"),
-    ("platform_m", 9.0, "platform must be smaller"),
-])
+@pytest.mark.parametrize(
+    "field, value, message",
+    [
+        ("num_levels", 0, "num_levels must be at least 1"),
+        ("tile_size_m", -1.0, "tile_size_m must be positive"),
+        ("proportions", (1, 1), "proportions must be 6"),
+        ("platform_m", 9.0, "platform must be smaller"),
+    ],
+)
 def test_bad_terrain_configs_are_input_errors(field, value, message):
     with pytest.raises(InputError, match=message):
         generate(replace(TerrainConfig(), **{field: value}))

@@ -13,7 +13,6 @@ import jax
 import jax.numpy as jp
 import numpy as np
 import pytest
-from conftest import REPO
 
 from footforge import envs
 from footforge.envs import observation_layout, rewards
@@ -28,8 +27,22 @@ from footforge.rl.train import (
     to_dict,
 )
 
-TINY = ["--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
-        "--eval-envs", "4", "--checkpoint-every", "32"]
+from conftest import REPO
+
+TINY = [
+    "--num-envs",
+    "8",
+    "--unroll-length",
+    "4",
+    "--batch-size",
+    "8",
+    "--minibatches",
+    "1",
+    "--eval-envs",
+    "4",
+    "--checkpoint-every",
+    "32",
+]
 
 
 def test_bad_hyperparameters_are_input_errors():
@@ -56,20 +69,26 @@ def test_configs_round_trip_through_json():
 def test_configs_saved_before_terms_were_declared_once_load_unchanged():
     """config.json of runs from before 2026-11-26 (flat scale and noise keys, bare reward scales),
     such as the GPU campaign's, load with every value in its new place."""
-    old = json.loads((Path(__file__).parents[1] / "benchmarks" / "gpu_campaign_2026-11-24" / "flat_aof_B.config.json")
-                     .read_text())["env"]
+    old = json.loads(
+        (Path(__file__).parents[1] / "benchmarks" / "gpu_campaign_2026-11-24" / "flat_aof_B.config.json").read_text()
+    )["env"]
     env = env_config_from_dict(old)
     o, r = env.observations, env.rewards
-    assert (o.base_lin_vel.scale, o.base_lin_vel.noise) == (old["observations"]["lin_vel_scale"],
-                                                            old["observations"]["lin_vel_noise"])
+    assert (o.base_lin_vel.scale, o.base_lin_vel.noise) == (
+        old["observations"]["lin_vel_scale"],
+        old["observations"]["lin_vel_noise"],
+    )
     assert o.command.scale == tuple(old["observations"]["command_scale"])
-    assert (o.height_scan.scale, o.height_scan.noise) == (old["observations"]["height_scale"],
-                                                          old["observations"]["height_noise_m"])
+    assert (o.height_scan.scale, o.height_scan.noise) == (
+        old["observations"]["height_scale"],
+        old["observations"]["height_noise_m"],
+    )
     assert o.foot_joint_vel.noise == old["observations"]["foot_joint_vel_noise"]
     # Terms added since (feet_air_time) load switched off, as those runs trained.
     assert "feet_air_time" not in old["rewards"] and r.feet_air_time.scale == 0.0
     assert {name: term.scale for name, term in rewards.terms(r).items()} == {
-        name: old["rewards"].get(name, 0.0) for name in rewards.terms(r)}
+        name: old["rewards"].get(name, 0.0) for name in rewards.terms(r)
+    }
     assert r.fall == old["rewards"]["fall"] and r.tracking_sigma == old["rewards"]["tracking_sigma"]
 
 
@@ -87,24 +106,47 @@ def test_tiny_ppo_run_increases_the_return(built, tmp_path):
     from dataclasses import replace
 
     from footforge.rl import train
+
     cfg = envs.default_config("flat", "ball", "B")
     # The flat baseline's velocity actions and PPO's settings before 2026-11-26 (a full-size output
     # layer, rate 3e-4 adaptive at KL 0.008 here raised to 1e-3, entropy 0.001): the untrained
     # policy falls, which gives learning something to show in 98 k steps. Under today's position
     # actions and small output layer the untrained robot already stands its 2 s.
     cfg = replace(cfg, action="velocity", action_scale=13.5, observations=replace(cfg.observations, pd_targets=True))
-    cfg = replace(cfg, build_dir=str(built["ball"][0]), episode_length_s=2.0,
-                  commands=replace(cfg.commands, lin_vel_x_range=(0.0, 0.0), lin_vel_y_range=(0.0, 0.0),
-                                   heading_range=(0.0, 0.0)),
-                  pushes=replace(cfg.pushes, enabled=False), observations=replace(cfg.observations, noise=False),
-                  randomization=replace(cfg.randomization, friction_range=None), physics="mujoco")
-    ppo = PPOConfig(num_envs=32, unroll_length=16, batch_size=32, num_minibatches=4, num_timesteps=98_304,
-                    checkpoint_every_steps=32_768, num_eval_envs=32, policy_hidden_layers=(32, 32),
-                    value_hidden_layers=(32, 32), learning_rate=1e-3, adaptive_kl=0.008, entropy_cost=0.001,
-                    policy_output_init_scale=1.0, seed=0)
+    cfg = replace(
+        cfg,
+        build_dir=str(built["ball"][0]),
+        episode_length_s=2.0,
+        commands=replace(
+            cfg.commands, lin_vel_x_range=(0.0, 0.0), lin_vel_y_range=(0.0, 0.0), heading_range=(0.0, 0.0)
+        ),
+        pushes=replace(cfg.pushes, enabled=False),
+        observations=replace(cfg.observations, noise=False),
+        randomization=replace(cfg.randomization, friction_range=None),
+        physics="mujoco",
+    )
+    ppo = PPOConfig(
+        num_envs=32,
+        unroll_length=16,
+        batch_size=32,
+        num_minibatches=4,
+        num_timesteps=98_304,
+        checkpoint_every_steps=32_768,
+        num_eval_envs=32,
+        policy_hidden_layers=(32, 32),
+        value_hidden_layers=(32, 32),
+        learning_rate=1e-3,
+        adaptive_kl=0.008,
+        entropy_cost=0.001,
+        policy_output_init_scale=1.0,
+        seed=0,
+    )
     train.train(cfg, ppo, tmp_path / "run")
-    evaluations = [line for line in map(json.loads, (tmp_path / "run" / "metrics.jsonl").read_text().splitlines())
-                   if "eval/episode_reward" in line]  # the other lines: training episodes' metrics
+    evaluations = [
+        line
+        for line in map(json.loads, (tmp_path / "run" / "metrics.jsonl").read_text().splitlines())
+        if "eval/episode_reward" in line
+    ]  # the other lines: training episodes' metrics
     curve = [(e["global_step"], e["eval/episode_reward"], e["eval/avg_episode_length"]) for e in evaluations]
     (_, first_return, first_length), (_, last_return, last_length) = curve[0], curve[-1]
     assert [c[0] for c in curve] == [0, 32_768, 65_536, 98_304]
@@ -114,8 +156,20 @@ def test_tiny_ppo_run_increases_the_return(built, tmp_path):
 
 
 def _train(out, build_dir, timesteps, *extra):
-    return [sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--build-root", str(build_dir.parent),
-            "--timesteps", str(timesteps), "--out", str(out), *TINY, *extra]
+    return [
+        sys.executable,
+        str(REPO / "pipelines/train_flat.py"),
+        "--feet",
+        "ball",
+        "--build-root",
+        str(build_dir.parent),
+        "--timesteps",
+        str(timesteps),
+        "--out",
+        str(out),
+        *TINY,
+        *extra,
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -124,8 +178,9 @@ def resumed(built, tmp_path_factory):
     kill, the resumed run's stdout)."""
     out = tmp_path_factory.mktemp("train") / "run"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen(_train(out, built["ball"][0], 100_000), env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        _train(out, built["ball"][0], 100_000), env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     deadline = time.time() + 600
     while time.time() < deadline and (latest_checkpoint(out) is None or latest_checkpoint(out)[0] < 64):
         assert proc.poll() is None, "training stopped before its second checkpoint"
@@ -134,13 +189,19 @@ def resumed(built, tmp_path_factory):
     proc.wait(timeout=60)
     reached = latest_checkpoint(out)
     assert reached is not None and reached[0] >= 64, (
-        f"no second checkpoint within 600 s (reached: {reached}): a machine too loaded for this fixture's budget")
+        f"no second checkpoint within 600 s (reached: {reached}): a machine too loaded for this fixture's budget"
+    )
     killed_at, _ = reached
     assert not (out / "policy").exists()
     # Resume with the same options and a total just past the checkpoint: it must continue, not
     # restart. 50 more steps are not whole iterations of 32: Brax runs 64, as the run announces.
-    done = subprocess.run(_train(out, built["ball"][0], killed_at + 50, "--resume", "--shorten"), env=env,
-                          capture_output=True, text=True, timeout=900)
+    done = subprocess.run(
+        _train(out, built["ball"][0], killed_at + 50, "--resume", "--shorten"),
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     return out, killed_at, done.stdout
 
@@ -160,12 +221,19 @@ def test_killed_run_resumes_from_its_last_checkpoint(resumed, built):
     assert (out / "tensorboard").is_dir() and len(list((out / "tensorboard").iterdir())) >= 2
     # One curve over the kill: steps and cumulative wall time never go back, no step evaluated twice.
     curve = _curve_rows(out)
-    steps, evaluations = [r["global_step"] for r in curve], [r["global_step"] for r in curve if "eval/episode_reward" in r]
+    steps, evaluations = (
+        [r["global_step"] for r in curve],
+        [r["global_step"] for r in curve if "eval/episode_reward" in r],
+    )
     assert steps == sorted(steps) and [r["wall_s"] for r in curve] == sorted(r["wall_s"] for r in curve), curve
     assert len(evaluations) == len(set(evaluations)) and evaluations[-1] == killed_at + 64, evaluations
     # Resuming with other options (here another seed) is refused, naming the option.
-    other = subprocess.run(_train(out, built["ball"][0], killed_at + 64, "--resume", "--seed", "3", "--shorten"),
-                           capture_output=True, text=True, timeout=900)
+    other = subprocess.run(
+        _train(out, built["ball"][0], killed_at + 64, "--resume", "--seed", "3", "--shorten"),
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert other.returncode == 2 and "--seed 3 differs from the run's 0" in other.stderr
 
 
@@ -185,11 +253,30 @@ def test_saved_policy_loads_for_inference(resumed):
 @pytest.mark.timeout(1500)  # explicit budget: several times its time on 2 quiet cores
 def test_evaluation_produces_every_index_also_zero_shot(resumed, built, tmp_path):
     from footforge.rl.evaluate import INDICES
+
     out, _, _ = resumed
     report = tmp_path / "eval"
-    code = subprocess.run([sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(out / "policy"),
-                           "--feet", "aff", "--num-envs", "2", "--seconds", "0.4", "--build-root",
-                           str(built["aff"][0].parent), "--out", str(report)], capture_output=True, text=True, timeout=600)
+    code = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "pipelines/evaluate.py"),
+            "--policy",
+            str(out / "policy"),
+            "--feet",
+            "aff",
+            "--num-envs",
+            "2",
+            "--seconds",
+            "0.4",
+            "--build-root",
+            str(built["aff"][0].parent),
+            "--out",
+            str(report),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert code.returncode == 0, code.stderr[-2000:]
     metrics = json.loads((report / "metrics.json").read_text())
     assert metrics[0]["feet"] == "aff" and metrics[0]["trained_on"] == "ball"  # the zero-shot case
@@ -215,10 +302,24 @@ def test_privileged_critic_trains_and_its_policy_loads(built, tmp_path):
     from footforge.rl import train
 
     # The C engine (the CPU's default): under MJX this test spent 4.8 minutes compiling.
-    cfg = replace(envs.default_config("flat", "ball", "B"), build_dir=str(built["ball"][0]), episode_length_s=1.0,
-                  privileged_critic=True, physics="mujoco")
-    ppo = PPOConfig(num_envs=8, unroll_length=4, batch_size=8, num_minibatches=1, num_timesteps=64,
-                    checkpoint_every_steps=32, num_eval_envs=4, policy_hidden_layers=(16,), value_hidden_layers=(16,))
+    cfg = replace(
+        envs.default_config("flat", "ball", "B"),
+        build_dir=str(built["ball"][0]),
+        episode_length_s=1.0,
+        privileged_critic=True,
+        physics="mujoco",
+    )
+    ppo = PPOConfig(
+        num_envs=8,
+        unroll_length=4,
+        batch_size=8,
+        num_minibatches=1,
+        num_timesteps=64,
+        checkpoint_every_steps=32,
+        num_eval_envs=4,
+        policy_hidden_layers=(16,),
+        value_hidden_layers=(16,),
+    )
     train.train(cfg, ppo, tmp_path / "run")
     policy, env_config, _ = load_policy(tmp_path / "run" / "policy")
     assert env_config.privileged_critic
@@ -257,9 +358,12 @@ def test_time_budget_stops_at_a_checkpoint(built, tmp_path, evaluations):
     after that epoch's checkpoint (and evaluation, unless --no-evaluations), with its policy
     written and the stop recorded."""
     out = tmp_path / "run"
-    done = subprocess.run(_train(out, built["ball"][0], 100_000, "--max-minutes", "0.05",
-                                 *([] if evaluations else ["--no-evaluations"])),
-                          capture_output=True, text=True, timeout=900)
+    done = subprocess.run(
+        _train(out, built["ball"][0], 100_000, "--max-minutes", "0.05", *([] if evaluations else ["--no-evaluations"])),
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert "wall-time budget" in done.stdout
     assert "step 32/100,000" in done.stdout  # the plain progress line of a log (stdout is no terminal)
@@ -273,25 +377,39 @@ def test_time_budget_stops_at_a_checkpoint(built, tmp_path, evaluations):
 
 # --- run folders, checkpoints that fail verification, the command line's messages ---
 
+
 def _params(seed: int, ppo: PPOConfig):
     """(normaliser, policy, value) parameters of a 48-input network, as Brax's PPO passes them."""
     from brax.training.acme import running_statistics, specs
 
     from footforge.rl import train
 
-    nets = train.network_factory(ppo)(observation_size=48, action_size=12,
-                                      preprocess_observations_fn=running_statistics.normalize)
+    nets = train.network_factory(ppo)(
+        observation_size=48, action_size=12, preprocess_observations_fn=running_statistics.normalize
+    )
     k_policy, k_value = jax.random.split(jax.random.PRNGKey(seed))
-    return (running_statistics.init_state(specs.Array((48,), jp.dtype("float32"))),
-            nets.policy_network.init(k_policy), nets.value_network.init(k_value))
+    return (
+        running_statistics.init_state(specs.Array((48,), jp.dtype("float32"))),
+        nets.policy_network.init(k_policy),
+        nets.value_network.init(k_value),
+    )
 
 
 def _kernel(params):
     return np.asarray(params[1]["params"]["MLP_0"]["hidden_0"]["kernel"])
 
 
-SMALL_PPO = dict(num_envs=8, unroll_length=4, batch_size=8, num_minibatches=1, num_eval_envs=4,
-                 checkpoint_every_steps=32, num_timesteps=96, policy_hidden_layers=(8,), value_hidden_layers=(8,))
+SMALL_PPO = dict(
+    num_envs=8,
+    unroll_length=4,
+    batch_size=8,
+    num_minibatches=1,
+    num_eval_envs=4,
+    checkpoint_every_steps=32,
+    num_timesteps=96,
+    policy_hidden_layers=(8,),
+    value_hidden_layers=(8,),
+)
 
 
 @pytest.fixture
@@ -325,10 +443,12 @@ def _truncate_data(checkpoint):
 def _fake_ppo(calls):
     """Stands in for Brax's PPO in train(): records what it was given and runs one epoch's
     callbacks (a checkpoint and an evaluation) with the restored parameters."""
+
     def run(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save, *rest):
         calls.append({"remaining": remaining, "restore": restore, "resumes": resumes})
         save(remaining, None, restore)
         log(remaining, {"eval/episode_reward": 1.0, "eval/walltime": 0.1})
+
     return run
 
 
@@ -400,8 +520,8 @@ def test_a_shipped_run_without_checkpoints_resumes_from_its_policy(written_run, 
 
 
 def test_resume_with_every_checkpoint_damaged_is_an_input_error(written_run, capsys):
-    from footforge.rl import train
     from footforge.cli.train import main
+    from footforge.rl import train
 
     run, _, _ = written_run
     for _, folder in train.checkpoints(run):
@@ -433,18 +553,39 @@ def test_several_processes_are_refused_before_any_work(task, tmp_path, capsys):
     (footforge.cli.train.MULTI_PROCESS_UNSUPPORTED says how it fails); the command says so at once,
     exit 2, and writes nothing (JAX's distributed service is never started)."""
     import jax
+
     from footforge.cli.train import main
 
     out = tmp_path / "run"
-    assert main(task, "", ["--feet", "ball", "--out", str(out), "--coordinator", "127.0.0.1:1", "--num-processes", "2",
-                           "--process-id", "0", *TINY]) == 2
+    assert (
+        main(
+            task,
+            "",
+            [
+                "--feet",
+                "ball",
+                "--out",
+                str(out),
+                "--coordinator",
+                "127.0.0.1:1",
+                "--num-processes",
+                "2",
+                "--process-id",
+                "0",
+                *TINY,
+            ],
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert "--coordinator" in err and "Brax 0.14.2" in err and "one machine" in err
     assert not out.exists() and jax.process_count() == 1
 
 
-@pytest.mark.parametrize("flags, flag", [(["--timesteps", "-5"], "--timesteps"), (["--num-envs", "0"], "--num-envs"),
-                                         (["--num-envs", "96"], "--num-envs")])
+@pytest.mark.parametrize(
+    "flags, flag",
+    [(["--timesteps", "-5"], "--timesteps"), (["--num-envs", "0"], "--num-envs"), (["--num-envs", "96"], "--num-envs")],
+)
 def test_bad_ppo_settings_are_refused_in_the_flags_words_before_anything_is_announced(flags, flag, tmp_path, capsys):
     """A PPO setting Brax would reject exits 2 naming the flag (not PPOConfig's field), before the
     run is announced, any build is made or any folder written."""
@@ -485,16 +626,20 @@ def test_init_from_hands_the_source_s_newest_parameters_to_brax(written_run, tmp
     with pytest.raises(InputError, match=r"policy_hidden_layers \(8,\) there, \(16,\) here"):
         train.train(cfg, replace(ppo, policy_hidden_layers=(16,)), tmp_path / "other", init_from=run)
     with pytest.raises(InputError, match="observation width 48 there, 60 here"):
-        train.train(replace(cfg, observations=replace(cfg.observations, pd_targets=True)), ppo, tmp_path / "other",
-                    init_from=run)
+        train.train(
+            replace(cfg, observations=replace(cfg.observations, pd_targets=True)),
+            ppo,
+            tmp_path / "other",
+            init_from=run,
+        )
     with pytest.raises(InputError, match="--resume continues"):
         train.train(cfg, ppo, tmp_path / "other", init_from=run, resume=True)
     assert not (tmp_path / "other").exists()
 
 
 def test_force_removes_only_what_footforge_wrote(written_run):
-    from footforge.rl import train
     from footforge.outputs import MARKER
+    from footforge.rl import train
 
     run, _, _ = written_run
     (run / "notes.txt").write_text("mine")
@@ -539,6 +684,7 @@ def _capture_train(monkeypatch):
     def fake(env_config, ppo, run_dir, **kwargs):
         seen.update(env=env_config, ppo=ppo, kwargs=kwargs)
         return {"eval/episode_reward": 0.0}
+
     monkeypatch.setattr(train, "train", fake)
     return seen
 
@@ -634,8 +780,12 @@ def test_progress_is_printed_as_plain_lines_when_not_a_terminal():
 def test_training_errors_go_to_stderr(written_run):
     """The pipeline as a batch job runs it: the error on stderr, exit 2, nothing on stdout."""
     run, _, _ = written_run
-    done = subprocess.run([sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--out", str(run)],
-                          capture_output=True, text=True, timeout=900)
+    done = subprocess.run(
+        [sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--out", str(run)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert done.returncode == 2 and done.stdout == ""
     assert "footforge train flat: error:" in done.stderr and "holds a training run" in done.stderr
 
@@ -644,8 +794,8 @@ def test_a_terminated_training_run_ends_as_an_interrupted_one(tmp_path, monkeypa
     """SIGTERM (a batch scheduler's kill) during training: no traceback, exit 143 (128 + 15, as a
     shell reports a terminated process), and stderr says what the run folder keeps and how to
     continue."""
-    from footforge.rl import train as train_lib
     from footforge.cli import train as train_cli
+    from footforge.rl import train as train_lib
 
     def terminated(*args, **kwargs):
         os.kill(os.getpid(), signal.SIGTERM)
@@ -678,9 +828,8 @@ def test_contact_model_flag_sets_the_model_s_physics_and_resume_keeps_it(written
     """Training uses contact_model 'stance' by default, with the step and solver iterations it
     needs on the chosen feet; --contact-model fast sets fast's own physics (ball feet back at
     5 ms x 4, 4/8 iterations; envs.physics); a resumed run names a differing --contact-model."""
-    from footforge.cli.train import main
-
     from footforge import envs as envs_module
+    from footforge.cli.train import main
 
     seen = _capture_train(monkeypatch)
     switched = []  # x64 is process-wide: recorded here, not switched in the test process
@@ -695,8 +844,13 @@ def test_contact_model_flag_sets_the_model_s_physics_and_resume_keeps_it(written
     assert (seen["env"].solver_iterations, seen["env"].solver_ls_iterations) == (16, 16)  # float64's minimum
     assert main("flat", "", ["--feet", "ball", "--contact-model", "fast", "--out", str(tmp_path / "c")]) == 0
     env = seen["env"]
-    assert (env.contact_model, env.sim_dt, env.decimation, env.solver_iterations, env.solver_ls_iterations) == \
-        ("fast", 0.005, 4, 4, 8)
+    assert (env.contact_model, env.sim_dt, env.decimation, env.solver_iterations, env.solver_ls_iterations) == (
+        "fast",
+        0.005,
+        4,
+        4,
+        8,
+    )
     run, cfg, _ = written_run
     assert cfg.contact_model == "stance"
     capsys.readouterr()
@@ -730,19 +884,51 @@ def test_training_with_float64_physics_keeps_the_networks_float32(built, tmp_pat
         "from footforge.envs import observation_layout\n"
         "n = observation_layout.size(config, 0)  # 48 + the flat task's 12 PD targets\n"
         "action = policy(jax.numpy.zeros(n, jax.numpy.float32), jax.random.PRNGKey(0))[0]\n"
-        "print('ACTION', action.shape, bool(jax.numpy.isfinite(action).all()))\n")
+        "print('ACTION', action.shape, bool(jax.numpy.isfinite(action).all()))\n"
+    )
     run = subprocess.run(
-        [sys.executable, "-W", "error:scatter inputs have incompatible types:FutureWarning", "-c", script,
-         "--feet", "ball", "--contact-model", "stance", "--float64-physics",
-         "--build-root", str(built["ball"][0].parent), "--num-envs", "8", "--timesteps", "600", "--unroll-length", "4",
-         "--batch-size", "8", "--minibatches", "1", "--eval-envs", "4", "--checkpoint-every", "300",
-         "--no-evaluations", "--no-compile-cache", "--out", str(tmp_path / "run")],
-        capture_output=True, text=True, timeout=1500)
+        [
+            sys.executable,
+            "-W",
+            "error:scatter inputs have incompatible types:FutureWarning",
+            "-c",
+            script,
+            "--feet",
+            "ball",
+            "--contact-model",
+            "stance",
+            "--float64-physics",
+            "--build-root",
+            str(built["ball"][0].parent),
+            "--num-envs",
+            "8",
+            "--timesteps",
+            "600",
+            "--unroll-length",
+            "4",
+            "--batch-size",
+            "8",
+            "--minibatches",
+            "1",
+            "--eval-envs",
+            "4",
+            "--checkpoint-every",
+            "300",
+            "--no-evaluations",
+            "--no-compile-cache",
+            "--out",
+            str(tmp_path / "run"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=1500,
+    )
     assert run.returncode == 0, run.stderr[-3000:]
     assert "PARAMS ['float32']" in run.stdout and "ACTION (12,) True" in run.stdout
 
 
 # --- what training says before it compiles (issue: "training says what it does") ---
+
 
 def test_planned_steps_round_up_to_whole_iterations_in_every_epoch():
     """Brax runs the same whole number of iterations in each epoch: 1,000 steps of 32-step
@@ -752,8 +938,12 @@ def test_planned_steps_round_up_to_whole_iterations_in_every_epoch():
 
     tiny = PPOConfig(**(SMALL_PPO | {"num_timesteps": 1000}))
     assert train.steps_per_iteration(tiny) == 32 and train.planned_steps(tiny) == 1024
-    assert train.planned_steps(PPOConfig(num_timesteps=1000, num_envs=2048, batch_size=512, num_minibatches=4,
-                                         unroll_length=48)) == 98_304
+    assert (
+        train.planned_steps(
+            PPOConfig(num_timesteps=1000, num_envs=2048, batch_size=512, num_minibatches=4, unroll_length=48)
+        )
+        == 98_304
+    )
     assert train.planned_steps(replace_ppo(tiny, num_timesteps=96)) == 96  # whole already: unchanged
     assert train.planned_steps(replace_ppo(tiny, num_timesteps=96), done=64) == 96
     assert train.planned_steps(replace_ppo(tiny, num_timesteps=96), done=96) == 96  # nothing left
@@ -763,14 +953,50 @@ def test_a_new_run_announces_device_steps_and_rounding_before_compiling(built, t
     from footforge.cli.train import main
 
     seen = _capture_train(monkeypatch)
-    assert main("flat", "", ["--feet", "ball", "--build-root", str(built["ball"][0].parent), "--out",
-                             str(tmp_path / "run"), *TINY, "--timesteps", "1000"], prog="footforge train flat") == 0
+    assert (
+        main(
+            "flat",
+            "",
+            [
+                "--feet",
+                "ball",
+                "--build-root",
+                str(built["ball"][0].parent),
+                "--out",
+                str(tmp_path / "run"),
+                *TINY,
+                "--timesteps",
+                "1000",
+            ],
+            prog="footforge train flat",
+        )
+        == 0
+    )
     out = capsys.readouterr().out
-    assert "footforge train flat: ball feet, policy B, 8 robots on cpu (1 x cpu); steps 0 -> 1,024 (--timesteps " \
-           "1,000 rounded up to whole PPO iterations of 32 steps" in out
+    assert (
+        "footforge train flat: ball feet, policy B, 8 robots on cpu (1 x cpu); steps 0 -> 1,024 (--timesteps "
+        "1,000 rounded up to whole PPO iterations of 32 steps" in out
+    )
     assert "warning" not in out and seen["ppo"].num_timesteps == 1000
-    assert main("flat", "", ["--feet", "ball", "--build-root", str(built["ball"][0].parent), "--out",
-                             str(tmp_path / "big"), "--num-envs", "1024", "--batch-size", "256"]) == 0
+    assert (
+        main(
+            "flat",
+            "",
+            [
+                "--feet",
+                "ball",
+                "--build-root",
+                str(built["ball"][0].parent),
+                "--out",
+                str(tmp_path / "big"),
+                "--num-envs",
+                "1024",
+                "--batch-size",
+                "256",
+            ],
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "warning: 1,024 robots on a CPU: one iteration of 49,152 steps takes about" in out
     assert "A CPU-sized run: --preset cpu" in out
@@ -785,8 +1011,14 @@ def test_evaluation_robots_default_to_no_more_than_the_training_robots(built, tm
     assert seen["ppo"].num_eval_envs == 16
     assert main("flat", "", [*root, "--out", str(tmp_path / "b")]) == 0
     assert seen["ppo"].num_eval_envs == 128
-    assert main("flat", "", [*root, "--out", str(tmp_path / "c"), "--num-envs", "16", "--batch-size", "8",
-                             "--eval-envs", "32"]) == 0
+    assert (
+        main(
+            "flat",
+            "",
+            [*root, "--out", str(tmp_path / "c"), "--num-envs", "16", "--batch-size", "8", "--eval-envs", "32"],
+        )
+        == 0
+    )
     assert seen["ppo"].num_eval_envs == 32
 
 
@@ -871,12 +1103,16 @@ def _interrupting(signum):
         os.kill(os.getpid(), signum)
         time.sleep(5)  # the handler interrupts this
         raise AssertionError("the signal did not interrupt training")
+
     return train_lib, interrupted
 
 
-@pytest.mark.parametrize("signum, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
-def test_an_interrupt_names_only_complete_checkpoints_and_exits_as_shells_expect(written_run, monkeypatch, capsys,
-                                                                                 signum, code, word):
+@pytest.mark.parametrize(
+    "signum, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")]
+)
+def test_an_interrupt_names_only_complete_checkpoints_and_exits_as_shells_expect(
+    written_run, monkeypatch, capsys, signum, code, word
+):
     """Ctrl-C exits 130 and SIGTERM 143 (128 + the signal). A checkpoint whose manifest was not yet
     written when the run stopped (orbax's files there, the manifest not) is not named as kept, and
     a resume does not start from it."""
@@ -889,7 +1125,9 @@ def test_an_interrupt_names_only_complete_checkpoints_and_exits_as_shells_expect
     monkeypatch.setattr(module, "train", interrupted)
     assert train_cli.main("flat", "test", ["--out", str(run), "--resume"]) == code
     err = capsys.readouterr().err
-    assert f"footforge train flat: {word}; {run} keeps its checkpoints up to step 32: continue with --resume" in err, err
+    assert f"footforge train flat: {word}; {run} keeps its checkpoints up to step 32: continue with --resume" in err, (
+        err
+    )
     assert train.latest_intact_checkpoint(run)[0] == 32
 
 
@@ -931,10 +1169,13 @@ def test_a_run_killed_before_its_policy_is_finished_by_resume(written_run, capsy
     assert not (run / "policy").exists()
     assert main("flat", "", ["--out", str(run), "--resume"]) == 0
     out = capsys.readouterr().out
-    assert "it has no policy/ yet: wrote" in out and "from checkpoint 64" in out and "already complete at step 64" in out
+    assert (
+        "it has no policy/ yet: wrote" in out and "from checkpoint 64" in out and "already complete at step 64" in out
+    )
     assert train.policy_meta(run / "policy")["global_step"] == 64 and train.policy_problem(run) is None
-    np.testing.assert_array_equal(_kernel(train.load_policy_parameters(run / "policy").params),
-                                  _kernel(_params(64, PPOConfig(**SMALL_PPO))))
+    np.testing.assert_array_equal(
+        _kernel(train.load_policy_parameters(run / "policy").params), _kernel(_params(64, PPOConfig(**SMALL_PPO)))
+    )
     before = (run / "policy" / "footforge.json").stat().st_mtime_ns
     assert main("flat", "", ["--out", str(run), "--resume"]) == 0  # nothing to do: policy/ left as it is
     assert "wrote" not in capsys.readouterr().out and (run / "policy" / "footforge.json").stat().st_mtime_ns == before
@@ -944,8 +1185,9 @@ def test_a_run_killed_before_its_policy_is_finished_by_resume(written_run, capsy
     assert "its policy/ is damaged" in capsys.readouterr().out and train.policy_problem(run) is None
 
 
-def test_a_run_without_a_policy_is_used_through_its_newest_intact_checkpoint(written_run, tmp_path, capsys,
-                                                                              monkeypatch):
+def test_a_run_without_a_policy_is_used_through_its_newest_intact_checkpoint(
+    written_run, tmp_path, capsys, monkeypatch
+):
     """export (and evaluate, play: the same policy_folder) of a run with checkpoints but no policy/,
     or a damaged one, uses its newest intact checkpoint and says so; a checkpoint folder is a policy
     too, its configs read from the run; a damaged policy's fix names commands that work."""
@@ -998,17 +1240,20 @@ def _write_curve(run, rows):
 def _resumed_ppo(calls):
     """Brax's PPO as train() calls it on a resume: the initial evaluation (step 0), a training
     log, then one epoch's checkpoint and evaluation."""
+
     def run(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save, *rest):
         calls.append(remaining)
         log(0, {"eval/episode_reward": 0.5})
         log(remaining // 2, {"episode/length": 3.0})
         save(remaining, None, restore)
         log(remaining, {"eval/episode_reward": 1.0, "eval/walltime": 0.1, "training/sps": 10.0})
+
     return run
 
 
-@pytest.mark.parametrize("killed", ["after the evaluation of 64", "before the evaluation of 64",
-                                    "after a damaged checkpoint 64"])
+@pytest.mark.parametrize(
+    "killed", ["after the evaluation of 64", "before the evaluation of 64", "after a damaged checkpoint 64"]
+)
 def test_curves_continue_from_the_resumed_step(written_run, monkeypatch, killed):
     """The curve after a kill and a resume has one increasing step axis and cumulative wall time:
     rows the killed call logged after the restored checkpoint move to metrics.set_aside.jsonl;
@@ -1018,17 +1263,20 @@ def test_curves_continue_from_the_resumed_step(written_run, monkeypatch, killed)
     from footforge.rl import train
 
     run, cfg, ppo = written_run
-    rows = [{"global_step": 0, "wall_s": 1.0, "eval/episode_reward": 0.1},
-            {"global_step": 16, "wall_s": 2.0, "episode/length": 2.0},
-            {"global_step": 32, "wall_s": 3.0, "eval/episode_reward": 0.2},
-            {"global_step": 48, "wall_s": 4.0, "episode/length": 2.5},
-            {"global_step": 64, "wall_s": 5.0, "eval/episode_reward": 0.3},
-            {"global_step": 80, "wall_s": 6.0, "episode/length": 2.7}]
+    rows = [
+        {"global_step": 0, "wall_s": 1.0, "eval/episode_reward": 0.1},
+        {"global_step": 16, "wall_s": 2.0, "episode/length": 2.0},
+        {"global_step": 32, "wall_s": 3.0, "eval/episode_reward": 0.2},
+        {"global_step": 48, "wall_s": 4.0, "episode/length": 2.5},
+        {"global_step": 64, "wall_s": 5.0, "eval/episode_reward": 0.3},
+        {"global_step": 80, "wall_s": 6.0, "episode/length": 2.7},
+    ]
     if killed == "before the evaluation of 64":
         rows = rows[:4]
     _write_curve(run, rows)
-    (run / "progress.json").write_text(json.dumps({"global_step": 64, "resumes": 0, "metrics": {},
-                                                   "wall_s_total": 5.0}))
+    (run / "progress.json").write_text(
+        json.dumps({"global_step": 64, "resumes": 0, "metrics": {}, "wall_s_total": 5.0})
+    )
     if killed == "after a damaged checkpoint 64":
         _truncate_data(run / "checkpoints" / f"{64:012d}")
     calls = []
@@ -1040,12 +1288,17 @@ def test_curves_continue_from_the_resumed_step(written_run, monkeypatch, killed)
     assert steps == sorted(steps) and walls == sorted(walls), curve
     restored = 32 if killed == "after a damaged checkpoint 64" else 64
     assert all(r["wall_s"] >= 5.0 for r in curve if r["global_step"] > restored)  # the earlier calls' time counts
-    aside = [json.loads(line) for line in (run / "metrics.set_aside.jsonl").read_text().splitlines()] \
-        if (run / "metrics.set_aside.jsonl").exists() else []
+    aside = (
+        [json.loads(line) for line in (run / "metrics.set_aside.jsonl").read_text().splitlines()]
+        if (run / "metrics.set_aside.jsonl").exists()
+        else []
+    )
     assert all(r["set_aside_by_resume"] == 1 for r in aside)
-    expected = {"after the evaluation of 64": ([0, 16, 32, 48, 64, 80, 96], [80]),
-                "before the evaluation of 64": ([0, 16, 32, 48, 64, 80, 96], []),  # 64: the resumed call's evaluation
-                "after a damaged checkpoint 64": ([0, 16, 32, 64, 96], [48, 64, 80])}[killed]
+    expected = {
+        "after the evaluation of 64": ([0, 16, 32, 48, 64, 80, 96], [80]),
+        "before the evaluation of 64": ([0, 16, 32, 48, 64, 80, 96], []),  # 64: the resumed call's evaluation
+        "after a damaged checkpoint 64": ([0, 16, 32, 64, 96], [48, 64, 80]),
+    }[killed]
     assert (steps, [r["global_step"] for r in aside]) == expected, (curve, aside)
     evaluations = [r["global_step"] for r in curve if "eval/episode_reward" in r]
     assert len(evaluations) == len(set(evaluations))  # no step evaluated twice

@@ -16,7 +16,9 @@ def test_a_large_file_and_a_large_tree_are_named():
     assert line.startswith("benchmarks/x/jax_cache.tar.gz: 3.00 MiB, over the 2 MiB")
     many = {f"policies/p/{i}.bin": 2**20 for i in range(16)}  # 16.8 MB, each file within its limit
     (line,) = check.problems(many)
-    assert "the tracked tree outside descriptions/ is 16.8 MB, over 15 MB" in line and "policies/p/0.bin (1.0 MB)" in line
+    assert (
+        "the tracked tree outside descriptions/ is 16.8 MB, over 15 MB" in line and "policies/p/0.bin (1.0 MB)" in line
+    )
 
 
 def test_descriptions_are_exempt_and_only_tracked_files_count():

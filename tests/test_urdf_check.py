@@ -108,10 +108,10 @@ def mesh_dir(tmp_path: Path) -> Path:
 def resolve(mesh_dir: Path):
     def resolve_uri(uri: str) -> Path:
         if uri.startswith("package://"):
-            package = uri[len("package://"):].partition("/")[0]
-            raise InputError(f"cannot find ROS package '{package}'",
-                             fix="pass its folder with --package-path")
+            package = uri[len("package://") :].partition("/")[0]
+            raise InputError(f"cannot find ROS package '{package}'", fix="pass its folder with --package-path")
         return mesh_dir / uri
+
     return resolve_uri
 
 
@@ -139,6 +139,7 @@ def remove(xpath):
     def edit(root):
         element = find(root, xpath)
         element.getparent().remove(element)
+
     return edit
 
 
@@ -150,6 +151,7 @@ def duplicate(xpath):
     def edit(root):
         element = find(root, xpath)
         element.addnext(copy.deepcopy(element))
+
     return edit
 
 
@@ -157,13 +159,15 @@ def edits(*functions):
     def edit(root):
         for f in functions:
             f(root)
+
     return edit
 
 
 def replace_inertial(link, xml):
-    return edits(remove(f"/robot/link[@name='{link}']/inertial"),
-                 lambda root: find(root, f"/robot/link[@name='{link}']").insert(
-                     0, etree.fromstring(xml)))
+    return edits(
+        remove(f"/robot/link[@name='{link}']/inertial"),
+        lambda root: find(root, f"/robot/link[@name='{link}']").insert(0, etree.fromstring(xml)),
+    )
 
 
 def test_valid_urdf_is_clean(resolve):
@@ -172,63 +176,111 @@ def test_valid_urdf_is_clean(resolve):
 
 # (defect, edit, expected codes, element). Each plants exactly one defect.
 PLANTED = [
-    ("non_positive_mass", set_attr("//link[@name='thigh']/inertial/mass", "value", "-0.8"),
-     {"non_positive_mass"}, "link 'thigh'"),
-    ("non_finite", set_attr("//link[@name='thigh']/inertial/inertia", "iyy", "nan"),
-     {"non_finite"}, "link 'thigh'"),
-    ("not_positive_definite",
-     replace_inertial("shank", '<inertial><mass value="0.3"/><inertia ixx="0.001" ixy="0" '
-                               'ixz="0" iyy="0.001" iyz="0" izz="0"/></inertial>'),
-     {"not_positive_definite"}, "link 'shank'"),
-    ("triangle_inequality", replace_inertial("shank", ANKLE_INERTIAL),
-     {"triangle_inequality", "pseudo_inertia_not_psd"}, "link 'shank'"),
-    ("unparsable_inertial", set_attr("//link[@name='thigh']/inertial/mass", "value", "0,8"),
-     {"unparsable_inertial"}, "link 'thigh'"),
-    ("unparsable_inertial (missing attribute)",
-     lambda root: find(root, "//link[@name='foot']/inertial/inertia").attrib.pop("ixz"),
-     {"unparsable_inertial"}, "link 'foot'"),
-    ("inertia_from_geometry", remove("//link[@name='foot']/inertial"),
-     {"inertia_from_geometry"}, "link 'foot'"),
-    ("massless_moving_link", remove("//link[@name='thigh']/inertial"),
-     {"massless_moving_link"}, "link 'thigh'"),
-    ("missing_mesh", set_attr("//link[@name='base']/visual/geometry/mesh", "filename",
-                              "meshes/Base.stl"),
-     {"missing_mesh"}, "link 'base' visual #1"),
-    ("unresolved_package", set_attr("//link[@name='base']/visual/geometry/mesh", "filename",
-                                    "package://anymal_c/meshes/base.stl"),
-     {"unresolved_package"}, "link 'base' visual #1"),
-    ("repeated origin in joint", duplicate("//joint[@name='knee']/origin"),
-     {"repeated_element"}, "joint 'knee'"),
-    ("repeated inertial", duplicate("//link[@name='foot']/inertial"),
-     {"repeated_element"}, "link 'foot'"),
-    ("repeated mass", duplicate("//link[@name='foot']/inertial/mass"),
-     {"repeated_element"}, "link 'foot'"),
-    ("repeated origin in visual", duplicate("//link[@name='base']/visual/origin"),
-     {"repeated_element"}, "link 'base' visual #1"),
-    ("repeated geometry in collision", duplicate("//link[@name='foot']/collision/geometry"),
-     {"repeated_element"}, "link 'foot' collision #1"),
-    ("repeated limit", duplicate("//joint[@name='hip']/limit"),
-     {"repeated_element"}, "joint 'hip'"),
-    ("duplicate link name",
-     append("/robot", '<link name="foot"><inertial><mass value="0.1"/><inertia ixx="1e-5" '
-                      'ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/></inertial></link>'),
-     {"duplicate_name"}, "link 'foot'"),
-    ("duplicate joint name", set_attr("//joint[@name='foot_fixed']", "name", "knee"),
-     {"duplicate_name"}, "joint 'knee'"),
-    ("dangling_joint", set_attr("//joint[@name='knee']/parent", "link", "thigh_link"),
-     {"dangling_joint"}, "joint 'knee'"),
-    ("multiple_roots", append("/robot", '<link name="orphan"/>'),
-     {"multiple_roots"}, "robot 'leg'"),
-    ("two parent joints",
-     append("/robot", '<joint name="extra" type="fixed"><parent link="base"/>'
-                      '<child link="foot"/></joint>'),
-     {"multiple_roots"}, "link 'foot'"),
+    (
+        "non_positive_mass",
+        set_attr("//link[@name='thigh']/inertial/mass", "value", "-0.8"),
+        {"non_positive_mass"},
+        "link 'thigh'",
+    ),
+    ("non_finite", set_attr("//link[@name='thigh']/inertial/inertia", "iyy", "nan"), {"non_finite"}, "link 'thigh'"),
+    (
+        "not_positive_definite",
+        replace_inertial(
+            "shank",
+            '<inertial><mass value="0.3"/><inertia ixx="0.001" ixy="0" '
+            'ixz="0" iyy="0.001" iyz="0" izz="0"/></inertial>',
+        ),
+        {"not_positive_definite"},
+        "link 'shank'",
+    ),
+    (
+        "triangle_inequality",
+        replace_inertial("shank", ANKLE_INERTIAL),
+        {"triangle_inequality", "pseudo_inertia_not_psd"},
+        "link 'shank'",
+    ),
+    (
+        "unparsable_inertial",
+        set_attr("//link[@name='thigh']/inertial/mass", "value", "0,8"),
+        {"unparsable_inertial"},
+        "link 'thigh'",
+    ),
+    (
+        "unparsable_inertial (missing attribute)",
+        lambda root: find(root, "//link[@name='foot']/inertial/inertia").attrib.pop("ixz"),
+        {"unparsable_inertial"},
+        "link 'foot'",
+    ),
+    ("inertia_from_geometry", remove("//link[@name='foot']/inertial"), {"inertia_from_geometry"}, "link 'foot'"),
+    ("massless_moving_link", remove("//link[@name='thigh']/inertial"), {"massless_moving_link"}, "link 'thigh'"),
+    (
+        "missing_mesh",
+        set_attr("//link[@name='base']/visual/geometry/mesh", "filename", "meshes/Base.stl"),
+        {"missing_mesh"},
+        "link 'base' visual #1",
+    ),
+    (
+        "unresolved_package",
+        set_attr("//link[@name='base']/visual/geometry/mesh", "filename", "package://anymal_c/meshes/base.stl"),
+        {"unresolved_package"},
+        "link 'base' visual #1",
+    ),
+    ("repeated origin in joint", duplicate("//joint[@name='knee']/origin"), {"repeated_element"}, "joint 'knee'"),
+    ("repeated inertial", duplicate("//link[@name='foot']/inertial"), {"repeated_element"}, "link 'foot'"),
+    ("repeated mass", duplicate("//link[@name='foot']/inertial/mass"), {"repeated_element"}, "link 'foot'"),
+    (
+        "repeated origin in visual",
+        duplicate("//link[@name='base']/visual/origin"),
+        {"repeated_element"},
+        "link 'base' visual #1",
+    ),
+    (
+        "repeated geometry in collision",
+        duplicate("//link[@name='foot']/collision/geometry"),
+        {"repeated_element"},
+        "link 'foot' collision #1",
+    ),
+    ("repeated limit", duplicate("//joint[@name='hip']/limit"), {"repeated_element"}, "joint 'hip'"),
+    (
+        "duplicate link name",
+        append(
+            "/robot",
+            '<link name="foot"><inertial><mass value="0.1"/><inertia ixx="1e-5" '
+            'ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/></inertial></link>',
+        ),
+        {"duplicate_name"},
+        "link 'foot'",
+    ),
+    (
+        "duplicate joint name",
+        set_attr("//joint[@name='foot_fixed']", "name", "knee"),
+        {"duplicate_name"},
+        "joint 'knee'",
+    ),
+    (
+        "dangling_joint",
+        set_attr("//joint[@name='knee']/parent", "link", "thigh_link"),
+        {"dangling_joint"},
+        "joint 'knee'",
+    ),
+    ("multiple_roots", append("/robot", '<link name="orphan"/>'), {"multiple_roots"}, "robot 'leg'"),
+    (
+        "two parent joints",
+        append("/robot", '<joint name="extra" type="fixed"><parent link="base"/><child link="foot"/></joint>'),
+        {"multiple_roots"},
+        "link 'foot'",
+    ),
     ("missing_limit", remove("//joint[@name='knee']/limit"), {"missing_limit"}, "joint 'knee'"),
-    ("inverted_limit", edits(set_attr("//joint[@name='knee']/limit", "lower", "0.5"),
-                             set_attr("//joint[@name='knee']/limit", "upper", "-0.5")),
-     {"inverted_limit"}, "joint 'knee'"),
-    ("zero_axis", set_attr("//joint[@name='hip']/axis", "xyz", "0 0 0"),
-     {"zero_axis"}, "joint 'hip'"),
+    (
+        "inverted_limit",
+        edits(
+            set_attr("//joint[@name='knee']/limit", "lower", "0.5"),
+            set_attr("//joint[@name='knee']/limit", "upper", "-0.5"),
+        ),
+        {"inverted_limit"},
+        "joint 'knee'",
+    ),
+    ("zero_axis", set_attr("//joint[@name='hip']/axis", "xyz", "0 0 0"), {"zero_axis"}, "joint 'hip'"),
 ]
 
 
@@ -265,10 +317,14 @@ def test_repair(resolve, name, edit, expected, element):
 
 
 def test_softfoot_ankle_typo(resolve):
-    root = planted(edits(set_attr("//link[@name='shank']", "name", "ankle"),
-                         set_attr("//joint[@name='knee']/child", "link", "ankle"),
-                         set_attr("//joint[@name='foot_fixed']/parent", "link", "ankle"),
-                         replace_inertial("ankle", ANKLE_INERTIAL)))
+    root = planted(
+        edits(
+            set_attr("//link[@name='shank']", "name", "ankle"),
+            set_attr("//joint[@name='knee']/child", "link", "ankle"),
+            set_attr("//joint[@name='foot_fixed']/parent", "link", "ankle"),
+            replace_inertial("ankle", ANKLE_INERTIAL),
+        )
+    )
     findings = check_urdf(root, resolve_uri=resolve)
     triangle = [f for f in findings if f.code == "triangle_inequality"]
     assert len(triangle) == 1 and triangle[0].element == "link 'ankle'"
@@ -276,8 +332,10 @@ def test_softfoot_ankle_typo(resolve):
     assert triangle[0].repairable and triangle[0].severity == "error"
 
     repaired, notes = repair_urdf(root, findings)
-    assert notes == ["link 'ankle': inertia balanced: principal moments 4.497e-06, 1.878e-06, "
-                     "1.047e-06 -> 4.497e-06, 1.878e-06, 2.619e-06"]
+    assert notes == [
+        "link 'ankle': inertia balanced: principal moments 4.497e-06, 1.878e-06, "
+        "1.047e-06 -> 4.497e-06, 1.878e-06, 2.619e-06"
+    ]
     inertia = find(repaired, "//link[@name='ankle']/inertial/inertia")
     assert float(inertia.get("izz")) == pytest.approx(4.4972e-6 - 1.8785e-6, rel=1e-3)
     assert float(inertia.get("ixx")) == pytest.approx(4.4972e-6, rel=1e-9)
@@ -302,24 +360,32 @@ def test_chain_link_com_on_the_pin_is_not_a_defect(resolve):
 def test_massless_marker_and_fixed_mass_carriers(resolve):
     # mass 0 with a zero tensor on a fixed link is an explicit "massless", not a defect; a moving
     # link without inertial is fine when a link fixed to it carries mass.
-    root = planted(edits(
-        replace_inertial("foot", '<inertial><mass value="0"/><inertia ixx="0" ixy="0" ixz="0" '
-                                 'iyy="0" iyz="0" izz="0"/></inertial>'),
-        remove("//link[@name='foot']/collision")))
+    root = planted(
+        edits(
+            replace_inertial(
+                "foot",
+                '<inertial><mass value="0"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>',
+            ),
+            remove("//link[@name='foot']/collision"),
+        )
+    )
     assert check_urdf(root, resolve_uri=resolve) == []
     root = planted(remove("//link[@name='shank']/inertial"))
     assert check_urdf(root, resolve_uri=resolve) == []
-    root = planted(edits(remove("//link[@name='shank']/inertial"),
-                         remove("//link[@name='foot']/inertial"),
-                         remove("//link[@name='foot']/collision")))
+    root = planted(
+        edits(
+            remove("//link[@name='shank']/inertial"),
+            remove("//link[@name='foot']/inertial"),
+            remove("//link[@name='foot']/collision"),
+        )
+    )
     findings = check_urdf(root, resolve_uri=resolve)
     assert [(f.code, f.element) for f in findings] == [("massless_moving_link", "link 'shank'")]
     assert "revolute joint 'knee'" in findings[0].message
 
 
 def test_repair_only_the_findings_given(resolve):
-    root = planted(edits(duplicate("//joint[@name='knee']/origin"),
-                         duplicate("//joint[@name='hip']/axis")))
+    root = planted(edits(duplicate("//joint[@name='knee']/origin"), duplicate("//joint[@name='hip']/axis")))
     findings = check_urdf(root, resolve_uri=resolve)
     assert len(findings) == 2
     hip = [f for f in findings if f.element == "joint 'hip'"]
@@ -332,13 +398,19 @@ def test_repair_only_the_findings_given(resolve):
 
 
 def test_findings_are_sorted_and_formatted(resolve):
-    root = planted(edits(remove("//joint[@name='knee']/limit"),
-                         set_attr("//joint[@name='hip']/axis", "xyz", "0 0 0"),
-                         remove("//link[@name='foot']/inertial")))
+    root = planted(
+        edits(
+            remove("//joint[@name='knee']/limit"),
+            set_attr("//joint[@name='hip']/axis", "xyz", "0 0 0"),
+            remove("//link[@name='foot']/inertial"),
+        )
+    )
     findings = check_urdf(root, resolve_uri=resolve)
     assert [(f.element, f.code) for f in findings] == [
-        ("joint 'hip'", "zero_axis"), ("joint 'knee'", "missing_limit"),
-        ("link 'foot'", "inertia_from_geometry")]
+        ("joint 'hip'", "zero_axis"),
+        ("joint 'knee'", "missing_limit"),
+        ("link 'foot'", "inertia_from_geometry"),
+    ]
     assert [f.code for f in errors(findings)] == ["zero_axis", "missing_limit"]
     text = format_findings(findings)
     assert text.count("fix: ") == 3
@@ -366,14 +438,13 @@ def test_parser_agrees_with_pinocchio():
     thigh = model.inertias[model.getJointId("hip")]
     assert thigh.mass == pytest.approx(inertials["thigh"].mass)
     np.testing.assert_allclose(thigh.lever, inertials["thigh"].xyz, atol=1e-15)
-    np.testing.assert_allclose(thigh.inertia, inertials["thigh"].inertia_in_link_frame(),
-                               atol=1e-15)
+    np.testing.assert_allclose(thigh.inertia, inertials["thigh"].inertia_in_link_frame(), atol=1e-15)
 
     # shank + foot (fixed 0.2 m below the knee) merged, by pin.Inertia arithmetic.
     shank, foot = inertials["shank"], inertials["foot"]
-    merged = (pin.Inertia(shank.mass, np.array(shank.xyz), shank.inertia_in_link_frame())
-              + pin.SE3(np.eye(3), np.array([0, 0, -0.2])).act(
-                  pin.Inertia(foot.mass, np.array(foot.xyz), foot.inertia_in_link_frame())))
+    merged = pin.Inertia(shank.mass, np.array(shank.xyz), shank.inertia_in_link_frame()) + pin.SE3(
+        np.eye(3), np.array([0, 0, -0.2])
+    ).act(pin.Inertia(foot.mass, np.array(foot.xyz), foot.inertia_in_link_frame()))
     assert model.inertias[model.getJointId("knee")].isApprox(merged, 1e-12)
 
 
@@ -391,9 +462,14 @@ def test_mujoco_agrees_on_defects_and_repairs(resolve):
     assert mujoco_error(valid_root()) is None
     cases = [
         (replace_inertial("shank", ANKLE_INERTIAL), "A + B >= C"),
-        (replace_inertial("shank", '<inertial><mass value="0.3"/><inertia ixx="0.003" ixy="0" '
-                                   'ixz="0" iyy="0" iyz="0" izz="0"/></inertial>'),
-         "positive eigenvalues"),
+        (
+            replace_inertial(
+                "shank",
+                '<inertial><mass value="0.3"/><inertia ixx="0.003" ixy="0" '
+                'ixz="0" iyy="0" iyz="0" izz="0"/></inertial>',
+            ),
+            "positive eigenvalues",
+        ),
         (duplicate("//joint[@name='knee']/origin"), "repeated element"),
     ]
     for edit, message in cases:

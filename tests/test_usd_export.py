@@ -8,11 +8,9 @@ import shutil
 import mujoco
 import numpy as np
 import pytest
-from conftest import REPO
 from pxr import Usd, UsdGeom, UsdPhysics, UsdShade
 
-from footforge import constants as C
-from footforge import units
+from footforge import constants as C, units
 from footforge.build import BuildOptions, build
 from footforge.cli.main import main
 from footforge.errors import CheckFailure
@@ -25,6 +23,8 @@ from footforge.usd import (
 )
 from footforge.usd.checks import FLOAT32_RTOL
 from footforge.usd.joints import axis_frame
+
+from conftest import REPO
 
 VARIANTS = ["full", "aof", "aff", "ball"]
 MODELS = [("robot", "home"), ("foot_rig", "reference")]
@@ -81,8 +81,12 @@ def test_stage_metadata_scene_and_articulation(built, variant):
     bodies = [p for p in stage.Traverse() if p.HasAPI(UsdPhysics.RigidBodyAPI)]
     for body in bodies:  # mass fully authored, never left to the engine
         mass = UsdPhysics.MassAPI(body)
-        for attr in (mass.GetMassAttr(), mass.GetCenterOfMassAttr(), mass.GetDiagonalInertiaAttr(),
-                     mass.GetPrincipalAxesAttr()):
+        for attr in (
+            mass.GetMassAttr(),
+            mass.GetCenterOfMassAttr(),
+            mass.GetDiagonalInertiaAttr(),
+            mass.GetPrincipalAxesAttr(),
+        ):
             assert attr.HasAuthoredValue(), (body.GetPath(), attr.GetName())
     total = sum(UsdPhysics.MassAPI(b).GetMassAttr().Get() for b in bodies)
     model = _model(built, variant, "robot")
@@ -183,13 +187,15 @@ def test_colliders_and_visuals(built, variant):
             assert prim.GetTypeName() in ("Cube", "Sphere", "Cylinder", "Capsule", "Plane")
         material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial("physics")
         frictions.add(round(UsdPhysics.MaterialAPI(material.GetPrim()).GetStaticFrictionAttr().Get(), 6))
-    assert frictions == {round(float(f), 6) for f in model.geom_friction[:, 0][
-        (model.geom_contype > 0) | (model.geom_conaffinity > 0)]}
+    assert frictions == {
+        round(float(f), 6) for f in model.geom_friction[:, 0][(model.geom_contype > 0) | (model.geom_conaffinity > 0)]
+    }
     visuals = [p for p in stage.Traverse() if "/visuals/" in str(p.GetPath())]
     assert visuals and not any(p.HasAPI(UsdPhysics.CollisionAPI) for p in visuals)
     if variant == "full":  # the CoACD hulls of the chain, each its own convex mesh
         assert sum(p.IsA(UsdGeom.Mesh) for p in colliders) == sum(
-            model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH and model.geom_conaffinity[g] for g in range(model.ngeom))
+            model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH and model.geom_conaffinity[g] for g in range(model.ngeom)
+        )
 
 
 def test_axis_frames_rotate_the_token_axis_onto_the_joint_axis():
@@ -203,17 +209,21 @@ def test_axis_frames_rotate_the_token_axis_onto_the_joint_axis():
 
 def _structure(stage):
     """Every prim: type, applied schemas, custom data, authored values and relationship targets."""
+
     def value(v):
         if isinstance(v, str) or not hasattr(v, "__len__"):
             return v if isinstance(v, (bool, int, float)) else str(v)
         return [value(x) for x in v]
+
     out = {}
     for prim in stage.Traverse():
         out[str(prim.GetPath())] = {
-            "type": prim.GetTypeName(), "schemas": list(prim.GetAppliedSchemas()),
+            "type": prim.GetTypeName(),
+            "schemas": list(prim.GetAppliedSchemas()),
             "customData": str(prim.GetCustomData()),
             "attributes": {a.GetName(): value(a.Get()) for a in prim.GetAuthoredAttributes()},
-            "relationships": {r.GetName(): [str(t) for t in r.GetTargets()] for r in prim.GetAuthoredRelationships()}}
+            "relationships": {r.GetName(): [str(t) for t in r.GetTargets()] for r in prim.GetAuthoredRelationships()},
+        }
     return out
 
 
@@ -222,7 +232,7 @@ def _same(a, b, where):
         assert a == pytest.approx(b, rel=1e-6, abs=1e-12), where
     elif isinstance(a, (list, dict)):
         assert type(a) is type(b) and len(a) == len(b), where
-        for key in (a if isinstance(a, dict) else range(len(a))):
+        for key in a if isinstance(a, dict) else range(len(a)):
             _same(a[key], b[key], f"{where}/{key}")
     else:
         assert a == b, where
@@ -273,7 +283,8 @@ def test_format_selects_outputs(tmp_path):
     usd_only, mjcf_only = tmp_path / "usd", tmp_path / "mjcf"
     assert main(["build", "--variant", "ball", "--format", "usd", "--out", str(usd_only)]) == 0
     assert sorted(p.name for p in usd_only.iterdir()) == sorted(
-        ["robot.usda", "robot.usd", "foot_rig.usda", "foot_rig.usd", "build_report.json", ".footforge-output"])
+        ["robot.usda", "robot.usd", "foot_rig.usda", "foot_rig.usd", "build_report.json", ".footforge-output"]
+    )
     assert main(["build", "--variant", "ball", "--format", "mjcf", "--out", str(mjcf_only)]) == 0
     names = {p.name for p in mjcf_only.iterdir()}
     assert "robot.xml" in names and not any(n.endswith((".usd", ".usda")) for n in names)

@@ -5,7 +5,6 @@ import shutil
 
 import numpy as np
 import pytest
-from conftest import REPO
 
 from footforge.cli.main import main
 from footforge.errors import InputError
@@ -20,6 +19,8 @@ from footforge.validate.runner import (
     validate,
 )
 from footforge.validate.scenarios import QUICK, SCENARIOS, select
+
+from conftest import REPO
 
 PARAMS = REPO / "descriptions/softfoot_q/config/variant_params.yaml"
 
@@ -36,8 +37,11 @@ def quick(tmp_path_factory):
 @pytest.fixture(scope="module")
 def extra():
     """Scenarios outside the quick set that the physics checks need, full chain and AOF."""
-    return validate(ValidateOptions(variants=("aof",), jobs=2,
-                                    scenarios=("rock_middle", "leg_roll_+10deg", "leg_roll_-10deg", "rough_seed0")))
+    return validate(
+        ValidateOptions(
+            variants=("aof",), jobs=2, scenarios=("rock_middle", "leg_roll_+10deg", "leg_roll_-10deg", "rough_seed0")
+        )
+    )
 
 
 def test_quick_run_writes_every_output(quick):
@@ -109,8 +113,11 @@ def test_errors_measure_known_departures_from_the_reference(extra):
         errors = fidelity.errors(moved, run)
         force = np.asarray(run["series"]["force_z_n"])
         n = min(len(force), len(series["force_z_n"]))
-        expected_nrmse = (0.1 * np.sqrt(np.mean(force[:n][np.isfinite(force[:n])] ** 2))
-                          / (np.nanmax(force[:n]) - np.nanmin(force[:n])))
+        expected_nrmse = (
+            0.1
+            * np.sqrt(np.mean(force[:n][np.isfinite(force[:n])] ** 2))
+            / (np.nanmax(force[:n]) - np.nanmin(force[:n]))
+        )
         assert errors["peak_force_rel"] == pytest.approx(0.1, rel=1e-9), name
         assert errors["final_height_mm"] == pytest.approx(2.0, rel=1e-6), name
         assert errors["orientation_deg"] == pytest.approx(5.0, rel=1e-9), name
@@ -137,13 +144,16 @@ def test_scenario_sets():
         select(["flat_2cm", "lava"])
 
 
-@pytest.mark.parametrize("argv,message", [
-    (["--scenarios", "lava"], "unknown scenario(s): lava"),
-    (["--threshold", "cop_mm=-1"], "not a positive number"),
-    (["--threshold", "beauty=1"], "unknown threshold 'beauty'"),
-    (["--variant", "hoof"], "unknown variant 'hoof'"),
-    (["--jobs", "0"], "--jobs 0 must be at least 1"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["--scenarios", "lava"], "unknown scenario(s): lava"),
+        (["--threshold", "cop_mm=-1"], "not a positive number"),
+        (["--threshold", "beauty=1"], "unknown threshold 'beauty'"),
+        (["--variant", "hoof"], "unknown variant 'hoof'"),
+        (["--jobs", "0"], "--jobs 0 must be at least 1"),
+    ],
+)
 def test_bad_arguments_exit_2_with_a_message(tmp_path, capsys, argv, message):
     assert main(["validate", *argv, "--out", str(tmp_path / "v")]) == 2
     assert message in capsys.readouterr().err
@@ -176,8 +186,26 @@ def test_calibration_writes_the_parameter_file_and_reports_before_after(tmp_path
     write_params(params, "aff", {}, shipped.sole_lift_m["aff"] / 2)
     out = tmp_path / "cal"
     # 7 evaluations: the start, the initial simplex's 5 other vertices (the last moves the lift), one step.
-    code = main(["validate", "--variant", "aff", "--scenarios", "flat_2cm", "step_toe", "rock_front",
-                 "--calibrate", "--evaluations", "7", "--jobs", "2", "--params", str(params), "--out", str(out)])
+    code = main(
+        [
+            "validate",
+            "--variant",
+            "aff",
+            "--scenarios",
+            "flat_2cm",
+            "step_toe",
+            "rock_front",
+            "--calibrate",
+            "--evaluations",
+            "7",
+            "--jobs",
+            "2",
+            "--params",
+            str(params),
+            "--out",
+            str(out),
+        ]
+    )
     report = json.loads((out / "report.json").read_text())
     assert code == (0 if report["passed"] else 1)
     cal = report["calibration"]["aff"]
@@ -194,7 +222,8 @@ def test_calibration_writes_the_parameter_file_and_reports_before_after(tmp_path
     assert written.sole_lift_m["aff"] == after["sole_lift_m"]
     # The reported runs are of the foot rebuilt from the written file.
     assert report["calibration"]["aff"]["series_errors_after"]["train"]["objective"] == pytest.approx(
-        cal["objective_after"], rel=1e-6)
+        cal["objective_after"], rel=1e-6
+    )
 
 
 def test_a_sole_lift_above_the_other_collision_boxes_is_refused(tmp_path, capsys):
@@ -205,18 +234,26 @@ def test_a_sole_lift_above_the_other_collision_boxes_is_refused(tmp_path, capsys
     write_params(params, "aff", {}, 0.04)
     text = params.read_text()
     assert "  collision: {sole: box, upper_collisions: false}\n" in text
-    params.write_text(text.replace("  collision: {sole: box, upper_collisions: false}\n",
-                                   "  collision: {sole: box, upper_collisions: true}\n", 1))
+    params.write_text(
+        text.replace(
+            "  collision: {sole: box, upper_collisions: false}\n",
+            "  collision: {sole: box, upper_collisions: true}\n",
+            1,
+        )
+    )
     assert main(["build", "--variant", "aff", "--params", str(params), "--out", str(tmp_path / "b")]) == 2
     err = capsys.readouterr().err
     assert "sole_lift_m 0.04 m raises the aff sole" in err and "keep sole_lift_m below" in err
     assert not (tmp_path / "b").exists()
     params.write_text(text)  # the shipped geometry: only the sole collides
-    assert main(["build", "--variant", "aff", "--format", "mjcf", "--params", str(params),
-                 "--out", str(tmp_path / "c")]) == 0
+    assert (
+        main(["build", "--variant", "aff", "--format", "mjcf", "--params", str(params), "--out", str(tmp_path / "c")])
+        == 0
+    )
 
 
 # Forces at the physics rate, obstacles that are hit, and the project's headline claim (issue 15).
+
 
 @pytest.fixture(scope="module")
 def drops():
@@ -236,8 +273,11 @@ def test_ground_impulse_equals_momentum_change_plus_weight_times_time(drops):
         arrival = -s["momentum_z_ns"][before]
         assert arrival > 5.0, variant  # a 13 kg foot and payload falling about 2 cm: about 8 N s
         impulse = float(s["impulse_ns"][first:].sum())
-        expected = (s["momentum_z_ns"][-1] - s["momentum_z_ns"][before]
-                    + run["supported_weight_n"] * (s["time_s"][-1] - s["time_s"][before]))
+        expected = (
+            s["momentum_z_ns"][-1]
+            - s["momentum_z_ns"][before]
+            + run["supported_weight_n"] * (s["time_s"][-1] - s["time_s"][before])
+        )
         assert impulse == pytest.approx(expected, rel=0.01), variant
         # stopping the fall takes at least the arrival momentum (it was 4.91 N s < 8.0 for the ball when sampled)
         assert run["scalars"]["impulse_ns"] > arrival, variant
@@ -267,8 +307,10 @@ def test_obstacles_are_hit_or_the_miss_is_reported_and_excluded(drops, quick):
     assert "step_toe" in obstacle_scenarios and len(obstacle_scenarios) >= 3
     for variant in ("full", "aof", "aff"):
         for name in obstacle_scenarios:
-            assert report.runs[variant][name]["scalars"]["obstacle_share"] >= fidelity.OBSTACLE_SHARE_MIN, \
-                (variant, name)
+            assert report.runs[variant][name]["scalars"]["obstacle_share"] >= fidelity.OBSTACLE_SHARE_MIN, (
+                variant,
+                name,
+            )
     ball = drops.runs["ball"]["step_toe"]["scalars"]
     assert ball["obstacle_share"] < fidelity.OBSTACLE_SHARE_MIN
     summary = drops.fidelity["ball"].summary
@@ -277,15 +319,20 @@ def test_obstacles_are_hit_or_the_miss_is_reported_and_excluded(drops, quick):
     flat_only = fidelity.errors(drops.runs["ball"]["flat_2cm"], drops.runs["full"]["flat_2cm"])
     assert summary.metrics["final_height_mm"].mean == pytest.approx(flat_only["final_height_mm"])
     assert report.fidelity["ball"].summary.missed_obstacle == ["step_toe"]
-    assert "ball: the obstacle carried under 1% of the ground impulse in step_toe" in (quick[2] / "report.md").read_text()
+    assert (
+        "ball: the obstacle carried under 1% of the ground impulse in step_toe" in (quick[2] / "report.md").read_text()
+    )
 
 
 def _obstacle_means(report: ValidationReport, metric: str) -> dict[str, float]:
     """Each variant's mean of `metric` over the obstacle scenarios (slopes included) that every
     variant engaged."""
     fid = report.fidelity
-    names = [s["name"] for s in report.scenarios if s["obstacle"] != "flat"
-             and not any(fid[v].per_scenario[s["name"]].get("missed_obstacle") for v in fid)]
+    names = [
+        s["name"]
+        for s in report.scenarios
+        if s["obstacle"] != "flat" and not any(fid[v].per_scenario[s["name"]].get("missed_obstacle") for v in fid)
+    ]
     assert len(names) >= 3
     return {v: float(np.mean([fid[v].per_scenario[n][metric] for n in names])) for v in fid}
 
@@ -362,10 +409,16 @@ def _conforms(value, schema: dict, root: dict, where: str = "report") -> list[st
     if "anyOf" in schema:
         return [] if any(not _conforms(value, s, root, where) for s in schema["anyOf"]) else [f"{where}: {value!r:.60}"]
     kind = schema.get("type")
-    ok = {None: True, "object": isinstance(value, dict), "array": isinstance(value, list),
-          "string": isinstance(value, str), "boolean": isinstance(value, bool), "null": value is None,
-          "integer": isinstance(value, int) and not isinstance(value, bool),
-          "number": isinstance(value, (int, float)) and not isinstance(value, bool)}[kind]
+    ok = {
+        None: True,
+        "object": isinstance(value, dict),
+        "array": isinstance(value, list),
+        "string": isinstance(value, str),
+        "boolean": isinstance(value, bool),
+        "null": value is None,
+        "integer": isinstance(value, int) and not isinstance(value, bool),
+        "number": isinstance(value, (int, float)) and not isinstance(value, bool),
+    }[kind]
     if not ok:
         return [f"{where}: {type(value).__name__} where the schema says {kind}"]
     out = []
@@ -402,5 +455,7 @@ def test_report_json_is_a_typed_report_with_a_shipped_schema(quick):
     broken = json.loads(json.dumps(old))
     broken["speed"]["aof"]["vs_full"] = "fast"
     del broken["reference"]["passed"]
-    assert sorted(_conforms(broken, schema, schema)) == ["report.reference: no passed",
-                                                         "report.speed.aof.vs_full: str where the schema says number"]
+    assert sorted(_conforms(broken, schema, schema)) == [
+        "report.reference: no passed",
+        "report.speed.aof.vs_full: str where the schema says number",
+    ]

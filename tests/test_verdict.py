@@ -18,8 +18,14 @@ def _rollout(pattern, vx_gain=1.0, fall_at=None, height=0.52):
     up = np.ones((R, T), bool)
     if fall_at is not None:
         up[:, fall_at:] = False
-    return dict(contacts=contacts, up=up, base_height_m=np.full((R, T), height), command_vx=command,
-                vx=vx_gain * command, command_xy_speed=command)
+    return dict(
+        contacts=contacts,
+        up=up,
+        base_height_m=np.full((R, T), height),
+        command_vx=command,
+        vx=vx_gain * command,
+        command_xy_speed=command,
+    )
 
 
 def _phase(t):

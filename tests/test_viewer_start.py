@@ -44,9 +44,11 @@ def test_qpos0_is_a_consistent_pose_resting_on_the_floor(built, variant, file):
     model = mujoco.MjModel.from_xml_path(str(built[variant][0] / file))
     data = _start(model, None)
     lowest = collision_points(model, data, [model.body(b).name for b in range(1, model.nbody)])[:, 2].min()
-    assert -PENETRATION_TOL_M <= lowest <= PENETRATION_TOL_M, f"{file} at qpos0: lowest collision point at {lowest:.4f} m"
+    assert -PENETRATION_TOL_M <= lowest <= PENETRATION_TOL_M, (
+        f"{file} at qpos0: lowest collision point at {lowest:.4f} m"
+    )
     if data.ncon:
-        assert data.contact.dist[:data.ncon].min() >= -PENETRATION_TOL_M
+        assert data.contact.dist[: data.ncon].min() >= -PENETRATION_TOL_M
     equality = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
     if variant == "full":
         assert equality.sum() > 0
@@ -76,5 +78,5 @@ def test_every_start_steps_two_seconds_quietly(built, variant, file):
         assert heights.max() <= start + RISE_TOL_M, f"{where}: rose to {heights.max():.3f} m from {start:.3f} m"
         assert heights.min() >= start - SINK_TOL_M[file], f"{where}: sank to {heights.min():.3f} m from {start:.3f} m"
         # It has come to rest: the last 0.2 s move less than 1 mm.
-        tail = heights[-int(round(0.2 / model.opt.timestep)):]
+        tail = heights[-int(round(0.2 / model.opt.timestep)) :]
         assert np.ptp(tail) < 1e-3, f"{where}: still moving ({np.ptp(tail) * 1e3:.1f} mm in the last 0.2 s)"

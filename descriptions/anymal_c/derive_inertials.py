@@ -38,32 +38,84 @@ import numpy as np
 #: Fused rigid bodies of the reference listing: mass [kg], ipos [m], iquat (w x y z),
 #: principal moments [kg m^2]. Copied verbatim (5-digit rounding as published).
 FUSED_INERTIALS: dict[str, dict[str, tuple[float, ...] | float]] = {
-    "base": dict(mass=26.37317, ipos=(-0.01779, -0.00018, 0.0085),
-                 iquat=(-0.00383, 0.71958, -0.00775, 0.69436), inertia=(1.83725, 1.78446, 0.21386)),
-    "LF_HIP": dict(mass=2.78100, ipos=(0.05666, -0.01529, -0.0083),
-                   iquat=(-0.12798, 0.70978, -0.13528, 0.67936), inertia=(0.00586, 0.00492, 0.00329)),
-    "LF_THIGH": dict(mass=3.07100, ipos=(0.03081, 0.00005, -0.2457),
-                     iquat=(0.99317, -0.00515, -0.08066, 0.0842), inertia=(0.03025, 0.02989, 0.00418)),
-    "LF_SHANK": dict(mass=0.58842, ipos=(0.00546, -0.06125, -0.08066),
-                     iquat=(0.99293, -0.1159, -0.00105, -0.02544), inertia=(0.01016, 0.00924, 0.00112)),
-    "RF_HIP": dict(mass=2.78100, ipos=(0.05676, 0.01529, -0.0083),
-                   iquat=(0.13524, 0.67907, 0.12798, 0.71006), inertia=(0.00586, 0.00492, 0.00329)),
-    "RF_THIGH": dict(mass=3.07100, ipos=(0.03081, 0.00005, -0.2457),
-                     iquat=(0.99277, -0.00513, -0.08067, 0.08868), inertia=(0.03025, 0.02989, 0.00418)),
-    "RF_SHANK": dict(mass=0.58842, ipos=(0.00546, 0.06125, -0.08066),
-                     iquat=(0.99293, 0.1159, -0.00105, 0.02544), inertia=(0.01016, 0.00924, 0.00112)),
-    "LH_HIP": dict(mass=2.78100, ipos=(0.05676, 0.01529, -0.0083),
-                   iquat=(0.13524, 0.67907, 0.12798, 0.71006), inertia=(0.00586, 0.00492, 0.00329)),
-    "LH_THIGH": dict(mass=3.07100, ipos=(0.03081, 0.00005, -0.2457),
-                     iquat=(0.99277, -0.00513, -0.08067, 0.08868), inertia=(0.03025, 0.02989, 0.00418)),
-    "LH_SHANK": dict(mass=0.58842, ipos=(0.00546, 0.06125, -0.08066),
-                     iquat=(0.99293, 0.1159, -0.00105, 0.02544), inertia=(0.01016, 0.00924, 0.00112)),
-    "RH_HIP": dict(mass=2.78100, ipos=(0.05666, -0.01529, -0.0083),
-                   iquat=(-0.12798, 0.70978, -0.13528, 0.67936), inertia=(0.00586, 0.00492, 0.00329)),
-    "RH_THIGH": dict(mass=3.07100, ipos=(0.03081, 0.00005, -0.2457),
-                     iquat=(0.99317, -0.00515, -0.08066, 0.0842), inertia=(0.03025, 0.02989, 0.00418)),
-    "RH_SHANK": dict(mass=0.58842, ipos=(0.00546, -0.06125, -0.08066),
-                     iquat=(0.99293, -0.1159, -0.00105, -0.02544), inertia=(0.01016, 0.00924, 0.00112)),
+    "base": dict(
+        mass=26.37317,
+        ipos=(-0.01779, -0.00018, 0.0085),
+        iquat=(-0.00383, 0.71958, -0.00775, 0.69436),
+        inertia=(1.83725, 1.78446, 0.21386),
+    ),
+    "LF_HIP": dict(
+        mass=2.78100,
+        ipos=(0.05666, -0.01529, -0.0083),
+        iquat=(-0.12798, 0.70978, -0.13528, 0.67936),
+        inertia=(0.00586, 0.00492, 0.00329),
+    ),
+    "LF_THIGH": dict(
+        mass=3.07100,
+        ipos=(0.03081, 0.00005, -0.2457),
+        iquat=(0.99317, -0.00515, -0.08066, 0.0842),
+        inertia=(0.03025, 0.02989, 0.00418),
+    ),
+    "LF_SHANK": dict(
+        mass=0.58842,
+        ipos=(0.00546, -0.06125, -0.08066),
+        iquat=(0.99293, -0.1159, -0.00105, -0.02544),
+        inertia=(0.01016, 0.00924, 0.00112),
+    ),
+    "RF_HIP": dict(
+        mass=2.78100,
+        ipos=(0.05676, 0.01529, -0.0083),
+        iquat=(0.13524, 0.67907, 0.12798, 0.71006),
+        inertia=(0.00586, 0.00492, 0.00329),
+    ),
+    "RF_THIGH": dict(
+        mass=3.07100,
+        ipos=(0.03081, 0.00005, -0.2457),
+        iquat=(0.99277, -0.00513, -0.08067, 0.08868),
+        inertia=(0.03025, 0.02989, 0.00418),
+    ),
+    "RF_SHANK": dict(
+        mass=0.58842,
+        ipos=(0.00546, 0.06125, -0.08066),
+        iquat=(0.99293, 0.1159, -0.00105, 0.02544),
+        inertia=(0.01016, 0.00924, 0.00112),
+    ),
+    "LH_HIP": dict(
+        mass=2.78100,
+        ipos=(0.05676, 0.01529, -0.0083),
+        iquat=(0.13524, 0.67907, 0.12798, 0.71006),
+        inertia=(0.00586, 0.00492, 0.00329),
+    ),
+    "LH_THIGH": dict(
+        mass=3.07100,
+        ipos=(0.03081, 0.00005, -0.2457),
+        iquat=(0.99277, -0.00513, -0.08067, 0.08868),
+        inertia=(0.03025, 0.02989, 0.00418),
+    ),
+    "LH_SHANK": dict(
+        mass=0.58842,
+        ipos=(0.00546, 0.06125, -0.08066),
+        iquat=(0.99293, 0.1159, -0.00105, 0.02544),
+        inertia=(0.01016, 0.00924, 0.00112),
+    ),
+    "RH_HIP": dict(
+        mass=2.78100,
+        ipos=(0.05666, -0.01529, -0.0083),
+        iquat=(-0.12798, 0.70978, -0.13528, 0.67936),
+        inertia=(0.00586, 0.00492, 0.00329),
+    ),
+    "RH_THIGH": dict(
+        mass=3.07100,
+        ipos=(0.03081, 0.00005, -0.2457),
+        iquat=(0.99317, -0.00515, -0.08066, 0.0842),
+        inertia=(0.03025, 0.02989, 0.00418),
+    ),
+    "RH_SHANK": dict(
+        mass=0.58842,
+        ipos=(0.00546, -0.06125, -0.08066),
+        iquat=(0.99293, -0.1159, -0.00105, -0.02544),
+        inertia=(0.01016, 0.00924, 0.00112),
+    ),
 }
 
 XACRO = Path(__file__).resolve().parent / "urdf" / "anymal_c.urdf.xacro"
@@ -80,11 +132,13 @@ def quat_to_matrix(quat: tuple[float, ...]) -> np.ndarray:
         3x3 rotation matrix whose columns are the rotated x, y, z axes.
     """
     w, x, y, z = np.asarray(quat, dtype=float) / np.linalg.norm(quat)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def inertia_tensor(iquat: tuple[float, ...], moments: tuple[float, ...]) -> np.ndarray:
@@ -124,10 +178,10 @@ def inertial_xml(body: str, indent: str = "    ") -> str:
     return (
         f"{indent}<!-- {body}: fused inertial (derive_inertials.py) -->\n"
         f"{indent}<inertial>\n"
-        f"{indent}  <mass value=\"{v['mass']}\"/>\n"
-        f"{indent}  <origin xyz=\"{v['x']} {v['y']} {v['z']}\" rpy=\"0 0 0\"/>\n"
-        f"{indent}  <inertia ixx=\"{v['ixx']}\" ixy=\"{v['ixy']}\" ixz=\"{v['ixz']}\"\n"
-        f"{indent}           iyy=\"{v['iyy']}\" iyz=\"{v['iyz']}\" izz=\"{v['izz']}\"/>\n"
+        f'{indent}  <mass value="{v["mass"]}"/>\n'
+        f'{indent}  <origin xyz="{v["x"]} {v["y"]} {v["z"]}" rpy="0 0 0"/>\n'
+        f'{indent}  <inertia ixx="{v["ixx"]}" ixy="{v["ixy"]}" ixz="{v["ixz"]}"\n'
+        f'{indent}           iyy="{v["iyy"]}" iyz="{v["iyz"]}" izz="{v["izz"]}"/>\n'
         f"{indent}</inertial>"
     )
 
@@ -147,14 +201,16 @@ def check_xacro(path: Path = XACRO) -> list[str]:
     text = path.read_text()
     problems = []
     for body in FUSED_INERTIALS:
-        match = re.search(
-            rf"<!-- {body}: fused inertial.*?-->\s*(<inertial>.*?</inertial>)", text, flags=re.S)
+        match = re.search(rf"<!-- {body}: fused inertial.*?-->\s*(<inertial>.*?</inertial>)", text, flags=re.S)
         if match is None:
             problems.append(f"{body}: no inertial block found")
             continue
         block = match.group(1)
-        numbers = {k: float(x) for k, x in re.findall(r'(\w+)="([^"]+)"', block)
-                   if k in ("value", "ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+        numbers = {
+            k: float(x)
+            for k, x in re.findall(r'(\w+)="([^"]+)"', block)
+            if k in ("value", "ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+        }
         numbers["mass"] = numbers.pop("value")
         xyz = re.search(r'xyz="([^"]+)"', block).group(1).split()
         numbers.update(zip(("x", "y", "z"), map(float, xyz)))
@@ -166,8 +222,7 @@ def check_xacro(path: Path = XACRO) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true",
-                        help="verify the xacro's inertials instead of printing them")
+    parser.add_argument("--check", action="store_true", help="verify the xacro's inertials instead of printing them")
     args = parser.parse_args(argv)
     if args.check:
         problems = check_xacro()

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 
-from footforge.models import kinematics
-from footforge.inputs.description import load_description
 from footforge.errors import CheckFailure
+from footforge.inputs.description import load_description
 from footforge.inputs.foot_root import select_foot_root
 from footforge.inputs.sidecar import load_sidecar
 from footforge.inputs.urdf_lint import Finding, check_urdf, has_errors
+from footforge.models import kinematics
 from footforge.models.urdf import parse_urdf
 
 
@@ -28,8 +28,13 @@ class CheckResult:
         return has_errors(self.findings)
 
 
-def check_description(path: str | Path, *, package_paths: Sequence[str | Path] = (),
-                      args: Mapping[str, str] | None = None, sidecar: str | Path | None = None) -> CheckResult:
+def check_description(
+    path: str | Path,
+    *,
+    package_paths: Sequence[str | Path] = (),
+    args: Mapping[str, str] | None = None,
+    sidecar: str | Path | None = None,
+) -> CheckResult:
     """Checks a URDF or xacro file (and, given a sidecar, that its closures close).
 
     Raises:
@@ -53,6 +58,8 @@ def check_description(path: str | Path, *, package_paths: Sequence[str | Path] =
             findings.append(Finding("error", "closure_open", e.element or "sidecar", e.message, e.fix or "", False))
         residuals = kinematics.closure_residuals(parsed, side, q)
         gaps = {c.name: float(np.linalg.norm(r)) for c, r in zip(side.closures, residuals)}
-        findings += [Finding("error", "closure_axis", element, message, fix, False)
-                     for element, message, fix in kinematics.closure_axis_problems(parsed, side, q)]
+        findings += [
+            Finding("error", "closure_axis", element, message, fix, False)
+            for element, message, fix in kinematics.closure_axis_problems(parsed, side, q)
+        ]
     return CheckResult(findings, gaps)

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import json
 import platform
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Mapping
 
 import mujoco
 
@@ -39,7 +39,6 @@ from footforge.outputs import check_output_folder
 from footforge.provenance import json_default, sha256_file, versions
 from footforge.timing import StageTimer
 from footforge.variants import DERIVED, VARIANTS, Variant  # noqa: F401  (VARIANTS, Variant re-exported: footforge.build)
-
 
 FORMATS = ("mjcf", "usd")
 
@@ -80,12 +79,21 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
         raise InputError(f"unknown variant '{options.variant}'", fix=f"use one of {', '.join(VARIANTS)}")
     unknown = [f for f in options.formats if f not in FORMATS]
     if unknown or not options.formats:
-        raise InputError(f"unknown output format '{', '.join(unknown)}'" if unknown else "no output format given",
-                         fix=f"use one or more of {', '.join(FORMATS)}, e.g. --format mjcf,usd")
+        raise InputError(
+            f"unknown output format '{', '.join(unknown)}'" if unknown else "no output format given",
+            fix=f"use one or more of {', '.join(FORMATS)}, e.g. --format mjcf,usd",
+        )
     check_output_folder(options.out_dir, force=options.force)  # before minutes of CoACD
     stage = StageTimer(progress)
-    report: dict = {"format": REPORT_FORMAT, "variant": options.variant, "foot_only": options.foot_only,
-                    "versions": versions(), "machine": platform.platform(), "repairs": [], "warnings": []}
+    report: dict = {
+        "format": REPORT_FORMAT,
+        "variant": options.variant,
+        "foot_only": options.foot_only,
+        "versions": versions(),
+        "machine": platform.platform(),
+        "repairs": [],
+        "warnings": [],
+    }
     params = load_params(options.params)
     report["inputs"] = {"params": {"path": str(params.source), "sha256": sha256_file(params.source)}}
     files: dict[str, str] = {}
@@ -101,10 +109,16 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
         sidecar = source.sidecar
         with stage(f"build {options.variant} foot"):
             full_foot = foot_lib.build_full(source)
-            foot = full_foot if options.variant == "full" else foot_lib.build_derived(source, options.variant, full=full_foot)
-            report["foot"] = foot.info | {"passive_joints": foot.passive_joints,
-                                          "reference_qpos_rad": foot.reference_qpos,
-                                          "touchdown_m": foot.touchdown.tolist()}
+            foot = (
+                full_foot
+                if options.variant == "full"
+                else foot_lib.build_derived(source, options.variant, full=full_foot)
+            )
+            report["foot"] = foot.info | {
+                "passive_joints": foot.passive_joints,
+                "reference_qpos_rad": foot.reference_qpos,
+                "touchdown_m": foot.touchdown.tolist(),
+            }
 
     friction = sidecar.friction if sidecar else 0.8
     with stage("build rig"):
@@ -129,8 +143,11 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
             robot_desc = load_description(robot_path, args={"foot": foot_arg}, package_paths=options.package_paths)
             robot_desc, robot_findings, notes = lint_and_repair(robot_desc, repair=options.repair, what="robot")
             report["repairs"] += [f"{robot_path.name}: {n}" for n in notes]
-            report["inputs"]["robot_description"] = {"path": str(robot_desc.source), "sha256": sha256_file(robot_desc.source),
-                                                     "args": {"foot": foot_arg}}
+            report["inputs"]["robot_description"] = {
+                "path": str(robot_desc.source),
+                "sha256": sha256_file(robot_desc.source),
+                "args": {"foot": foot_arg},
+            }
             report.setdefault("link_inertia_checks", {})["robot"] = link_inertia_checks(robot_desc, robot_findings)
             robot_parsed = parse_urdf(robot_desc, floating=True)
             robot = build_robot(robot_parsed, foot, variant=options.variant, params=params, friction=friction)
@@ -147,25 +164,35 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
                 report["closure_residual_at_home_m"] = max(gaps.values())
         elif options.variant in DERIVED:
             with stage("compare mass properties"):
-                full_robot = build_robot(robot_parsed, full_foot, variant="full", params=params, friction=friction,
-                                         stand_keyframe=False)
+                full_robot = build_robot(
+                    robot_parsed, full_foot, variant="full", params=params, friction=friction, stand_keyframe=False
+                )
                 full_model = compile_model(full_robot.mjcf)
-                roots = [f"{C.FOOT_MODEL_NAME.format(leg=leg)}/{foot.root_body}" for leg in C.LEGS]
+                roots = [f"{C.FOOT_MODEL_NAME.format(leg=leg)}/{foot.root_body}" for leg in C.LEGS]  # type: ignore[union-attr]
                 comparison = compare_mass_properties(robot_model, full_model, "home", roots)
                 report["mass_properties_vs_full"] = comparison
     report["timings_s"] = stage.timings_s
     if "mass_properties_vs_full" in report and not report["mass_properties_vs_full"]["passed"]:
-        raise CheckFailure("mass properties of the derived feet differ from the closed chain's beyond "
-                           f"{MASS_RTOL:g}: {json.dumps(report['mass_properties_vs_full'])}",
-                           fix="report this as a bug: derived bodies must be exact composites")
+        raise CheckFailure(
+            "mass properties of the derived feet differ from the closed chain's beyond "
+            f"{MASS_RTOL:g}: {json.dumps(report['mass_properties_vs_full'])}",
+            fix="report this as a bug: derived bodies must be exact composites",
+        )
     if "mjcf" not in options.formats:
         files, asset_sets = {}, []
     _write_atomically(options.out_dir, files, asset_sets, report, stages, force=options.force)
     return report
 
 
-def _export_usd(options: BuildOptions, stage: StageTimer, report: dict, stages: dict, stem: str,
-                model: mujoco.MjModel, keyframe: str | None) -> None:
+def _export_usd(
+    options: BuildOptions,
+    stage: StageTimer,
+    report: dict,
+    stages: dict,
+    stem: str,
+    model: mujoco.MjModel,
+    keyframe: str | None,
+) -> None:
     """Exports one compiled model to USD, validates it and compares it with the model.
 
     Raises:
@@ -180,22 +207,38 @@ def _export_usd(options: BuildOptions, stage: StageTimer, report: dict, stages: 
         findings = usd.validate_stage(exported.stage)
         comparison = usd.compare_with_model(exported.stage, model, keyframe=keyframe)
     errors = [f for f in findings if f["severity"] == "error"]
-    report["usd"][stem] = {"files": list(usd.stage_files(stem)), "keyframe": keyframe,
-                           "validation": findings, "vs_mjcf": comparison, "tolerances": usd.TOLERANCES,
-                           **exported.report()}
+    report["usd"][stem] = {
+        "files": list(usd.stage_files(stem)),
+        "keyframe": keyframe,
+        "validation": findings,
+        "vs_mjcf": comparison,
+        "tolerances": usd.TOLERANCES,
+        **exported.report(),
+    }
     if errors:
-        raise CheckFailure(f"the exported {stem} USD stage fails usd-core's validation:\n" + "\n".join(
-            f"  {e['name']}: {e['message']} ({', '.join(e['prims'])})" for e in errors),
-            fix="report this as a bug in footforge's USD exporter; use --format mjcf meanwhile")
+        raise CheckFailure(
+            f"the exported {stem} USD stage fails usd-core's validation:\n"
+            + "\n".join(f"  {e['name']}: {e['message']} ({', '.join(e['prims'])})" for e in errors),
+            fix="report this as a bug in footforge's USD exporter; use --format mjcf meanwhile",
+        )
     failures = usd.comparison_failures(comparison)
     if failures:
-        raise CheckFailure(f"the exported {stem} USD stage differs from its MJCF model:\n  " + "\n  ".join(failures),
-                           fix="report this as a bug in footforge's USD exporter; use --format mjcf meanwhile")
+        raise CheckFailure(
+            f"the exported {stem} USD stage differs from its MJCF model:\n  " + "\n  ".join(failures),
+            fix="report this as a bug in footforge's USD exporter; use --format mjcf meanwhile",
+        )
     stages[stem] = exported.stage
 
 
-def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dict], report: dict,
-                      stages: Mapping[str, object] = {}, *, force: bool = False) -> None:
+def _write_atomically(
+    out_dir: Path,
+    files: dict[str, str],
+    asset_sets: list[dict],
+    report: dict,
+    stages: Mapping[str, object] = {},
+    *,
+    force: bool = False,
+) -> None:
     with atomic_directory(out_dir, force=force) as tmp:
         outputs = sorted(files)
         if asset_sets:
@@ -208,9 +251,8 @@ def _write_atomically(out_dir: Path, files: dict[str, str], asset_sets: list[dic
             (tmp / name).write_text(text)
         if stages:
             from footforge.usd import write_stage
+
             for stem, usd_stage in stages.items():
                 outputs += write_stage(usd_stage, tmp, stem)
         report["outputs"] = outputs + ["build_report.json"]
         (tmp / "build_report.json").write_text(json.dumps(report, indent=2, default=json_default) + "\n")
-
-

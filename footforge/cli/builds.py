@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from footforge.envs.anymal import DEFAULT_BUILD_ROOT
+from footforge.variants import Variant
 
 
-def build_defaults_if_missing(variants: Iterable[str], build_root: Path | None, console=None) -> None:
+def build_defaults_if_missing(variants: Iterable[Variant], build_root: Path | None, console=None) -> None:
     """Without a build root given (`build_root` None), builds each of `variants` into
     build/<variant>/ that holds no scene.xml yet, as `footforge build --variant <variant> --format
     mjcf` would. A build root the user gives must hold its builds already: the environments say
@@ -24,8 +25,10 @@ def build_defaults_if_missing(variants: Iterable[str], build_root: Path | None, 
         # machine, which trains from builds made beforehand (scripts/device), nor in a core install.
         from footforge.extras import require_build_extra
 
-        require_build_extra(f"{folder} holds no model, and building it",
-                            alternative="give --build-root with models built by footforge build elsewhere")
+        require_build_extra(
+            f"{folder} holds no model, and building it",
+            alternative="give --build-root with models built by footforge build elsewhere",
+        )
         from footforge.build import BuildOptions, build
 
         message = f"building {variant} into {folder} (footforge build --variant {variant} --format mjcf)"
@@ -34,5 +37,7 @@ def build_defaults_if_missing(variants: Iterable[str], build_root: Path | None, 
             build(BuildOptions(variant=variant, out_dir=folder, formats=("mjcf",)))
             continue
         with console.status(message) as status:
-            build(BuildOptions(variant=variant, out_dir=folder, formats=("mjcf",)),
-                  progress=lambda stage: status.update(f"{message}: {stage}"))
+            build(
+                BuildOptions(variant=variant, out_dir=folder, formats=("mjcf",)),
+                progress=lambda stage: status.update(f"{message}: {stage}"),  # noqa: B023  (called in this iteration)
+            )

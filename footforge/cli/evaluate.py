@@ -29,30 +29,52 @@ from pathlib import Path
 
 def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
     """The options of `footforge evaluate`."""
+    from footforge.cli.help import DocstringHelpFormatter
     from footforge.envs import FEET
 
-    from footforge.cli.help import DocstringHelpFormatter
-
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
-    p.add_argument("--policy", type=Path, nargs="+", required=True, help="training runs' folders (each its policy/, or without an intact one its newest intact "
-                        "checkpoint), policy/ folders, or checkpoints/<step>/ folders")
+    p.add_argument(
+        "--policy",
+        type=Path,
+        nargs="+",
+        required=True,
+        help="training runs' folders (each its policy/, or without an intact one its newest intact "
+        "checkpoint), policy/ folders, or checkpoints/<step>/ folders",
+    )
     p.add_argument("--feet", nargs="+", choices=FEET, help="feet to evaluate on (default: each policy's own)")
     p.add_argument("--num-envs", type=int, default=1024, help="robots evaluated at once, each for --seconds")
     p.add_argument("--seconds", type=float, help="simulated time (default 60 s flat, 17.5 s rough)")
     p.add_argument("--seed", type=int, default=0, help="seed of the commands, pushes, noise and spawn points")
-    p.add_argument("--physics", choices=["auto", "mjx", "mujoco"], default="auto",
-                   help="the engine (EnvConfig.physics): auto is MuJoCo's C engine on a CPU, MJX on a GPU")
-    p.add_argument("--build-root", type=Path,
-                   help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
-    p.add_argument("--video", type=float, metavar="SECONDS",
-                   help="also record one robot this long: video_<i>.gif and strip_<i>.png (needs MUJOCO_GL)")
-    p.add_argument("--out", type=Path, default=Path("evaluation"),
-                   help="output folder (default evaluation/); replaced only if footforge wrote it, see --force")
-    p.add_argument("--force", action="store_true",
-                   help="replace --out even if footforge did not write it (it may hold your files)")
-    p.add_argument("--no-compile-cache", action="store_true",
-                   help="compile without JAX's persistent cache (on by default on a GPU; on the CPU only where "
-                        "FOOTFORGE_COMPILE_CACHE names a folder: footforge/rl/compile_cache.py)")
+    p.add_argument(
+        "--physics",
+        choices=["auto", "mjx", "mujoco"],
+        default="auto",
+        help="the engine (EnvConfig.physics): auto is MuJoCo's C engine on a CPU, MJX on a GPU",
+    )
+    p.add_argument(
+        "--build-root", type=Path, help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)"
+    )
+    p.add_argument(
+        "--video",
+        type=float,
+        metavar="SECONDS",
+        help="also record one robot this long: video_<i>.gif and strip_<i>.png (needs MUJOCO_GL)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=Path("evaluation"),
+        help="output folder (default evaluation/); replaced only if footforge wrote it, see --force",
+    )
+    p.add_argument(
+        "--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)"
+    )
+    p.add_argument(
+        "--no-compile-cache",
+        action="store_true",
+        help="compile without JAX's persistent cache (on by default on a GPU; on the CPU only where "
+        "FOOTFORGE_COMPILE_CACHE names a folder: footforge/rl/compile_cache.py)",
+    )
     return p
 
 
@@ -67,7 +89,11 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate") -> int
 
     from footforge.cli.guard import run_guarded
 
-    if args.num_envs < 1 or (args.seconds is not None and args.seconds <= 0) or (args.video is not None and args.video <= 0):
+    if (
+        args.num_envs < 1
+        or (args.seconds is not None and args.seconds <= 0)
+        or (args.video is not None and args.video <= 0)
+    ):
         print("footforge evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
         return 2
     from footforge.rl import compile_cache
@@ -78,11 +104,11 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate") -> int
 
 def _run(args) -> int:
     from footforge.atomic import atomic_directory
-    from footforge.rl.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
-    from footforge.outputs import check_output_folder
-    from footforge.rl.policy_card import card_name, policy_card
     from footforge.cli.builds import build_defaults_if_missing
     from footforge.cli.guard import policy_in_use
+    from footforge.outputs import check_output_folder
+    from footforge.rl.evaluate import comparison_markdown, evaluate, plot, record, terrain_markdown
+    from footforge.rl.policy_card import card_name, policy_card
     from footforge.rl.policy_files import load_policy_config
 
     check_output_folder(args.out, force=args.force)  # before minutes of evaluation
@@ -103,29 +129,65 @@ def _run(args) -> int:
             build_dir = str(args.build_root / feet) if args.build_root else None
             # evaluate() is one compiled rollout: say what runs before its minutes, and what came out.
             started = time.perf_counter()
-            print(f"footforge evaluate: {policy} on {feet}: {args.num_envs:,} robots"
-                  + (f" x {args.seconds:g} s" if args.seconds else "") + " (compiling, then simulating) ...",
-                  file=sys.stderr, flush=True)
-            results.append(evaluate(policy, feet=feet, num_envs=args.num_envs, seconds=args.seconds,
-                                    seed=args.seed, build_dir=build_dir, physics=args.physics))
-            print(f"footforge evaluate: {policy} on {feet}: done in {time.perf_counter() - started:.0f} s, "
-                  f"{results[-1]['falls']} of {args.num_envs:,} fell", file=sys.stderr, flush=True)
+            print(
+                f"footforge evaluate: {policy} on {feet}: {args.num_envs:,} robots"
+                + (f" x {args.seconds:g} s" if args.seconds else "")
+                + " (compiling, then simulating) ...",
+                file=sys.stderr,
+                flush=True,
+            )
+            results.append(
+                evaluate(
+                    policy,
+                    feet=feet,
+                    num_envs=args.num_envs,
+                    seconds=args.seconds,
+                    seed=args.seed,
+                    build_dir=build_dir,
+                    physics=args.physics,
+                )
+            )
+            print(
+                f"footforge evaluate: {policy} on {feet}: done in {time.perf_counter() - started:.0f} s, "
+                f"{results[-1]['falls']} of {args.num_envs:,} fell",
+                file=sys.stderr,
+                flush=True,
+            )
             if results[-1].get("kinds_not_covered"):
                 covered, missed = results[-1]["kinds_covered"], results[-1]["kinds_not_covered"]
-                print(f"footforge evaluate: warning: {args.num_envs} robots cover {len(covered)} of {len(covered) + len(missed)} "
-                      f"terrain kinds; not measured: {', '.join(missed)} (give --num-envs {len(covered) + len(missed)} "
-                      f"or more)", file=sys.stderr)
+                print(
+                    f"footforge evaluate: warning: {args.num_envs} robots cover {len(covered)} of "
+                    f"{len(covered) + len(missed)} "
+                    f"terrain kinds; not measured: {', '.join(missed)} (give --num-envs {len(covered) + len(missed)} "
+                    f"or more)",
+                    file=sys.stderr,
+                )
             if results[-1]["diverged"]:
-                print(f"footforge evaluate: warning: {policy} on {feet}: the simulation of {results[-1]['diverged']} of "
-                      f"{args.num_envs} robots diverged (counted among the falls)", file=sys.stderr)
+                print(
+                    f"footforge evaluate: warning: {policy} on {feet}: the simulation of {results[-1]['diverged']} of "
+                    f"{args.num_envs} robots diverged (counted among the falls)",
+                    file=sys.stderr,
+                )
             if args.video:
                 i = len(results) - 1
                 kinds = [None] + (["stairs_up", "stepping_stones"] if results[i]["task"] == "rough" else [])
                 for kind in kinds:
                     suffix = f"{i}_{kind}" if kind else f"{i}"
-                    recordings.append((suffix, results[i]["policy_dt_s"], *record(
-                        policy, feet=feet, seconds=args.video, seed=args.seed, build_dir=build_dir, kind=kind,
-                        physics=args.physics)))
+                    recordings.append(
+                        (
+                            suffix,
+                            results[i]["policy_dt_s"],
+                            *record(
+                                policy,
+                                feet=feet,
+                                seconds=args.video,
+                                seed=args.seed,
+                                build_dir=build_dir,
+                                kind=kind,
+                                physics=args.physics,
+                            ),
+                        )
+                    )
     with atomic_directory(args.out, force=args.force) as tmp:
         files = plot(results, tmp)
         for suffix, policy_dt_s, model, qpos in recordings:
@@ -136,16 +198,16 @@ def _run(args) -> int:
         (tmp / "comparison.md").write_text(comparison_markdown(results) + "\n" + terrain_markdown(results))
         for k, policy in enumerate(args.policy):  # one card per policy, linking its own plots
             card = card_name(k, len(args.policy))
-            (tmp / card).write_text(policy_card(policy, [(i, r) for i, r in enumerate(results)
-                                                         if r["policy"] == str(policy)], files))
+            (tmp / card).write_text(
+                policy_card(policy, [(i, r) for i, r in enumerate(results) if r["policy"] == str(policy)], files)
+            )
             cards.append(card)
-        (tmp / "metrics.json").write_text(json.dumps(
-            [{k: v for k, v in r.items() if k != "traces"} for r in results], indent=2))
+        (tmp / "metrics.json").write_text(
+            json.dumps([{k: v for k, v in r.items() if k != "traces"} for r in results], indent=2)
+        )
     print((args.out / "comparison.md").read_text())
     print(f"written to {args.out}: metrics.json, comparison.md, " + ", ".join(cards + files))
     return 0
-
-
 
 
 if __name__ == "__main__":

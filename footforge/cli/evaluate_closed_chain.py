@@ -27,20 +27,34 @@ def parser(prog: str = "footforge evaluate-closed-chain") -> argparse.ArgumentPa
     from footforge.cli.help import DocstringHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
-    p.add_argument("--policy", type=Path, nargs="+", required=True, help="training runs' folders (each its policy/, or without an intact one its newest intact "
-                        "checkpoint), policy/ folders, or checkpoints/<step>/ folders")
+    p.add_argument(
+        "--policy",
+        type=Path,
+        nargs="+",
+        required=True,
+        help="training runs' folders (each its policy/, or without an intact one its newest intact "
+        "checkpoint), policy/ folders, or checkpoints/<step>/ folders",
+    )
     p.add_argument("--seconds", type=float, default=10.0, help="simulated time per robot (default 10)")
     p.add_argument("--robots", type=int, default=4, help="robots per feet (default 4)")
     p.add_argument("--seed", type=int, default=0, help="seed of the commands and observation noise")
-    p.add_argument("--terrain", action="store_true",
-                   help="walk on a few terrain tiles (slopes, stairs, obstacles) instead of flat ground")
-    p.add_argument("--build-root", type=Path,
-                   help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
-    p.add_argument("--out", type=Path, default=Path("closed_chain_evaluation"),
-                   help="output folder (default closed_chain_evaluation/); replaced only if footforge wrote it, "
-                        "see --force")
-    p.add_argument("--force", action="store_true",
-                   help="replace --out even if footforge did not write it (it may hold your files)")
+    p.add_argument(
+        "--terrain",
+        action="store_true",
+        help="walk on a few terrain tiles (slopes, stairs, obstacles) instead of flat ground",
+    )
+    p.add_argument(
+        "--build-root", type=Path, help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)"
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=Path("closed_chain_evaluation"),
+        help="output folder (default closed_chain_evaluation/); replaced only if footforge wrote it, see --force",
+    )
+    p.add_argument(
+        "--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)"
+    )
     return p
 
 
@@ -62,15 +76,13 @@ def _run(args) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from footforge.atomic import atomic_directory
-    from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
-    from footforge.outputs import check_output_folder
     from footforge.cli.builds import build_defaults_if_missing
     from footforge.cli.guard import policy_in_use
-    from footforge.rl.policy_files import load_policy_config
-
     from footforge.cli.help import console as make_console
-
     from footforge.envs import engine
+    from footforge.outputs import check_output_folder
+    from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
+    from footforge.rl.policy_files import load_policy_config
 
     console = make_console()
     engine.check("mujoco")  # its robots step on the C engine's threads (FOOTFORGE_PHYSICS_THREADS)
@@ -79,32 +91,51 @@ def _run(args) -> int:
     trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder
     build_defaults_if_missing([*trained_on, "full"], args.build_root, console)
     results = []
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=console, transient=True) as progress:
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    ) as progress:
         for policy in args.policy:
-            tasks = {}
+            tasks: dict = {}
 
             def report(feet, done, total, policy=policy, tasks=tasks):
                 if feet not in tasks:
                     tasks[feet] = progress.add_task(f"{policy.parent.name or policy} on {feet}", total=total)
                 progress.update(tasks[feet], completed=done)
-            results.append(evaluate_closed_chain(
-                policy, seconds=args.seconds, num_robots=args.robots, seed=args.seed, build_root=args.build_root,
-                terrain_tiles=TERRAIN_TILES if args.terrain else None, progress=report))
+
+            results.append(
+                evaluate_closed_chain(
+                    policy,
+                    seconds=args.seconds,
+                    num_robots=args.robots,
+                    seed=args.seed,
+                    build_root=args.build_root,
+                    terrain_tiles=TERRAIN_TILES if args.terrain else None,
+                    progress=report,
+                )
+            )
     with atomic_directory(args.out, force=args.force) as tmp:
         files = []
         for i, r in enumerate(results):
             plot(r, tmp / f"closed_chain_{i}.png")
             files.append(f"closed_chain_{i}.png")
         (tmp / "closed_chain.md").write_text(comparison_markdown(results))
-        (tmp / "metrics.json").write_text(json.dumps(
-            [r | {"feet": {f: {k: v for k, v in c.items() if k != "traces"} for f, c in r["feet"].items()}}
-             for r in results], indent=2))
+        (tmp / "metrics.json").write_text(
+            json.dumps(
+                [
+                    r | {"feet": {f: {k: v for k, v in c.items() if k != "traces"} for f, c in r["feet"].items()}}
+                    for r in results
+                ],
+                indent=2,
+            )
+        )
     print((args.out / "closed_chain.md").read_text())
     print(f"written to {args.out}: metrics.json, closed_chain.md, " + ", ".join(files))
     return 0
-
-
 
 
 if __name__ == "__main__":

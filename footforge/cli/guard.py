@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from typing import Callable
+from collections.abc import Callable
 
 from footforge.errors import FootforgeError, interrupt_exit_code, interrupt_word
 from footforge.processes import sigterm_as_interrupt
@@ -12,8 +12,8 @@ from footforge.processes import sigterm_as_interrupt
 def run_guarded(prog: str, work: Callable[[], int], *, interrupted: str = "no output was written") -> int:
     """`work()` as the body of command `prog`, with SIGTERM handled as Ctrl-C (a terminated run
     cleans up as an interrupted one). A FootforgeError prints "prog: error: ..." and returns its exit
-    code (1: a check failed; 2: usage or input); an interrupt prints "prog: interrupted; ..." ("terminated" for SIGTERM) and
-    returns 130 (Ctrl-C) or 143 (SIGTERM), as shells report them."""
+    code (1: a check failed; 2: usage or input); an interrupt prints "prog: interrupted; ..."
+    ("terminated" for SIGTERM) and returns 130 (Ctrl-C) or 143 (SIGTERM), as shells report them."""
     try:
         with sigterm_as_interrupt():
             return work()

@@ -15,9 +15,15 @@ class DefaultsHelpFormatter(argparse.HelpFormatter):
     def _get_help_string(self, action):
         text = action.help or ""
         default = action.default
-        if (action.option_strings and "default" not in text.lower() and "%(default)" not in text
-                and default is not None and default is not argparse.SUPPRESS and not isinstance(default, bool)
-                and default != []):
+        if (
+            action.option_strings
+            and "default" not in text.lower()
+            and "%(default)" not in text
+            and default is not None
+            and default is not argparse.SUPPRESS
+            and not isinstance(default, bool)
+            and default != []
+        ):
             text += " (default: %(default)s)"
         return text
 

@@ -29,18 +29,33 @@ def parser(prog: str = "footforge play") -> argparse.ArgumentParser:
     from footforge.cli.help import DocstringHelpFormatter
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
-    p.add_argument("policy", type=Path, metavar="POLICY", help="a training run's folder (its policy/, or without an "
-                   "intact one its newest intact checkpoint), a policy/ or checkpoints/<step>/ folder, or an .onnx file")
+    p.add_argument(
+        "policy",
+        type=Path,
+        metavar="POLICY",
+        help="a training run's folder (its policy/, or without an "
+        "intact one its newest intact checkpoint), a policy/ or checkpoints/<step>/ folder, or an .onnx file",
+    )
     p.add_argument("--feet", help="ball, aff, aof or full (the 34-joint closed chain); default: the policy's own")
-    p.add_argument("--terrain", action="store_true",
-                   help="walk on terrain tiles (slopes, stairs down, obstacles) instead of flat ground")
-    p.add_argument("--build-root", type=Path,
-                   help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)")
+    p.add_argument(
+        "--terrain",
+        action="store_true",
+        help="walk on terrain tiles (slopes, stairs down, obstacles) instead of flat ground",
+    )
+    p.add_argument(
+        "--build-root", type=Path, help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)"
+    )
     p.add_argument("--seed", type=int, default=0, help="observation noise seed (default 0)")
     p.add_argument("--headless", action="store_true", help="no viewer: run --seconds under --command")
     p.add_argument("--seconds", type=float, default=10.0, help="headless: simulated seconds (default 10)")
-    p.add_argument("--command", type=float, nargs=3, default=[0.0, 0.0, 0.0], metavar=("VX", "VY", "YAW"),
-                   help="headless: forward and lateral velocity (m/s) and yaw rate (rad/s); default 0 0 0")
+    p.add_argument(
+        "--command",
+        type=float,
+        nargs=3,
+        default=[0.0, 0.0, 0.0],
+        metavar=("VX", "VY", "YAW"),
+        help="headless: forward and lateral velocity (m/s) and yaw rate (rad/s); default 0 0 0",
+    )
     p.add_argument("--video", type=Path, metavar="FILE.gif", help="headless: write a GIF (25 fps, real time)")
     p.add_argument("--width", type=int, default=480, help="video width in pixels (default 480)")
     p.add_argument("--height", type=int, default=270, help="video height in pixels (default 270)")
@@ -59,7 +74,6 @@ def main(argv: list[str] | None = None, prog: str = "footforge play") -> int:
     args = parser(prog).parse_args(argv)
 
     from footforge.errors import FootforgeError, interrupt_exit_code, interrupt_word
-
     from footforge.processes import sigterm_as_interrupt
 
     try:
@@ -86,14 +100,18 @@ def _check_arguments(args) -> None:
     if not args.headless and (args.video or args.log):
         raise InputError("--video and --log are for --headless runs", fix="add --headless (and --seconds, --command)")
     if args.seconds <= 0 or args.width < 16 or args.height < 16:
-        raise InputError("--seconds must be positive, --width and --height at least 16 pixels",
-                         fix="e.g. --seconds 5 --width 480 --height 270")
+        raise InputError(
+            "--seconds must be positive, --width and --height at least 16 pixels",
+            fix="e.g. --seconds 5 --width 480 --height 270",
+        )
     if args.feet is not None and args.feet not in FEET:
         raise InputError(f"unknown feet '{args.feet}'", fix=f"use one of {', '.join(FEET)}")
     if not args.policy.exists():
-        raise InputError("no such policy folder or file", file=str(args.policy),
-                         fix="pass a training run's folder (or its policy/ folder), or an .onnx file from footforge "
-                             "export")
+        raise InputError(
+            "no such policy folder or file",
+            file=str(args.policy),
+            fix="pass a training run's folder (or its policy/ folder), or an .onnx file from footforge export",
+        )
     from footforge.cli.guard import policy_in_use
 
     args.policy = policy_in_use(args.policy, PROG)  # a run's folder: its policy/ (or its newest intact checkpoint)
@@ -104,10 +122,15 @@ def _check_arguments(args) -> None:
         from footforge.rl.render import check_renderer
 
         check_renderer()  # before the policy's export and compilation
-    if not args.headless and sys.platform.startswith("linux") and not (
-            os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise InputError("no display for MuJoCo's viewer (DISPLAY is not set)",
-                         fix="run on a machine with a display, or use --headless --video FILE.gif")
+    if (
+        not args.headless
+        and sys.platform.startswith("linux")
+        and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    ):
+        raise InputError(
+            "no display for MuJoCo's viewer (DISPLAY is not set)",
+            fix="run on a machine with a display, or use --headless --video FILE.gif",
+        )
 
 
 def _check_output(flag: str, path: Path, suffix: str, force: bool) -> None:
@@ -120,8 +143,11 @@ def _check_output(flag: str, path: Path, suffix: str, force: bool) -> None:
         raise InputError(f"play writes {what} only", file=str(path), fix=f"give a {flag} file ending in {suffix}")
     check_output_file(path, flag)
     if path.exists() and not force and not _written_by_play(path):
-        raise InputError("exists and was not written by footforge play", file=str(path),
-                         fix=f"pass --force to replace it, or choose another {flag} path")
+        raise InputError(
+            "exists and was not written by footforge play",
+            file=str(path),
+            fix=f"pass --force to replace it, or choose another {flag} path",
+        )
 
 
 def _written_by_play(path: Path) -> bool:
@@ -143,15 +169,18 @@ def _run(args) -> int:
     import time
 
     from footforge.cli.builds import build_defaults_if_missing
-    from footforge.rl.play import Player, PlayConfig, check_feet, key_map_text, load_policy, play_headless
+    from footforge.rl.play import PlayConfig, Player, check_feet, key_map_text, load_policy, play_headless
 
     started = time.perf_counter()
     policy = load_policy(args.policy)
     feet = check_feet(policy, args.feet)
     meta = policy.metadata
-    print(f"{PROG}: {meta['policy_type']} policy trained on {meta['feet']} ({meta['task']}, "
-          f"{meta['global_step'] / 1e6:.1f} M steps), on {feet} feet, {'terrain tiles' if args.terrain else 'flat ground'}, "
-          f"stepped by MuJoCo's C engine")
+    print(
+        f"{PROG}: {meta['policy_type']} policy trained on {meta['feet']} ({meta['task']}, "
+        f"{meta['global_step'] / 1e6:.1f} M steps), on {feet} feet, "
+        f"{'terrain tiles' if args.terrain else 'flat ground'}, "
+        f"stepped by MuJoCo's C engine"
+    )
     build_defaults_if_missing([meta["feet"], feet], args.build_root)
     player = Player(policy, PlayConfig(feet=feet, terrain=args.terrain, build_root=args.build_root, seed=args.seed))
     if args.headless:
@@ -167,12 +196,16 @@ def _run(args) -> int:
     qpos = result.pop("qpos")
     states = result["states"]
     heights = states["base_height_m"]
-    print(f"{PROG}: {result['steps']} policy steps ({args.seconds:g} s, {result['physics_steps_per_policy_step']} "
-          f"physics steps each) under command {result['command']}: base height {min(heights):.3f} to "
-          f"{max(heights):.3f} m, mean vx {sum(states['vx']) / len(heights):+.3f} m/s, falls {result['falls']}")
+    print(
+        f"{PROG}: {result['steps']} policy steps ({args.seconds:g} s, {result['physics_steps_per_policy_step']} "
+        f"physics steps each) under command {result['command']}: base height {min(heights):.3f} to "
+        f"{max(heights):.3f} m, mean vx {sum(states['vx']) / len(heights):+.3f} m/s, falls {result['falls']}"
+    )
     print(f"{PROG}: verdict: {result['walking']['line']}")
-    print(f"{PROG}: setup {setup:.1f} s (export, build, compilation), run {result['wall_s']:.1f} s "
-          f"(real-time factor {result['real_time_factor']:.2f})")
+    print(
+        f"{PROG}: setup {setup:.1f} s (export, build, compilation), run {result['wall_s']:.1f} s "
+        f"(real-time factor {result['real_time_factor']:.2f})"
+    )
     from footforge.atomic import atomic_file
     from footforge.rl.play import TOOL
 
@@ -185,9 +218,16 @@ def _run(args) -> int:
         write_gif(frames, args.video, fps=1.0 / (every * result["policy_dt_s"]), comment=TOOL)
         print(f"{PROG}: {len(frames)} frames written to {args.video} in {time.perf_counter() - t0:.1f} s")
     if args.log:
-        log = {"tool": TOOL, "policy": str(args.policy), "policy_type": meta["policy_type"],
-               "trained_on": meta["feet"], "feet": feet, "terrain": args.terrain, "seconds": args.seconds,
-               "seed": args.seed} | result
+        log = {
+            "tool": TOOL,
+            "policy": str(args.policy),
+            "policy_type": meta["policy_type"],
+            "trained_on": meta["feet"],
+            "feet": feet,
+            "terrain": args.terrain,
+            "seconds": args.seconds,
+            "seed": args.seed,
+        } | result
         with atomic_file(args.log) as tmp:
             tmp.write_text(json.dumps(log, indent=1))
         print(f"{PROG}: states written to {args.log}")

@@ -9,10 +9,16 @@ Tasks x feet x policy types: flat x {ball, aff, aof} x {B, BH}; rough x {ball, a
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import get_args
+from typing import Any, get_args
 
-from footforge.envs.config import (CommandConfig, ContactModel, EnvConfig, ResetConfig,
-                                   RewardConfig, check_feet_and_policy)
+from footforge.envs.config import (
+    CommandConfig,
+    ContactModel,
+    EnvConfig,
+    ResetConfig,
+    RewardConfig,
+    check_feet_and_policy,
+)
 from footforge.errors import InputError
 from footforge.variants import FEET, HAPTIC, TASKS
 
@@ -47,11 +53,14 @@ def default_config(task: str, feet: str, policy: str, contact_model: str | None 
     if task not in TASKS:
         raise InputError(f"unknown task '{task}'", fix=f"use one of {', '.join(TASKS)}")
     if feet not in FEET:
-        raise InputError(f"unknown feet '{feet}' for training", fix=f"use one of {', '.join(FEET)} "
-                         "(the full closed chain is for evaluation on the CPU)")
+        raise InputError(
+            f"unknown feet '{feet}' for training",
+            fix=f"use one of {', '.join(FEET)} (the full closed chain is for evaluation on the CPU)",
+        )
     if policy not in TASKS[task]:
-        raise InputError(f"policy type '{policy}' is not available for the {task} task",
-                         fix=f"use one of {', '.join(TASKS[task])}")
+        raise InputError(
+            f"policy type '{policy}' is not available for the {task} task", fix=f"use one of {', '.join(TASKS[task])}"
+        )
     check_feet_and_policy(feet, policy)
     if task == "flat":
         # The flat baseline's published scales where it has them (the rest: the rough baseline's),
@@ -59,19 +68,29 @@ def default_config(task: str, feet: str, policy: str, contact_model: str | None 
         # (FLAT_TUNED_REWARDS). Its reset puts the joints at the defaults (only their velocities
         # are drawn). Position actions, default + 0.5 a, as the rough baseline, legged_gym and
         # Playground (EnvConfig.action says why not the flat baseline's velocity actions).
-        flat_rewards = RewardConfig().with_scales(lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006,
-                                                  **FLAT_TUNED_REWARDS, feet_air_time=FLAT_FEET_AIR_TIME)
-        config = EnvConfig(task="flat", feet=feet, policy=policy, action="position", action_scale=0.5,
-                           rewards=flat_rewards, reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
-                           commands=CommandConfig(resample_s=FLAT_COMMAND_RESAMPLE_S))
+        flat_rewards = RewardConfig().with_scales(
+            lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006, **FLAT_TUNED_REWARDS, feet_air_time=FLAT_FEET_AIR_TIME
+        )
+        config = EnvConfig(
+            task="flat",
+            feet=feet,
+            policy=policy,
+            action="position",
+            action_scale=0.5,
+            rewards=flat_rewards,
+            reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
+            commands=CommandConfig(resample_s=FLAT_COMMAND_RESAMPLE_S),
+        )
     else:
         # The rough baseline: position targets default + 0.5 a, planar commands in [-1, 1] m/s with
         # slow ones zeroed.
         commands = CommandConfig(lin_vel_x_range=(-1.0, 1.0), lin_vel_y_range=(-1.0, 1.0), zero_below=0.25)
-        config = EnvConfig(task="rough", feet=feet, policy=policy, action="position", action_scale=0.5,
-                           commands=commands)
+        config = EnvConfig(
+            task="rough", feet=feet, policy=policy, action="position", action_scale=0.5, commands=commands
+        )
     contact_model = contact_model or config.contact_model
-    return replace(config, contact_model=contact_model, **physics(feet, contact_model))
+    # A str contact_model: physics() refuses an unknown one.
+    return replace(config, contact_model=contact_model, **physics(feet, contact_model))  # type: ignore[arg-type]
 
 
 CONTACT_MODELS = get_args(ContactModel)
@@ -99,8 +118,12 @@ def physics(feet: str, contact_model: str) -> dict:
         raise InputError(f"unknown contact model '{contact_model}'", fix=f"use one of {', '.join(CONTACT_MODELS)}")
     sim_dt = 0.005 if contact_model == "fast" else STANCE_CONTACT_MAX_SIM_DT
     iterations, ls_iterations = min_solver_iterations(contact_model, feet) or (4, 8)
-    return {"sim_dt": sim_dt, "decimation": int(round(POLICY_DT / sim_dt)), "solver_iterations": iterations,
-            "solver_ls_iterations": ls_iterations}
+    return {
+        "sim_dt": sim_dt,
+        "decimation": int(round(POLICY_DT / sim_dt)),
+        "solver_iterations": iterations,
+        "solver_ls_iterations": ls_iterations,
+    }
 
 
 def on_feet(config, feet: str):
@@ -126,19 +149,23 @@ def with_contact_model(config, contact_model: str):
     physics())."""
     from footforge.envs.anymal import STANCE_CONTACT_MAX_SIM_DT, min_solver_iterations
 
-    changes = {"contact_model": contact_model}
+    changes: dict[str, Any] = {"contact_model": contact_model}
     if contact_model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT:
         decimation = config.policy_dt / STANCE_CONTACT_MAX_SIM_DT
         if abs(decimation - round(decimation)) > 1e-6:
-            raise InputError(f"contact_model 'stance' steps at most {STANCE_CONTACT_MAX_SIM_DT} s, which does not "
-                             f"divide the policy step {config.policy_dt:g} s",
-                             fix="use a policy step (sim_dt x decimation) that is a multiple of 2.5 ms")
+            raise InputError(
+                f"contact_model 'stance' steps at most {STANCE_CONTACT_MAX_SIM_DT} s, which does not "
+                f"divide the policy step {config.policy_dt:g} s",
+                fix="use a policy step (sim_dt x decimation) that is a multiple of 2.5 ms",
+            )
         changes |= {"sim_dt": STANCE_CONTACT_MAX_SIM_DT, "decimation": int(round(decimation))}
     needed = min_solver_iterations(contact_model, config.feet, config.float64_physics)
     if needed:
         iterations, ls_iterations = needed
-        changes |= {"solver_iterations": max(config.solver_iterations, iterations),
-                    "solver_ls_iterations": max(config.solver_ls_iterations, ls_iterations)}
+        changes |= {
+            "solver_iterations": max(config.solver_iterations, iterations),
+            "solver_ls_iterations": max(config.solver_ls_iterations, ls_iterations),
+        }
     return replace(config, **changes)
 
 
@@ -180,8 +207,9 @@ def make(task: str, feet: str, policy: str, **overrides):
 
 def registry() -> list[tuple[str, str, str]]:
     """Every valid (task, feet, policy) combination."""
-    return [(t, f, p) for t, policies in TASKS.items() for f in FEET for p in policies
-            if not (p in HAPTIC and f == "ball")]  # check_feet_and_policy's rule
+    return [
+        (t, f, p) for t, policies in TASKS.items() for f in FEET for p in policies if not (p in HAPTIC and f == "ball")
+    ]  # check_feet_and_policy's rule
 
 
 def policy_types(task: str, feet: str, requested) -> list[str]:

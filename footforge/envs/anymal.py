@@ -18,6 +18,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -134,13 +135,19 @@ def ensure_built(config: EnvConfig) -> Path:
     """
     folder = build_dir(config)
     if not (folder / "scene.xml").is_file():
-        raise InputError(f"{folder} holds no scene.xml", file=str(folder),
-                         fix=f"run footforge build --variant {config.feet} --out {folder}")
+        raise InputError(
+            f"{folder} holds no scene.xml",
+            file=str(folder),
+            fix=f"run footforge build --variant {config.feet} --out {folder}",
+        )
     problem = build_problem(folder, config.feet)
     if problem:
-        raise InputError(f"{folder} cannot be used: {problem}", file=str(folder / "build_report.json"),
-                         fix=f"rebuild it: footforge build --variant {config.feet} --out {folder} "
-                             "(add the --params or description flags it was built with)")
+        raise InputError(
+            f"{folder} cannot be used: {problem}",
+            file=str(folder / "build_report.json"),
+            fix=f"rebuild it: footforge build --variant {config.feet} --out {folder} "
+            "(add the --params or description flags it was built with)",
+        )
     return folder
 
 
@@ -159,8 +166,10 @@ def build_problem(folder: Path, feet: str) -> str | None:
     if report.get("variant") != feet:
         return f"it holds the '{report.get('variant')}' variant, not '{feet}'"
     if report.get("format") != C.BUILD_FORMAT:
-        return (f"it was built by an older footforge (build format {report.get('format')}, this one needs "
-                f"{C.BUILD_FORMAT}: {C.BUILD_FORMAT_NEEDS})")
+        return (
+            f"it was built by an older footforge (build format {report.get('format')}, this one needs "
+            f"{C.BUILD_FORMAT}: {C.BUILD_FORMAT_NEEDS})"
+        )
     for name, entry in report.get("inputs", {}).items():
         path = Path(entry.get("path", ""))
         if entry.get("sha256") and path.is_file() and _sha256(path) != entry["sha256"]:
@@ -182,8 +191,11 @@ def _shank_tubes_as_capsules(spec: mujoco.MjSpec) -> None:
             continue
         for geom in body.geoms:
             radius, half_length = geom.size[0], geom.size[1]
-            if (geom.type == mujoco.mjtGeom.mjGEOM_CYLINDER and (geom.contype or geom.conaffinity)
-                    and half_length > radius):
+            if (
+                geom.type == mujoco.mjtGeom.mjGEOM_CYLINDER
+                and (geom.contype or geom.conaffinity)
+                and half_length > radius
+            ):
                 geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
                 geom.size = [radius, half_length - radius, 0.0]
 
@@ -229,28 +241,43 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
             model.geom_contype[g] = model.geom_conaffinity[g] = 0
     # The C engine's model (under EnvConfig.physics 'mujoco'), or the CPU runner's (for_mjx=False,
     # footforge.envs.engine_mujoco.CpuRobots), each with the sensors it reads.
-    engine_model = (_with_engine_sensors(model, folder, config, terrain, category, for_mjx)
-                    if config.physics == "mujoco" or not for_mjx else None)
+    engine_model = (
+        _with_engine_sensors(model, folder, config, terrain, category, for_mjx)
+        if config.physics == "mujoco" or not for_mjx
+        else None
+    )
     joints = [model.joint(n) for n in C.ACTUATED_JOINTS]
     actuators = np.array([model.actuator(n).id for n in C.ACTUATED_JOINTS])
-    passive = [model.joint(j).name for j in range(model.njnt)
-               if "_foot/" in model.joint(j).name and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    passive = [
+        model.joint(j).name
+        for j in range(model.njnt)
+        if "_foot/" in model.joint(j).name and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
+    ]
     passive.sort(key=lambda n: (C.LEGS.index(n.split("_")[0]), n))
-    stand_qpos = model.key("stand" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand") >= 0
-                           else "home").qpos.copy()
+    stand_qpos = model.key(
+        "stand" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand") >= 0 else "home"
+    ).qpos.copy()
     if terrain is not None and config.heightfield_soles == "spheres" and config.feet in DERIVED:  # their own rest
         on_spheres = _stand_on_sole_spheres(folder, config)
         stand_qpos = stand_qpos if on_spheres is None else on_spheres
     return Robot(
-        model=model, home_qpos=model.key("home").qpos.copy(),
+        model=model,
+        home_qpos=model.key("home").qpos.copy(),
         stand_qpos=stand_qpos,
-        actuated_qpos=np.array([j.qposadr[0] for j in joints]), actuated_dof=np.array([j.dofadr[0] for j in joints]),
-        actuator_ids=actuators, default_q=np.array([C.DEFAULT_JOINT_ANGLES_RAD[n] for n in C.ACTUATED_JOINTS]),
-        q_limits=np.array([j.range for j in joints]), haa=np.array([i for i, n in enumerate(C.ACTUATED_JOINTS) if n.endswith("HAA")]),
+        actuated_qpos=np.array([j.qposadr[0] for j in joints]),
+        actuated_dof=np.array([j.dofadr[0] for j in joints]),
+        actuator_ids=actuators,
+        default_q=np.array([C.DEFAULT_JOINT_ANGLES_RAD[n] for n in C.ACTUATED_JOINTS]),
+        q_limits=np.array([j.range for j in joints]),
+        haa=np.array([i for i, n in enumerate(C.ACTUATED_JOINTS) if n.endswith("HAA")]),
         passive_qpos=np.array([model.joint(n).qposadr[0] for n in passive], int),
-        passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int), passive_names=tuple(passive),
-        geom_category=category, floor_geom=model.geom(FLOOR_GEOM).id,
-        foot_sites=np.array(foot_sites(model)), engine_model=engine_model)
+        passive_dof=np.array([model.joint(n).dofadr[0] for n in passive], int),
+        passive_names=tuple(passive),
+        geom_category=category,
+        floor_geom=model.geom(FLOOR_GEOM).id,
+        foot_sites=np.array(foot_sites(model)),
+        engine_model=engine_model,
+    )
 
 
 def _scene_spec(folder: Path, config: EnvConfig, terrain, for_mjx: bool) -> mujoco.MjSpec:
@@ -276,8 +303,12 @@ def _stand_on_sole_spheres(folder: Path, config: EnvConfig) -> np.ndarray | None
     them is not at rest (measured 2026-11-28: one AOF spawn of eight on rough level 0 kicked a foot
     up 12 cm in the first 0.1 s and slid 20 mm; from this pose 3.3 mm, as the others)."""
     scene = folder / "scene.xml"
-    return _stand_on_sole_spheres_cached(str(scene), scene.stat().st_mtime_ns, tuple(config.heightfield_sole_grid),
-                                         float(config.heightfield_sole_radius_m))
+    return _stand_on_sole_spheres_cached(
+        str(scene),
+        scene.stat().st_mtime_ns,
+        tuple(config.heightfield_sole_grid),
+        float(config.heightfield_sole_radius_m),
+    )
 
 
 @functools.lru_cache(maxsize=8)
@@ -290,18 +321,32 @@ def _stand_on_sole_spheres_cached(scene: str, mtime_ns: int, grid: tuple[int, in
     try:
         qpos, _ = rest_pose(spec.compile())
     except NoRest as e:
-        raise InputError(f"the robot on its sole spheres (heightfield_sole_grid {grid}, radius {radius_m} m) did "
-                         f"not come to rest on flat ground ({e})", file=scene,
-                         fix="set heightfield_soles to 'box', or another grid or radius") from None
+        raise InputError(
+            f"the robot on its sole spheres (heightfield_sole_grid {grid}, radius {radius_m} m) did "
+            f"not come to rest on flat ground ({e})",
+            file=scene,
+            fix="set heightfield_soles to 'box', or another grid or radius",
+        ) from None
     return qpos
 
 
-_SOLE_GEOM_ATTRIBUTES = ("contype", "conaffinity", "group", "friction", "solmix", "solref", "solimp", "condim",
-                         "priority", "margin", "gap")
+_SOLE_GEOM_ATTRIBUTES = (
+    "contype",
+    "conaffinity",
+    "group",
+    "friction",
+    "solmix",
+    "solref",
+    "solimp",
+    "condim",
+    "priority",
+    "margin",
+    "gap",
+)
 """What a sole sphere takes over from the box it stands in for."""
 
 
-def _sole_boxes_as_spheres(spec: mujoco.MjSpec, grid: tuple[int, int], radius: float) -> int:
+def _sole_boxes_as_spheres(spec: mujoco.MjSpec, grid: Sequence[int], radius: float) -> int:
     """Each colliding sole box of the derived feet becomes a grid of spheres on its bottom face
     (EnvConfig.heightfield_soles): the same friction and contact parameters, no mass (the bodies'
     inertials are explicit), in both engines' models, so a heightfield is collided by each engine's
@@ -311,9 +356,11 @@ def _sole_boxes_as_spheres(spec: mujoco.MjSpec, grid: tuple[int, int], radius: f
 
     grid = tuple(grid)
     if len(grid) != 2 or min(grid) < 1 or not radius > 0:
-        raise InputError(f"heightfield_sole_grid {grid} and heightfield_sole_radius_m {radius}: give two counts of at "
-                         "least 1 and a positive radius", fix="e.g. heightfield_sole_grid=(3, 2), "
-                                                              "heightfield_sole_radius_m=0.008")
+        raise InputError(
+            f"heightfield_sole_grid {grid} and heightfield_sole_radius_m {radius}: give two counts of at "
+            "least 1 and a positive radius",
+            fix="e.g. heightfield_sole_grid=(3, 2), heightfield_sole_radius_m=0.008",
+        )
     replaced = 0
     for body in spec.bodies:
         if "_foot/sole" not in body.name:
@@ -322,15 +369,27 @@ def _sole_boxes_as_spheres(spec: mujoco.MjSpec, grid: tuple[int, int], radius: f
             if geom.type != mujoco.mjtGeom.mjGEOM_BOX or not (geom.contype or geom.conaffinity):
                 continue
             if not np.allclose(geom.quat, [1.0, 0.0, 0.0, 0.0]):  # the build places sole boxes unrotated
-                raise InputError(f"the sole box {geom.name} is rotated in its body; heightfield_soles 'spheres' "
-                                 f"places spheres on an unrotated box", fix="set heightfield_soles to 'box'")
+                raise InputError(
+                    f"the sole box {geom.name} is rotated in its body; heightfield_soles 'spheres' "
+                    f"places spheres on an unrotated box",
+                    fix="set heightfield_soles to 'box'",
+                )
             if radius > min(geom.size[:2]):
-                raise InputError(f"heightfield_sole_radius_m {radius} is wider than the sole box {geom.name} (half "
-                                 f"sizes {geom.size[0]:.4f} x {geom.size[1]:.4f} m)",
-                                 fix=f"give at most {min(geom.size[:2]):.4f}")
-            for i, shape in enumerate(sole_primitives(np.array(geom.pos), np.array(geom.size), "spheres", grid, radius)):
-                sphere = body.add_geom(name=f"{geom.name}_sphere{i}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
-                                       size=[shape["size"][0], 0.0, 0.0], pos=shape["pos"], mass=0.0)
+                raise InputError(
+                    f"heightfield_sole_radius_m {radius} is wider than the sole box {geom.name} (half "
+                    f"sizes {geom.size[0]:.4f} x {geom.size[1]:.4f} m)",
+                    fix=f"give at most {min(geom.size[:2]):.4f}",
+                )
+            for i, shape in enumerate(
+                sole_primitives(np.array(geom.pos), np.array(geom.size), "spheres", grid, radius)
+            ):
+                sphere = body.add_geom(
+                    name=f"{geom.name}_sphere{i}",
+                    type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                    size=[shape["size"][0], 0.0, 0.0],
+                    pos=shape["pos"],
+                    mass=0.0,
+                )
                 for name in _SOLE_GEOM_ATTRIBUTES:
                     setattr(sphere, name, getattr(geom, name))
             spec.delete(geom)
@@ -362,8 +421,9 @@ def _set_physics_options(model: mujoco.MjModel, config: EnvConfig, *, on_heightf
         model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
 
 
-def _with_engine_sensors(model: mujoco.MjModel, folder: Path, config: EnvConfig, terrain,
-                         category: np.ndarray, for_mjx: bool) -> mujoco.MjModel:
+def _with_engine_sensors(
+    model: mujoco.MjModel, folder: Path, config: EnvConfig, terrain, category: np.ndarray, for_mjx: bool
+) -> mujoco.MjModel:
     """`model` compiled again with the sensors the C engine reads (engine_mujoco.add_sensors), its
     physics settings and colliders as in `model`; for the CPU runner (not for_mjx, where the base
     and thighs collide) also their ground contacts and any closure residuals. Sensors change no
@@ -373,8 +433,15 @@ def _with_engine_sensors(model: mujoco.MjModel, folder: Path, config: EnvConfig,
     spec = _scene_spec(folder, config, terrain, for_mjx=for_mjx)
     probed = (category == GEOM_BASE) | ((category >= GEOM_THIGH) & (category < GEOM_THIGH + 4))
     bodies = np.unique(model.geom_bodyid[probed])
-    add_sensors(spec, model, [np.flatnonzero(category == GEOM_FOOT + i) for i in range(4)], model.geom(FLOOR_GEOM).id,
-                probe_bodies=bodies, foot_sites=foot_sites(model), ground_bodies=() if for_mjx else bodies)
+    add_sensors(
+        spec,
+        model,
+        [np.flatnonzero(category == GEOM_FOOT + i) for i in range(4)],
+        model.geom(FLOOR_GEOM).id,
+        probe_bodies=bodies,
+        foot_sites=foot_sites(model),
+        ground_bodies=() if for_mjx else bodies,
+    )
     engine_model = spec.compile()
     _set_physics_options(engine_model, config, on_heightfield=terrain is not None)
     engine_model.geom_contype[:] = model.geom_contype
@@ -438,10 +505,12 @@ def check_contact_model(config: EnvConfig) -> None:
     solver iterations (EnvConfig.contact_model; the limits are this module's constants)."""
     model = config.contact_model
     if model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT + 1e-12:
-        raise InputError(f"contact_model 'stance' needs sim_dt <= {STANCE_CONTACT_MAX_SIM_DT} s (given "
-                         f"{config.sim_dt}): at a longer step its friction chatters",
-                         fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
-                             f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, or contact_model='fast'")
+        raise InputError(
+            f"contact_model 'stance' needs sim_dt <= {STANCE_CONTACT_MAX_SIM_DT} s (given "
+            f"{config.sim_dt}): at a longer step its friction chatters",
+            fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
+            f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, or contact_model='fast'",
+        )
     needed = min_solver_iterations(model, config.feet, config.float64_physics)
     if needed and (config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]):
         precision = "float64" if config.float64_physics else "float32"
@@ -450,8 +519,9 @@ def check_contact_model(config: EnvConfig) -> None:
             f"{needed[1]} in {precision} physics (given {config.solver_iterations} and "
             f"{config.solver_ls_iterations}): with fewer its stiff friction diverges on {config.feet} feet",
             fix=f"set solver_iterations={needed[0]} and solver_ls_iterations={needed[1]}"
-                + (" (envs.with_float64_physics sets them with float64)" if config.float64_physics else "")
-                + ", or contact_model='fast'")
+            + (" (envs.with_float64_physics sets them with float64)" if config.float64_physics else "")
+            + ", or contact_model='fast'",
+        )
 
 
 def check_mjx_impl(config: EnvConfig) -> None:
@@ -466,12 +536,16 @@ def check_mjx_impl(config: EnvConfig) -> None:
     import jax
 
     if importlib.util.find_spec("warp") is None or importlib.util.find_spec("mujoco_warp") is None:
-        raise InputError("mjx_impl 'warp' needs MuJoCo Warp, which is not installed",
-                         fix="pip install 'mujoco-mjx[warp]' (with the project's constraints) on a machine "
-                             "with an NVIDIA GPU, or use mjx_impl jax")
+        raise InputError(
+            "mjx_impl 'warp' needs MuJoCo Warp, which is not installed",
+            fix="pip install 'mujoco-mjx[warp]' (with the project's constraints) on a machine "
+            "with an NVIDIA GPU, or use mjx_impl jax",
+        )
     if jax.default_backend() != "gpu":
-        raise InputError(f"mjx_impl 'warp' runs on NVIDIA GPUs only; JAX's device here is "
-                         f"{jax.default_backend()}", fix="use mjx_impl jax (--mjx-impl jax) on this machine")
+        raise InputError(
+            f"mjx_impl 'warp' runs on NVIDIA GPUs only; JAX's device here is {jax.default_backend()}",
+            fix="use mjx_impl jax (--mjx-impl jax) on this machine",
+        )
 
 
 def foot_sites(model: mujoco.MjModel) -> list[int]:

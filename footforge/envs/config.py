@@ -8,7 +8,7 @@ cfg/task YAML). PPO hyperparameters live apart, in footforge.rl.config (PPOConfi
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Any, Literal
 
 from footforge import constants as C
 from footforge.envs import observations, rewards
@@ -119,15 +119,18 @@ class ObservationConfig:
     pd_target: ObservationTerm = ObservationTerm(observations.pd_target, N_ACTUATED, read_by="pd_targets")
     """With pd_targets (for velocity actions): the actuated joints' PD targets minus
     the defaults, rad, noiseless (the controller knows them)."""
-    height_scan: ObservationTerm = ObservationTerm(observations.height_scan, "scan_points", read_by="perceptive",
-                                                   scale=5.0, noise=0.06)
+    height_scan: ObservationTerm = ObservationTerm(
+        observations.height_scan, "scan_points", read_by="perceptive", scale=5.0, noise=0.06
+    )
     """P/PH only: clip(base z - height_offset_m - terrain height, +-height_clip_m) at the scan
     points, m, x-major (EnvConfig.height_scan)."""
-    foot_joint_pos: ObservationTerm = ObservationTerm(observations.foot_joint_pos, "passive_joints",
-                                                      read_by="haptic", noise=0.01)
+    foot_joint_pos: ObservationTerm = ObservationTerm(
+        observations.foot_joint_pos, "passive_joints", read_by="haptic", noise=0.01
+    )
     """BH/PH only: passive foot joint angles, rad."""
-    foot_joint_vel: ObservationTerm = ObservationTerm(observations.foot_joint_vel, "passive_joints",
-                                                      read_by="haptic", scale=0.05, noise=1.5)
+    foot_joint_vel: ObservationTerm = ObservationTerm(
+        observations.foot_joint_vel, "passive_joints", read_by="haptic", scale=0.05, noise=1.5
+    )
     """BH/PH only: passive foot joint velocities, rad/s."""
     height_offset_m: float = 0.5
     """The height scan reads the terrain this far below the base, m."""
@@ -187,8 +190,7 @@ class RandomizationConfig:
 
     @property
     def enabled(self) -> bool:
-        return any(r is not None for r in (self.friction_range, self.payload_mass_kg_range,
-                                           self.motor_strength_range))
+        return any(r is not None for r in (self.friction_range, self.payload_mass_kg_range, self.motor_strength_range))
 
 
 @dataclass(frozen=True)
@@ -403,28 +405,41 @@ def check_policy_on_feet(config: EnvConfig, feet: str, source: str | None = None
     (footforge.rl.foot_imu). Blind and perceptive policies run on any feet (zero-shot). `source`:
     the policy's folder or file, named in the error."""
     if config.haptic and feet not in (config.feet, "full"):
-        raise InputError(f"a {config.policy} policy reads the passive joints of the {config.feet} feet it was "
-                         f"trained on; the {feet} feet have others", file=source,
-                         fix=f"run it on its own {config.feet} feet or the closed chain (full), or a blind (B) "
-                             "or perceptive (P) policy on other feet")
+        raise InputError(
+            f"a {config.policy} policy reads the passive joints of the {config.feet} feet it was "
+            f"trained on; the {feet} feet have others",
+            file=source,
+            fix=f"run it on its own {config.feet} feet or the closed chain (full), or a blind (B) "
+            "or perceptive (P) policy on other feet",
+        )
 
 
 def check_feet_and_policy(feet: str, policy: str) -> None:
     """Raises InputError for a haptic policy on feet without passive joints."""
     if policy in HAPTIC and feet == "ball":
-        raise InputError(f"policy type {policy} reads the feet's passive joints; the ball foot has none",
-                         fix="use B with ball feet, or aff/aof feet")
+        raise InputError(
+            f"policy type {policy} reads the feet's passive joints; the ball foot has none",
+            fix="use B with ball feet, or aff/aof feet",
+        )
 
 
 _SAVED_BEFORE_TERMS = {  # ObservationConfig's flat keys before each group was declared once (2026-11-26)
-    "lin_vel_scale": ("base_lin_vel", "scale"), "lin_vel_noise": ("base_lin_vel", "noise"),
-    "ang_vel_scale": ("base_ang_vel", "scale"), "ang_vel_noise": ("base_ang_vel", "noise"),
-    "gravity_noise": ("projected_gravity", "noise"), "command_scale": ("command", "scale"),
-    "joint_pos_scale": ("joint_pos", "scale"), "joint_pos_noise": ("joint_pos", "noise"),
-    "joint_vel_scale": ("joint_vel", "scale"), "joint_vel_noise": ("joint_vel", "noise"),
-    "foot_joint_pos_scale": ("foot_joint_pos", "scale"), "foot_joint_pos_noise": ("foot_joint_pos", "noise"),
-    "foot_joint_vel_scale": ("foot_joint_vel", "scale"), "foot_joint_vel_noise": ("foot_joint_vel", "noise"),
-    "height_scale": ("height_scan", "scale"), "height_noise_m": ("height_scan", "noise"),
+    "lin_vel_scale": ("base_lin_vel", "scale"),
+    "lin_vel_noise": ("base_lin_vel", "noise"),
+    "ang_vel_scale": ("base_ang_vel", "scale"),
+    "ang_vel_noise": ("base_ang_vel", "noise"),
+    "gravity_noise": ("projected_gravity", "noise"),
+    "command_scale": ("command", "scale"),
+    "joint_pos_scale": ("joint_pos", "scale"),
+    "joint_pos_noise": ("joint_pos", "noise"),
+    "joint_vel_scale": ("joint_vel", "scale"),
+    "joint_vel_noise": ("joint_vel", "noise"),
+    "foot_joint_pos_scale": ("foot_joint_pos", "scale"),
+    "foot_joint_pos_noise": ("foot_joint_pos", "noise"),
+    "foot_joint_vel_scale": ("foot_joint_vel", "scale"),
+    "foot_joint_vel_noise": ("foot_joint_vel", "noise"),
+    "height_scale": ("height_scan", "scale"),
+    "height_noise_m": ("height_scan", "noise"),
 }
 
 
@@ -437,7 +452,7 @@ def upgrade_saved(env: dict) -> dict:
     if env.get("task") == "rough" and "heightfield_soles" not in env:
         env["heightfield_soles"] = "box"  # rough runs saved before the key stood on the build's sole boxes
     if "observations" in env:
-        obs = {}
+        obs: dict[str, Any] = {}
         for key, value in env["observations"].items():
             if key in _SAVED_BEFORE_TERMS:
                 group, attribute = _SAVED_BEFORE_TERMS[key]
@@ -447,7 +462,8 @@ def upgrade_saved(env: dict) -> dict:
         env["observations"] = obs
     if "rewards" in env:
         reward_terms = rewards.terms(RewardConfig())
-        env["rewards"] = {key: {"scale": value} if key in reward_terms and not isinstance(value, dict) else value
-                          for key, value in env["rewards"].items()}
+        env["rewards"] = {
+            key: {"scale": value} if key in reward_terms and not isinstance(value, dict) else value
+            for key, value in env["rewards"].items()
+        }
     return env
-

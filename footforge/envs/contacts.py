@@ -72,7 +72,9 @@ def foot_points(model: mujoco.MjModel, geom_category: np.ndarray):
 def surface_points(model: mujoco.MjModel, geom_category: np.ndarray):
     """Sample points on the base and thigh geoms: (geom ids, points in the geom frame, category)."""
     geoms, points, category = [], [], []
-    for g in np.flatnonzero((geom_category == GEOM_BASE) | ((geom_category >= GEOM_THIGH) & (geom_category < GEOM_THIGH + 4))):
+    for g in np.flatnonzero(
+        (geom_category == GEOM_BASE) | ((geom_category >= GEOM_THIGH) & (geom_category < GEOM_THIGH + 4))
+    ):
         size = model.geom_size[g]
         if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
             local = box_corners(size)

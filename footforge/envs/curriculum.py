@@ -25,8 +25,15 @@ def first_levels(key, curriculum: CurriculumConfig, terrain: TerrainConfig, shap
     return level, column
 
 
-def next_level(level, distance_m, command_speed_mps, key, curriculum: CurriculumConfig, terrain: TerrainConfig,
-               episode_length_s: float):
+def next_level(
+    level,
+    distance_m,
+    command_speed_mps,
+    key,
+    curriculum: CurriculumConfig,
+    terrain: TerrainConfig,
+    episode_length_s: float,
+):
     """The level after an episode in which the robot ended `distance_m` from its spawn under a
     planar command of `command_speed_mps`.
 

@@ -37,6 +37,7 @@ class MjxPhysics:
     def step(self, sys, state, ctrl, qvel):
         def physics(d, _):
             return mjx.step(sys, d), None
+
         state, _ = jax.lax.scan(physics, state.replace(ctrl=ctrl, qvel=qvel), None, length=self._decimation)
         return state
 

@@ -72,7 +72,7 @@ class MujocoState:
     """The constraint solver's starting acceleration for the next physics step (module docstring)."""
     sensordata: jax.Array
     """The model's sensors at the last physics step's forward pass."""
-    force_sensors: jax.Array = struct.field(pytree_node=False, default=None)
+    force_sensors: tuple[int, ...] = struct.field(pytree_node=False, default=None)
     """The actuatorfrc sensors' addresses in sensordata, model order (static)."""
 
     @property
@@ -81,8 +81,16 @@ class MujocoState:
         return self.sensordata[..., self.force_sensors]
 
 
-def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, foot_geoms, floor_geom: int, probe_bodies,
-                foot_sites, *, ground_bodies=()) -> None:
+def add_sensors(
+    spec: mujoco.MjSpec,
+    model: mujoco.MjModel,
+    foot_geoms,
+    floor_geom: int,
+    probe_bodies,
+    foot_sites,
+    *,
+    ground_bodies=(),
+) -> None:
     """Declares in `spec` (whose compiled form is `model`) the sensors the C engine reads, named
     `footforge/...` after the model's own: actuatorfrc per actuator, framepos of each foot site,
     framepos and frame axes of each probe body, and per leg a contact sensor between its foot
@@ -95,15 +103,27 @@ def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, foot_geoms, floor_ge
     loop closures and roll couplings) the sensors its residuals are read from (ClosureResiduals)."""
     mj = mujoco.mjtObj
     for a in range(model.nu):
-        spec.add_sensor(name=f"footforge/{model.actuator(a).name}_force", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
-                        objtype=mj.mjOBJ_ACTUATOR, objname=model.actuator(a).name)
+        spec.add_sensor(
+            name=f"footforge/{model.actuator(a).name}_force",
+            type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+            objtype=mj.mjOBJ_ACTUATOR,
+            objname=model.actuator(a).name,
+        )
     for s in foot_sites:
-        spec.add_sensor(name=f"footforge/{model.site(s).name}_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
-                        objtype=mj.mjOBJ_SITE, objname=model.site(s).name)
+        spec.add_sensor(
+            name=f"footforge/{model.site(s).name}_pos",
+            type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+            objtype=mj.mjOBJ_SITE,
+            objname=model.site(s).name,
+        )
     for b in probe_bodies:
         name = model.body(b).name
-        for axis, kind in (("pos", mujoco.mjtSensor.mjSENS_FRAMEPOS), ("x", mujoco.mjtSensor.mjSENS_FRAMEXAXIS),
-                           ("y", mujoco.mjtSensor.mjSENS_FRAMEYAXIS), ("z", mujoco.mjtSensor.mjSENS_FRAMEZAXIS)):
+        for axis, kind in (
+            ("pos", mujoco.mjtSensor.mjSENS_FRAMEPOS),
+            ("x", mujoco.mjtSensor.mjSENS_FRAMEXAXIS),
+            ("y", mujoco.mjtSensor.mjSENS_FRAMEYAXIS),
+            ("z", mujoco.mjtSensor.mjSENS_FRAMEZAXIS),
+        ):
             spec.add_sensor(name=f"footforge/{name}_{axis}", type=kind, objtype=mj.mjOBJ_XBODY, objname=name)
     floor = model.geom(floor_geom).name
     for leg, feet in zip(C.LEGS, foot_geoms):
@@ -116,27 +136,48 @@ def add_sensors(spec: mujoco.MjSpec, model: mujoco.MjModel, foot_geoms, floor_ge
             raise ValueError(f"leg {leg}: neither a foot body '{foot_body}' nor one named foot geom")
         # MJCF: <contact subtree1|geom1=... geom2="floor" data="found force" reduce="maxforce" num=...>;
         # intprm holds (data bits: found 1, force 2; reduce: maxforce 2; slots).
-        sensor = spec.add_sensor(name=f"footforge/{leg}_foot_contact", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                                 objtype=objtype, objname=objname, reftype=mj.mjOBJ_GEOM, refname=floor)
+        sensor = spec.add_sensor(
+            name=f"footforge/{leg}_foot_contact",
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=objtype,
+            objname=objname,
+            reftype=mj.mjOBJ_GEOM,
+            refname=floor,
+        )
         sensor.intprm[:3] = [1 | 2, 2, FOOT_CONTACT_SLOTS]
     for b in ground_bodies:
         # <contact body1=... geom2="floor" data="found dist" reduce="mindist" num="1">
-        sensor = spec.add_sensor(name=f"footforge/{model.body(b).name}_ground", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                                 objtype=mj.mjOBJ_BODY, objname=model.body(b).name, reftype=mj.mjOBJ_GEOM,
-                                 refname=floor)
+        sensor = spec.add_sensor(
+            name=f"footforge/{model.body(b).name}_ground",
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=mj.mjOBJ_BODY,
+            objname=model.body(b).name,
+            reftype=mj.mjOBJ_GEOM,
+            refname=floor,
+        )
         sensor.intprm[:3] = [1 | 8, 1, 1]
     for i in range(model.neq):
         for k, obj in enumerate((model.eq_obj1id[i], model.eq_obj2id[i])):
             if model.eq_type[i] == mujoco.mjtEq.mjEQ_CONNECT:
                 if model.eq_objtype[i] != mj.mjOBJ_SITE:
                     raise ValueError(f"equality {i}: a connect between bodies; the closure sensors expect sites")
-                spec.add_sensor(name=f"footforge/eq{i}_anchor{k}", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
-                                objtype=mj.mjOBJ_SITE, objname=model.site(obj).name)
+                spec.add_sensor(
+                    name=f"footforge/eq{i}_anchor{k}",
+                    type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+                    objtype=mj.mjOBJ_SITE,
+                    objname=model.site(obj).name,
+                )
             elif model.eq_type[i] == mujoco.mjtEq.mjEQ_JOINT and obj >= 0:
-                spec.add_sensor(name=f"footforge/eq{i}_joint{k}", type=mujoco.mjtSensor.mjSENS_JOINTPOS,
-                                objtype=mj.mjOBJ_JOINT, objname=model.joint(obj).name)
+                spec.add_sensor(
+                    name=f"footforge/eq{i}_joint{k}",
+                    type=mujoco.mjtSensor.mjSENS_JOINTPOS,
+                    objtype=mj.mjOBJ_JOINT,
+                    objname=model.joint(obj).name,
+                )
             elif model.eq_type[i] != mujoco.mjtEq.mjEQ_JOINT:
-                raise ValueError(f"equality {i}: type {model.eq_type[i]} has no residual sensor (connect and joint only)")
+                raise ValueError(
+                    f"equality {i}: type {model.eq_type[i]} has no residual sensor (connect and joint only)"
+                )
 
 
 class ClosureResiduals:
@@ -148,11 +189,14 @@ class ClosureResiduals:
     def __init__(self, model: mujoco.MjModel):
         self.connect = np.flatnonzero(model.eq_type == mujoco.mjtEq.mjEQ_CONNECT)
         self.coupling = np.flatnonzero(model.eq_type == mujoco.mjtEq.mjEQ_JOINT)
-        self._anchors = np.array([[_sensor(model, f"footforge/eq{i}_anchor{k}") for k in (0, 1)] for i in self.connect],
-                                 int).reshape(-1, 2, 3)
+        self._anchors = np.array(
+            [[_sensor(model, f"footforge/eq{i}_anchor{k}") for k in (0, 1)] for i in self.connect], int
+        ).reshape(-1, 2, 3)
         self._joints = np.array([_sensor(model, f"footforge/eq{i}_joint0")[0] for i in self.coupling], int)
-        self._second = np.array([_sensor(model, f"footforge/eq{i}_joint1")[0] if model.eq_obj2id[i] >= 0 else -1
-                                 for i in self.coupling], int)
+        self._second = np.array(
+            [_sensor(model, f"footforge/eq{i}_joint1")[0] if model.eq_obj2id[i] >= 0 else -1 for i in self.coupling],
+            int,
+        )
         jnt_qpos0 = lambda j: model.qpos0[model.jnt_qposadr[j]] if j >= 0 else 0.0  # noqa: E731
         self._q0 = np.array([[jnt_qpos0(model.eq_obj1id[i]), jnt_qpos0(model.eq_obj2id[i])] for i in self.coupling])
         self._poly = model.eq_data[self.coupling, :5]
@@ -163,7 +207,7 @@ class ClosureResiduals:
         gaps = np.linalg.norm(a[..., 0, :] - a[..., 1, :], axis=-1)
         q1 = sensordata[..., self._joints] - self._q0[:, 0]
         q2 = np.where(self._second >= 0, sensordata[..., np.maximum(self._second, 0)] - self._q0[:, 1], 0.0)
-        poly = sum(self._poly[:, p] * q2 ** p for p in range(5))
+        poly = sum(self._poly[:, p] * q2**p for p in range(5))
         return gaps, np.abs(q1 - poly)
 
 
@@ -178,8 +222,10 @@ def physics_threads() -> int:
         if threads < 1:
             from footforge.errors import InputError
 
-            raise InputError(f"{THREADS_ENV}={value!r} is not a positive whole number",
-                             fix=f"set {THREADS_ENV} to the number of threads, or unset it")
+            raise InputError(
+                f"{THREADS_ENV}={value!r} is not a positive whole number",
+                fix=f"set {THREADS_ENV} to the number of threads, or unset it",
+            )
         return threads
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
@@ -215,8 +261,15 @@ class Rollouts:
         self.qvel = slice(1 + model.nq, 1 + model.nq + model.nv)
         self.dt = float(model.opt.timestep)
 
-    def step(self, models, state0: np.ndarray, ctrl: np.ndarray, nstep: int, warmstart: np.ndarray,
-             xfrc: np.ndarray | None = None):
+    def step(
+        self,
+        models,
+        state0: np.ndarray,
+        ctrl: np.ndarray,
+        nstep: int,
+        warmstart: np.ndarray,
+        xfrc: np.ndarray | None = None,
+    ):
         """`nstep` physics steps of each robot from its full physics state `state0` (N, nstate) under
         controls `ctrl` (N, nu) held through the steps, with `models` (one MjModel, or one per robot)
         and the constraint solver's starting acceleration `warmstart` (N, nv); `xfrc` (N, nbody, 6):
@@ -235,8 +288,15 @@ class Rollouts:
             control = np.concatenate([control, np.repeat(forces, nstep, axis=1)], axis=2)
             spec |= mujoco.mjtState.mjSTATE_XFRC_APPLIED.value
         with self._lock:
-            states, sensors = self._pool.rollout(models, self._datas, state0, control, control_spec=spec, nstep=nstep,
-                                                 initial_warmstart=np.asarray(warmstart, np.float64))
+            states, sensors = self._pool.rollout(
+                models,
+                self._datas,
+                state0,
+                control,
+                control_spec=spec,
+                nstep=nstep,
+                initial_warmstart=np.asarray(warmstart, np.float64),
+            )
         before = states[:, -2, self.qvel] if nstep > 1 else state0[:, self.qvel]
         warm = (states[:, -1, self.qvel] - before) / self.dt
         blew_up = np.abs(states[:, -1, 0] - state0[:, 0] - nstep * self.dt) > 0.5 * self.dt
@@ -269,9 +329,11 @@ class CpuRobots:
         self._force = np.concatenate([_sensor(m, f"footforge/{m.actuator(a).name}_force") for a in range(m.nu)])
         self._feet = np.stack([_sensor(m, f"footforge/{leg}_foot_contact") for leg in C.LEGS])
         # add_sensors' ground contacts, footforge/<body>_ground: the base's, and each leg's thigh's.
-        ground = {m.sensor(i).name[len("footforge/"):-len("_ground")]: _sensor(m, m.sensor(i).name)
-                  for i in range(m.nsensor) if m.sensor(i).name.startswith("footforge/")
-                  and m.sensor(i).name.endswith("_ground")}
+        ground = {
+            m.sensor(i).name[len("footforge/") : -len("_ground")]: _sensor(m, m.sensor(i).name)
+            for i in range(m.nsensor)
+            if m.sensor(i).name.startswith("footforge/") and m.sensor(i).name.endswith("_ground")
+        }
         pick = lambda names: np.array([ground[b] for b in names if b in ground], int).reshape(-1, 2)  # noqa: E731
         self._base = pick([C.BASE_BODY])
         self._thighs = [pick([f"{leg}_THIGH"]) for leg in C.LEGS]
@@ -301,8 +363,14 @@ class CpuRobots:
         mujoco.mj_forward(self.model, data)
         return data
 
-    def step(self, targets: np.ndarray, nstep: int, which: np.ndarray | None = None, push: np.ndarray | None = None,
-             xfrc: np.ndarray | None = None) -> np.ndarray:
+    def step(
+        self,
+        targets: np.ndarray,
+        nstep: int,
+        which: np.ndarray | None = None,
+        push: np.ndarray | None = None,
+        xfrc: np.ndarray | None = None,
+    ) -> np.ndarray:
         """`nstep` physics steps of the robots `which` (a mask; default all) with PD targets `targets`
         (N, 12, the robot's actuated joints in its actuator_ids order); `push` (N, 2) sets the
         base's planar velocity first where not NaN (the environment's push); `xfrc` (N, nbody, 6)
@@ -311,10 +379,15 @@ class CpuRobots:
         self.ctrl[:, self.robot.actuator_ids] = targets
         if push is not None:
             pushed = which & ~np.isnan(push[:, 0])
-            self.state[pushed, self._rollouts.qvel.start:self._rollouts.qvel.start + 2] = push[pushed]
+            self.state[pushed, self._rollouts.qvel.start : self._rollouts.qvel.start + 2] = push[pushed]
         states, sensors, warm, blew_up = self._rollouts.step(
-            self.model, self.state[which], self.ctrl[which], nstep, self.warmstart[which],
-            None if xfrc is None else np.asarray(xfrc)[which])
+            self.model,
+            self.state[which],
+            self.ctrl[which],
+            nstep,
+            self.warmstart[which],
+            None if xfrc is None else np.asarray(xfrc)[which],
+        )
         self.state[which], self.warmstart[which] = states[:, -1], warm
         self.sensordata[which], self.blew_up[which] = sensors[:, -1], blew_up
         return sensors
@@ -326,11 +399,12 @@ class CpuRobots:
     def feet_on_ground(self) -> np.ndarray:
         """(N, 4) whether each foot (LF, RF, LH, RH) touches the ground (its contact sensor found one)."""
         found = self.sensordata[:, self._feet].reshape(len(self.state), 4, FOOT_CONTACT_SLOTS, 4)[..., 0]
-        return (found > 0).any(axis=2)
+        return (found > 0).any(axis=2)  # type: ignore[return-value]  # found is 3-D: an array
 
     def ground_contacts(self) -> tuple[np.ndarray, np.ndarray]:
         """((N,) any base geom touches the ground, (N,) legs with a thigh geom touching it): a contact
         found at a negative distance (penetration)."""
+
         def touching(sensors):  # sensors (k, 2): found, dist addresses
             return ((self.sensordata[:, sensors[:, 0]] > 0) & (self.sensordata[:, sensors[:, 1]] < 0)).any(axis=1)
 
@@ -366,13 +440,22 @@ class MujocoPhysics:
         per-robot models and the forward pass's MjData are shared."""
         self._nstate = self._rollouts.nstate
         self._qpos, self._qvel = self._rollouts.qpos, self._rollouts.qvel
-        self._force_ids = tuple(int(i) for a in range(m.nu) for i in _sensor(m, f"footforge/{m.actuator(a).name}_force"))
+        self._force_ids = tuple(
+            int(i) for a in range(m.nu) for i in _sensor(m, f"footforge/{m.actuator(a).name}_force")
+        )
         self._site_ids = jp.asarray(np.stack([_sensor(m, f"footforge/{m.site(s).name}_pos") for s in robot.foot_sites]))
         probe_geoms = np.asarray(probe_geoms)
         bodies = np.unique(m.geom_bodyid[probe_geoms])
-        self._body_frames = jp.asarray(np.stack([np.concatenate([_sensor(m, f"footforge/{m.body(b).name}_{axis}")
-                                                                 for axis in ("pos", "x", "y", "z")])
-                                                 for b in bodies]))
+        self._body_frames = jp.asarray(
+            np.stack(
+                [
+                    np.concatenate(
+                        [_sensor(m, f"footforge/{m.body(b).name}_{axis}") for axis in ("pos", "x", "y", "z")]
+                    )
+                    for b in bodies
+                ]
+            )
+        )
         # Each probe point in its body's frame: the geom's pose in the body (geom_pos, geom_quat) applied.
         rotation = np.zeros((len(probe_geoms), 9))
         for i, g in enumerate(probe_geoms):
@@ -396,8 +479,10 @@ class MujocoPhysics:
         under the lock."""
         if not self._randomized:
             return self.model
-        fields = [np.asarray(f, np.float64).reshape(robots, *getattr(self.model, name).shape)
-                  for name, f in zip(self._randomized, fields)]
+        fields = [
+            np.asarray(f, np.float64).reshape(robots, *getattr(self.model, name).shape)
+            for name, f in zip(self._randomized, fields)
+        ]
         if len(self._robot_models) != robots:
             self._robot_models = [copy.copy(self.model) for _ in range(robots)]
             self._written = []
@@ -413,7 +498,7 @@ class MujocoPhysics:
         # computation that waits for this callback, which deadlocked under load (CI, 2026-11-28: a
         # `qpos + qpos_rest` here waited forever on XLA's CPU threads). NumPy views first, then only NumPy.
         qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = _numpy(qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart)
-        fields = _numpy(*fields)
+        fields = _numpy(*fields)  # type: ignore[assignment]
         batch, dtype = qpos.shape[:-1], qpos.dtype
         flat = [np.reshape(x, (-1, x.shape[-1])) for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart)]
         qpos, qpos_rest, qvel, qvel_rest, ctrl, warmstart = flat
@@ -433,10 +518,11 @@ class MujocoPhysics:
 
     def _host_forward(self, qpos, qpos_rest, qvel, qvel_rest, ctrl, *fields):
         qpos, qpos_rest, qvel, qvel_rest, ctrl = _numpy(qpos, qpos_rest, qvel, qvel_rest, ctrl)  # as _host_step
-        fields = _numpy(*fields)
+        fields = _numpy(*fields)  # type: ignore[assignment]
         batch, dtype = qpos.shape[:-1], qpos.dtype
-        qpos, qpos_rest, qvel, qvel_rest, ctrl = [np.reshape(x, (-1, x.shape[-1]))
-                                                  for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl)]
+        qpos, qpos_rest, qvel, qvel_rest, ctrl = [
+            np.reshape(x, (-1, x.shape[-1])) for x in (qpos, qpos_rest, qvel, qvel_rest, ctrl)
+        ]
         d = self._forward_data
         out = np.empty((len(qpos), self.model.nsensordata))
         state = self._initial_state(qpos, qpos_rest, qvel, qvel_rest)
@@ -455,34 +541,78 @@ class MujocoPhysics:
 
     def start(self, sys, qpos, qvel, ctrl):
         zeros = jp.zeros_like
-        state = MujocoState(qpos=qpos, qvel=qvel, qpos_rest=zeros(qpos), qvel_rest=zeros(qvel), ctrl=ctrl,
-                            warmstart=zeros(qvel), sensordata=jp.zeros(self.model.nsensordata, qpos.dtype),
-                            force_sensors=self._force_ids)
+        state = MujocoState(
+            qpos=qpos,
+            qvel=qvel,
+            qpos_rest=zeros(qpos),
+            qvel_rest=zeros(qvel),
+            ctrl=ctrl,
+            warmstart=zeros(qvel),
+            sensordata=jp.zeros(self.model.nsensordata, qpos.dtype),
+            force_sensors=self._force_ids,
+        )
         return self.forward(sys, state)
 
     def place(self, state, qpos, qvel, ctrl, where=True):
         zeros = jp.zeros_like
-        fields = {"qpos": qpos, "qvel": qvel, "ctrl": ctrl, "qpos_rest": zeros(state.qpos_rest),
-                  "qvel_rest": zeros(state.qvel_rest), "warmstart": zeros(state.warmstart)}
+        fields = {
+            "qpos": qpos,
+            "qvel": qvel,
+            "ctrl": ctrl,
+            "qpos_rest": zeros(state.qpos_rest),
+            "qvel_rest": zeros(state.qvel_rest),
+            "warmstart": zeros(state.warmstart),
+        }
         return state.replace(**{k: jp.where(where, v, getattr(state, k)) for k, v in fields.items()})
 
     def forward(self, sys, state):
         shape = jax.ShapeDtypeStruct((self.model.nsensordata,), state.qpos.dtype)
-        sensordata = jax.pure_callback(self._host_forward, shape, state.qpos, state.qpos_rest, state.qvel,
-                                       state.qvel_rest, state.ctrl, *self._fields_of(sys), vmap_method="broadcast_all")
+        sensordata = jax.pure_callback(
+            self._host_forward,
+            shape,
+            state.qpos,
+            state.qpos_rest,
+            state.qvel,
+            state.qvel_rest,
+            state.ctrl,
+            *self._fields_of(sys),
+            vmap_method="broadcast_all",
+        )
         return state.replace(sensordata=sensordata)
 
     def step(self, sys, state, ctrl, qvel):
         pushed = qvel != state.qvel  # a changed velocity (a push) drops its float64 remainder
         qvel_rest = jp.where(pushed, 0.0, state.qvel_rest)
         like = lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype)  # noqa: E731
-        shapes = (like(state.qpos), like(state.qpos), like(qvel), like(qvel), like(qvel),
-                  jax.ShapeDtypeStruct((self.model.nsensordata,), state.qpos.dtype))
+        shapes = (
+            like(state.qpos),
+            like(state.qpos),
+            like(qvel),
+            like(qvel),
+            like(qvel),
+            jax.ShapeDtypeStruct((self.model.nsensordata,), state.qpos.dtype),
+        )
         qpos, qpos_rest, qvel, qvel_rest, warmstart, sensordata = jax.pure_callback(
-            self._host_step, shapes, state.qpos, state.qpos_rest, qvel, qvel_rest, ctrl.astype(state.qpos.dtype),
-            state.warmstart, *self._fields_of(sys), vmap_method="broadcast_all")
-        state = state.replace(qpos=qpos, qpos_rest=qpos_rest, qvel=qvel, qvel_rest=qvel_rest, ctrl=ctrl,
-                              warmstart=warmstart, sensordata=sensordata)
+            self._host_step,
+            shapes,
+            state.qpos,
+            state.qpos_rest,
+            qvel,
+            qvel_rest,
+            ctrl.astype(state.qpos.dtype),
+            state.warmstart,
+            *self._fields_of(sys),
+            vmap_method="broadcast_all",
+        )
+        state = state.replace(
+            qpos=qpos,
+            qpos_rest=qpos_rest,
+            qvel=qvel,
+            qvel_rest=qvel_rest,
+            ctrl=ctrl,
+            warmstart=warmstart,
+            sensordata=sensordata,
+        )
         return state
 
     # What the task reads ---------------------------------------------------------------------------

@@ -24,8 +24,7 @@ from mujoco import mjx
 
 from footforge import constants as C
 from footforge.envs import contacts, engine, observation_layout, rewards
-from footforge.envs.anymal import (GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids,
-                                   load_robot)
+from footforge.envs.anymal import GEOM_BASE, GEOM_THIGH, Robot, check_mjx_impl, fit_heightfield_subgrids, load_robot
 from footforge.envs.config import EnvConfig, check_feet_and_policy
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
@@ -76,9 +75,11 @@ class LocomotionEnv(Env):
     def __init__(self, config: EnvConfig, robot: Robot | None = None):
         check_feet_and_policy(config.feet, config.policy)
         if config.float64_physics and not jax.config.read("jax_enable_x64"):
-            raise InputError("float64_physics needs JAX's x64 mode, which is off in this process",
-                             fix="call footforge.envs.enable_float64_physics(config) (or set JAX_ENABLE_X64=1) "
-                                 "before JAX makes its first array")
+            raise InputError(
+                "float64_physics needs JAX's x64 mode, which is off in this process",
+                fix="call footforge.envs.enable_float64_physics(config) (or set JAX_ENABLE_X64=1) "
+                "before JAX makes its first array",
+            )
         check_mjx_impl(config)
         self.config = config
         self.robot = robot or load_robot(config)
@@ -111,8 +112,10 @@ class LocomotionEnv(Env):
         stand = mujoco.MjData(r.model)
         stand.qpos[:] = r.stand_qpos
         mujoco.mj_kinematics(r.model, stand)
-        lowest = (stand.geom_xpos[foot_geoms] + np.einsum("pij,pj->pi", stand.geom_xmat[foot_geoms].reshape(-1, 3, 3),
-                                                         foot_local))[:, 2] - foot_radius
+        lowest = (
+            stand.geom_xpos[foot_geoms]
+            + np.einsum("pij,pj->pi", stand.geom_xmat[foot_geoms].reshape(-1, 3, 3), foot_local)
+        )[:, 2] - foot_radius
         self._stand_foot_clearance = float(lowest.min())
         """How far the stand keyframe's lowest foot collider point is above flat ground (z = 0), m:
         about minus its resting contact depth."""
@@ -142,14 +145,25 @@ class LocomotionEnv(Env):
 
     def reset(self, rng: jax.Array) -> State:
         keys = reset_keys(rng)
-        info = {"episode_step": jp.zeros((), jp.int32), "time_out": jp.zeros(()), **self._no_steps()} | \
-            self._first_spawn_info(keys.spawn)
+        info = {
+            "episode_step": jp.zeros((), jp.int32),
+            "time_out": jp.zeros(()),
+            **self._no_steps(),
+        } | self._first_spawn_info(keys.spawn)
         qpos, qvel, target = self._start_state(info, keys.joints)
         data = self.physics.start(self.mjx_model, qpos, qvel, self._ctrl(target))
         info, obs = self.policy_start(data, info, keys, data.ctrl[self._ctrl_order])
         metrics = {f"reward/{t}": jp.zeros(()) for t in (*rewards.terms(self.config.rewards), "fall")}
-        metrics |= {k: jp.zeros(()) for k in ("error/lin_vel_x_per_step", "error/lin_vel_y_per_step",
-                                              "error/yaw_rate_per_step", "base_height_m_per_step", "diverged")}
+        metrics |= {
+            k: jp.zeros(())
+            for k in (
+                "error/lin_vel_x_per_step",
+                "error/lin_vel_y_per_step",
+                "error/yaw_rate_per_step",
+                "base_height_m_per_step",
+                "diverged",
+            )
+        }
         metrics |= self._task_metrics(info)
         return policy_side(State(data, self._with_privileged(obs, data), jp.zeros(()), jp.zeros(()), metrics, info))
 
@@ -162,7 +176,7 @@ class LocomotionEnv(Env):
         """Every actuator's control (model order) from the 12 PD targets (actuated-joint order)."""
         return jp.zeros(self.mjx_model.nu, target.dtype).at[self._ctrl_order].set(target)
 
-    def _start_state(self, info, key):
+    def _start_state(self, info, key) -> tuple[jax.Array, jax.Array, jax.Array]:
         """(qpos, qvel, PD targets) an episode starts from, after OmniIsaacGymEnvs' reset_idx:
         targets at default x f, f drawn per joint in EnvConfig.reset.joint_pos_factor_range, and
         joint velocities in +-joint_vel_max. The pose is the build's `stand` keyframe (at rest
@@ -177,10 +191,14 @@ class LocomotionEnv(Env):
         factor = jax.random.uniform(k_pos, (N_ACTUATED,), minval=lo, maxval=hi)
         target = jp.clip(self.default_q * factor, self._q_lo, self._q_hi)
         qpos = self._spawn_qpos(info)
-        qpos = qpos.at[r.actuated_qpos].set(jp.clip(qpos[r.actuated_qpos] + target - self.default_q,
-                                                     self._q_lo, self._q_hi))
-        qvel = jp.zeros(self.mjx_model.nv).at[r.actuated_dof].set(
-            jax.random.uniform(k_vel, (N_ACTUATED,), minval=-cfg.joint_vel_max, maxval=cfg.joint_vel_max))
+        qpos = qpos.at[r.actuated_qpos].set(
+            jp.clip(qpos[r.actuated_qpos] + target - self.default_q, self._q_lo, self._q_hi)
+        )
+        qvel = (
+            jp.zeros(self.mjx_model.nv)
+            .at[r.actuated_dof]
+            .set(jax.random.uniform(k_vel, (N_ACTUATED,), minval=-cfg.joint_vel_max, maxval=cfg.joint_vel_max))
+        )
         # Every foot collider's lowest point, the ground under it: the base goes up or down until the
         # lowest foot is as high above its ground as in the stand on flat ground (a straighter leg,
         # a tilted sole, or a foot reaching onto a slope past a tile's platform would start buried).
@@ -201,9 +219,16 @@ class LocomotionEnv(Env):
         not NaN, replaces it); no previous action or joint velocity; PD targets `target`."""
         drawn, heading, standing = self.sample_command(keys.command)
         rng, key_obs = jax.random.split(keys.rng)
-        info = info | {"rng": rng, "step": jp.zeros((), jp.int32), "target": target, "command": drawn,
-                       "heading_target": heading, "standing": standing, "last_action": jp.zeros(N_ACTUATED),
-                       "last_joint_vel": jp.zeros(N_ACTUATED)}
+        info = info | {
+            "rng": rng,
+            "step": jp.zeros((), jp.int32),
+            "target": target,
+            "command": drawn,
+            "heading_target": heading,
+            "standing": standing,
+            "last_action": jp.zeros(N_ACTUATED),
+            "last_joint_vel": jp.zeros(N_ACTUATED),
+        }
         info["command"] = _given(command, self.heading_command(info, data))
         return info, self.observe(data, info, key_obs)
 
@@ -231,12 +256,16 @@ class LocomotionEnv(Env):
         """After the physics and any restart: (info remembering this step's action and joint
         velocities, the policy's observation, non-finite values zeroed). Where `ended`, the
         episode restarted: nothing is remembered and the command is the fresh draw."""
-        info = info | {"last_action": jp.where(ended, 0.0, action),
-                       "last_joint_vel": jp.where(ended, 0.0, data.qvel[self.robot.actuated_dof])}
+        info = info | {
+            "last_action": jp.where(ended, 0.0, action),
+            "last_joint_vel": jp.where(ended, 0.0, data.qvel[self.robot.actuated_dof]),
+        }
         if fresh is not None:
-            info |= {"command": jp.where(ended, fresh[0], info["command"]),
-                     "heading_target": jp.where(ended, fresh[1], info["heading_target"]),
-                     "standing": jp.where(ended, fresh[2], info["standing"])}
+            info |= {
+                "command": jp.where(ended, fresh[0], info["command"]),
+                "heading_target": jp.where(ended, fresh[1], info["heading_target"]),
+                "standing": jp.where(ended, fresh[2], info["standing"]),
+            }
         obs = self.observe(data, info, keys.observation)
         return info, jp.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
 
@@ -264,11 +293,16 @@ class LocomotionEnv(Env):
         """info's command, heading target and standing flag after policy step `step`: redrawn
         every resample_s, the yaw-rate command steering to the heading."""
         resample = step % self._command_every == 0
-        info = info | {"command": jp.where(resample, new_command, info["command"]),
-                       "heading_target": jp.where(resample, new_heading, info["heading_target"]),
-                       "standing": jp.where(resample, new_standing, info["standing"])}
-        return {"command": self.heading_command(info, data), "heading_target": info["heading_target"],
-                "standing": info["standing"]}
+        info = info | {
+            "command": jp.where(resample, new_command, info["command"]),
+            "heading_target": jp.where(resample, new_heading, info["heading_target"]),
+            "standing": jp.where(resample, new_standing, info["standing"]),
+        }
+        return {
+            "command": self.heading_command(info, data),
+            "heading_target": info["heading_target"],
+            "standing": info["standing"],
+        }
 
     # Where episodes start: flat ground always at the home pose; RoughEnv overrides these hooks.
     def _first_spawn_info(self, key) -> dict:
@@ -303,8 +337,13 @@ class LocomotionEnv(Env):
         # and of every reward term, raw and weighted) is checked before the clip, which would
         # turn -inf or NaN into 0 and hide the divergence; the `diverged` metric reports it.
         # Physics that blew up without reaching inf (EnvConfig.diverged_speed) counts the same.
-        finite = (jp.isfinite(data.qpos).all() & (jp.abs(data.qvel) < cfg.diverged_speed).all() & jp.isfinite(reward)
-                  & jp.isfinite(data.actuator_force).all() & jp.all(jp.isfinite(jp.stack(list(terms.values())))))
+        finite = (
+            jp.isfinite(data.qpos).all()
+            & (jp.abs(data.qvel) < cfg.diverged_speed).all()
+            & jp.isfinite(reward)
+            & jp.isfinite(data.actuator_force).all()
+            & jp.all(jp.isfinite(jp.stack(list(terms.values()))))
+        )
         if cfg.rewards.clip_total_at_zero:
             reward = jp.maximum(reward, 0.0)
         reward = jp.where(finite, reward, 0.0)
@@ -321,20 +360,30 @@ class LocomotionEnv(Env):
         time_out = (episode_step >= cfg.episode_steps) & ~terminated
         ended = terminated | time_out
         metrics = dict(state.metrics)  # Brax's wrappers add keys of their own: keep them
-        metrics.update({f"reward/{t}": v for t, v in weighted.items()} | errors | self._task_metrics(info) | {
-            "reward/fall": fall_penalty, "diverged": (~finite).astype(jp.float32)})
+        metrics.update(
+            {f"reward/{t}": v for t, v in weighted.items()}
+            | errors
+            | self._task_metrics(info)
+            | {"reward/fall": fall_penalty, "diverged": (~finite).astype(jp.float32)}
+        )
         # The environment restarts ended episodes itself (footforge.envs.wrappers): a new spawn,
         # no previous action, a new command. Brax's auto-reset would restore one fixed first
         # state and lose the curriculum's per-robot state.
         info.update(self._next_spawn_info(info, data, ended, keys.spawn))
         info.update({k: jp.where(ended, v0, steps[k]) for k, v0 in self._no_steps().items()})
         data = self._place(data, *self._start_state(info, keys.joints), where=ended)
-        info.update(episode_step=jp.where(ended, 0, episode_step), time_out=time_out.astype(jp.float32),
-                    target=data.ctrl[self._ctrl_order])  # this step's targets, or the restart's
+        info.update(
+            episode_step=jp.where(ended, 0, episode_step),
+            time_out=time_out.astype(jp.float32),
+            target=data.ctrl[self._ctrl_order],
+        )  # this step's targets, or the restart's
         info, obs = self.policy_observe(data, info, keys, action, ended, fresh)
         obs = self._with_privileged(obs, data)  # policy_observe zeroed the policy's non-finite values
-        return policy_side(state.replace(pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32),
-                                         metrics=metrics, info=info))
+        return policy_side(
+            state.replace(
+                pipeline_state=data, obs=obs, reward=reward, done=ended.astype(jp.float32), metrics=metrics, info=info
+            )
+        )
 
     # Pieces --------------------------------------------------------------------------------
     def sample_command(self, key):
@@ -346,8 +395,11 @@ class LocomotionEnv(Env):
         vy = jax.random.uniform(ky, minval=c.lin_vel_y_range[0], maxval=c.lin_vel_y_range[1])
         heading = jax.random.uniform(kh, minval=c.heading_range[0], maxval=c.heading_range[1])
         # Its own stream (fold_in), so that the other draws are those of configurations without it.
-        standing = (jax.random.uniform(jax.random.fold_in(key, 3)) < c.standing_fraction) if c.standing_fraction \
+        standing = (
+            (jax.random.uniform(jax.random.fold_in(key, 3)) < c.standing_fraction)
+            if c.standing_fraction
             else jp.zeros((), bool)
+        )
         keep = (jp.hypot(vx, vy) > c.zero_below) & ~standing
         return jp.array([vx, vy, 0.0]) * keep, heading, standing
 
@@ -384,9 +436,14 @@ class LocomotionEnv(Env):
         the noiseless height scan, and the ground's friction coefficient."""
         cfg = self.config.observations
         lin, _, _ = self.base_state(data)
-        return jp.concatenate([lin * cfg.base_lin_vel.scale, self.foot_forces(data) / self._weight_n,
-                               self.height_scan(data) * cfg.height_scan.scale,
-                               self.mjx_model.geom_friction[self.robot.floor_geom, :1]])
+        return jp.concatenate(
+            [
+                lin * cfg.base_lin_vel.scale,
+                self.foot_forces(data) / self._weight_n,
+                self.height_scan(data) * cfg.height_scan.scale,
+                self.mjx_model.geom_friction[self.robot.floor_geom, :1],
+            ]
+        )
 
     def foot_forces(self, data):
         """Per leg (LF, RF, LH, RH): the normal force of its foot's contacts with the ground, N."""
@@ -441,23 +498,41 @@ class LocomotionEnv(Env):
         touching = contact | info["feet_last_contact"]
         air = info["feet_air_time_s"] + self.config.policy_dt
         touchdown = (info["feet_air_time_s"] > 0) & touching
-        return {"feet_air_time_s": jp.where(touching, 0.0, air), "feet_last_contact": contact,
-                "touchdown_air_time": jp.where(touchdown, air, 0.0)}
+        return {
+            "feet_air_time_s": jp.where(touching, 0.0, air),
+            "feet_last_contact": contact,
+            "touchdown_air_time": jp.where(touchdown, air, 0.0),
+        }
 
     def _reward_terms(self, data, info, action, touchdown_air_time):
         """(each reward term unscaled, the tracking errors and base height as metrics)."""
         r = self.robot
         lin, ang, gravity = self.base_state(data)
         q = rewards.Quantities(
-            command=info["command"], lin_vel=lin, ang_vel=ang, gravity=gravity, base_height=self.base_height(data),
-            torques=data.actuator_force[self._ctrl_order], joint_vel=data.qvel[r.actuated_dof],
-            last_joint_vel=info["last_joint_vel"], action=action, last_action=info["last_action"],
-            haa_offset=data.qpos[r.actuated_qpos][r.haa] - self.default_q[r.haa], touchdown_air_time=touchdown_air_time,
-            joint_offset=data.qpos[r.actuated_qpos] - self.default_q)
-        terms = {name: term.compute(q, self.config.rewards) for name, term in rewards.terms(self.config.rewards).items()}
+            command=info["command"],
+            lin_vel=lin,
+            ang_vel=ang,
+            gravity=gravity,
+            base_height=self.base_height(data),
+            torques=data.actuator_force[self._ctrl_order],
+            joint_vel=data.qvel[r.actuated_dof],
+            last_joint_vel=info["last_joint_vel"],
+            action=action,
+            last_action=info["last_action"],
+            haa_offset=data.qpos[r.actuated_qpos][r.haa] - self.default_q[r.haa],
+            touchdown_air_time=touchdown_air_time,
+            joint_offset=data.qpos[r.actuated_qpos] - self.default_q,
+        )
+        terms = {
+            name: term.compute(q, self.config.rewards) for name, term in rewards.terms(self.config.rewards).items()
+        }
         command = q.command
-        errors = {"error/lin_vel_x_per_step": jp.abs(command[0] - lin[0]), "error/lin_vel_y_per_step": jp.abs(command[1] - lin[1]),
-                  "error/yaw_rate_per_step": jp.abs(command[2] - ang[2]), "base_height_m_per_step": q.base_height}
+        errors = {
+            "error/lin_vel_x_per_step": jp.abs(command[0] - lin[0]),
+            "error/lin_vel_y_per_step": jp.abs(command[1] - lin[1]),
+            "error/yaw_rate_per_step": jp.abs(command[2] - ang[2]),
+            "base_height_m_per_step": q.base_height,
+        }
         return terms, errors
 
     def contact_flags(self, data):

@@ -26,7 +26,7 @@ def terms(config: EnvConfig) -> list[tuple[str, ObservationTerm]]:
 
 def width(config: EnvConfig, term: ObservationTerm, n_passive: int) -> int:
     """The number of values of `term`: its width, or one per passive foot joint or scan point."""
-    return {"passive_joints": n_passive, "scan_points": config.height_scan.num_points}.get(term.width, term.width)
+    return {"passive_joints": n_passive, "scan_points": config.height_scan.num_points}.get(term.width, term.width)  # type: ignore[arg-type]
 
 
 def layout(config: EnvConfig, n_passive: int) -> list[tuple[str, int]]:
@@ -55,4 +55,3 @@ def passive_joints_of(config: EnvConfig, observation_size: int) -> int:
     if not config.haptic:
         return 0
     return (observation_size - size(config, 0)) // 2
-

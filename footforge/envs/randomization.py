@@ -16,7 +16,6 @@ import jax.numpy as jp
 from footforge import constants as C
 from footforge.envs.config import RandomizationConfig
 
-
 FIELDS = {
     "friction_range": ("geom_friction",),
     "payload_mass_kg_range": ("body_mass", "body_inertia"),

@@ -1,4 +1,5 @@
-"""The paper's ten reward terms (and two optional terms of legged_gym's: feet air time, standing still) as pure functions of what they penalise or reward.
+"""The paper's ten reward terms (and two optional terms of legged_gym's: feet air time, standing
+still) as pure functions of what they penalise or reward.
 
 Each term is declared once, as a field of RewardConfig (envs.config): its function (here), unit
 and scale (a RewardTerm, envs.terms). The environment measures a step's Quantities once; each function returns its
@@ -60,7 +61,7 @@ def yaw_rate(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """exp(-(command - yaw rate)^2 / sigma), rad/s."""
     import jax.numpy as jp
 
-    return jp.exp(-(q.command[2] - q.ang_vel[2]) ** 2 / cfg.tracking_sigma)
+    return jp.exp(-((q.command[2] - q.ang_vel[2]) ** 2) / cfg.tracking_sigma)
 
 
 def lin_vel_z(q: Quantities, cfg: RewardParameters) -> jax.Array:
@@ -85,7 +86,7 @@ def base_height(q: Quantities, cfg: RewardParameters) -> jax.Array:
 
 def torques(q: Quantities, cfg: RewardParameters) -> jax.Array:
     """sum tau^2, (N m)^2."""
-    return (q.torques ** 2).sum()
+    return (q.torques**2).sum()
 
 
 def joint_acc(q: Quantities, cfg: RewardParameters) -> jax.Array:

@@ -25,8 +25,8 @@ from footforge.envs import curriculum
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 from footforge.envs.locomotion import LocomotionEnv
-from footforge.envs.wrappers import policy_side
 from footforge.envs.terrain import generate, surface_height
+from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
 
 
@@ -57,9 +57,14 @@ class RoughEnv(LocomotionEnv):
         xy, yaw = self._spawn(level, column, key)
         info = state.info | {"level": level, "column": column, "spawn_xy": xy, "spawn_yaw": yaw}
         if forward_mps is not None:
-            info |= {"command": jp.array([forward_mps, 0.0, 0.0]), "heading_target": yaw, "standing": jp.zeros((), bool)}
-        data = self.physics.forward(self.mjx_model, self._place(state.pipeline_state,
-                                                                *self._start_state(info, jax.random.fold_in(rng, 2))))
+            info |= {
+                "command": jp.array([forward_mps, 0.0, 0.0]),
+                "heading_target": yaw,
+                "standing": jp.zeros((), bool),
+            }
+        data = self.physics.forward(
+            self.mjx_model, self._place(state.pipeline_state, *self._start_state(info, jax.random.fold_in(rng, 2)))
+        )
         info |= {"target": data.ctrl[self._ctrl_order], "command": self.heading_command(info, data)}
         return policy_side(state.replace(pipeline_state=data, obs=self.observation(data, info, key), info=info))
 
@@ -83,24 +88,34 @@ class RoughEnv(LocomotionEnv):
         cfg = self.config
         k_level, k_spawn = jax.random.split(key)
         distance = jp.linalg.norm(data.qpos[:2] - info["spawn_xy"])
-        level = curriculum.next_level(info["level"], distance, jp.linalg.norm(info["command"][:2]), k_level,
-                                      cfg.curriculum, cfg.terrain, cfg.episode_length_s)
+        level = curriculum.next_level(
+            info["level"],
+            distance,
+            jp.linalg.norm(info["command"][:2]),
+            k_level,
+            cfg.curriculum,
+            cfg.terrain,
+            cfg.episode_length_s,
+        )
         level = jp.where(ended, level, info["level"])
         xy, yaw = self._spawn(level, info["column"], k_spawn)
-        return {"level": level, "spawn_xy": jp.where(ended, xy, info["spawn_xy"]),
-                "spawn_yaw": jp.where(ended, yaw, info["spawn_yaw"])}
+        return {
+            "level": level,
+            "spawn_xy": jp.where(ended, xy, info["spawn_xy"]),
+            "spawn_yaw": jp.where(ended, yaw, info["spawn_yaw"]),
+        }
 
     def _spawn_qpos(self, info):
         xy, yaw = info["spawn_xy"], info["spawn_yaw"]
         turn = jp.array([jp.cos(yaw / 2), 0.0, 0.0, jp.sin(yaw / 2)])
         z = self._stand_z + self.terrain_height(xy)
-        return (self._stand.at[:2].set(xy).at[2].set(z)
-                .at[3:7].set(brax_math.quat_mul(turn, self._stand[3:7])))
+        return self._stand.at[:2].set(xy).at[2].set(z).at[3:7].set(brax_math.quat_mul(turn, self._stand[3:7]))
 
     def _task_metrics(self, info):
         """The episode's level, and one indicator per level (their means over ended episodes are
         the distribution of robots over the levels)."""
         level = info["level"]
         return {"terrain/level_per_step": level.astype(jp.float32)} | {
-            f"terrain/at_level_{l}_per_step": (level == l).astype(jp.float32)
-            for l in range(self.config.terrain.num_levels)}
+            f"terrain/at_level_{k}_per_step": (level == k).astype(jp.float32)
+            for k in range(self.config.terrain.num_levels)
+        }

@@ -4,9 +4,10 @@ CPU MuJoCo steps the MJX environment's own model (load_robot: its timestep, cont
 settings) under an untrained policy's actions: each policy step a ~ N(0, 1) clipped to
 +-EnvConfig.action_clip (PPO's initial Gaussian), turned into PD targets by the flat baseline's
 velocity model at its 13.5 rad/s per unit (target += 13.5 a policy_dt, within the joint ranges):
-the harshest targets an untrained policy gives, whatever action model the configuration trains with. A robot diverges
-by the environment's own criterion (diverged). A proxy for MJX, which runs the same model in float32 (benchmarks/action_stability.py
---sim mjx measures both; on AOF they agreed, benchmarks/log/2026-11-21_to_26.md).
+the harshest targets an untrained policy gives, whatever action model the configuration trains
+with. A robot diverges by the environment's own criterion (diverged). A proxy for MJX, which runs
+the same model in float32 (benchmarks/action_stability.py --sim mjx measures both; on AOF they
+agreed, benchmarks/log/2026-11-21_to_26.md).
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ import numpy as np
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 
-
 VELOCITY_ACTION_SCALE = 13.5
 """rad/s per unit action of OmniIsaacGymEnvs' flat Anymal (the stress of divergence_times)."""
 
@@ -29,8 +29,11 @@ def diverged(data: mujoco.MjData, max_speed: float) -> bool:
     (EnvConfig.diverged_speed): a non-finite state or a generalised velocity past `max_speed`;
     or MuJoCo reset it because its accelerations blew up (a BADQACC warning, counted since the
     data was made or reset)."""
-    return not (np.isfinite(data.qpos).all() and np.all(np.abs(data.qvel) < max_speed)
-                and data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0)
+    return not (
+        np.isfinite(data.qpos).all()
+        and np.all(np.abs(data.qvel) < max_speed)
+        and data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
+    )
 
 
 def divergence_times(config: EnvConfig, robots: int, seconds: float, seed: int = 0) -> list[float | None]:

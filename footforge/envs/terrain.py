@@ -67,18 +67,24 @@ class TerrainConfig:
         """Raises InputError on values that cannot make a terrain."""
         for name in ("num_levels", "num_columns"):
             if getattr(self, name) < 1:
-                raise InputError(f"terrain {name} must be at least 1, got {getattr(self, name)}",
-                                 fix=f"give a positive {name}")
+                raise InputError(
+                    f"terrain {name} must be at least 1, got {getattr(self, name)}", fix=f"give a positive {name}"
+                )
         for name in ("tile_size_m", "horizontal_resolution_m", "vertical_resolution_m", "stair_width_m"):
             if not getattr(self, name) > 0:
-                raise InputError(f"terrain {name} must be positive, got {getattr(self, name)}",
-                                 fix=f"give a positive {name}")
+                raise InputError(
+                    f"terrain {name} must be positive, got {getattr(self, name)}", fix=f"give a positive {name}"
+                )
         if len(self.proportions) != len(KINDS) or min(self.proportions) < 0 or sum(self.proportions) <= 0:
-            raise InputError(f"terrain proportions must be {len(KINDS)} non-negative shares ({', '.join(KINDS)}), "
-                             f"got {self.proportions}", fix="e.g. (0.1, 0.1, 0.25, 0.25, 0.2, 0.1)")
+            raise InputError(
+                f"terrain proportions must be {len(KINDS)} non-negative shares ({', '.join(KINDS)}), "
+                f"got {self.proportions}",
+                fix="e.g. (0.1, 0.1, 0.25, 0.25, 0.2, 0.1)",
+            )
         if self.platform_m >= self.tile_size_m:
-            raise InputError("the spawn platform must be smaller than a tile",
-                             fix=f"platform_m < tile_size_m ({self.tile_size_m})")
+            raise InputError(
+                "the spawn platform must be smaller than a tile", fix=f"platform_m < tile_size_m ({self.tile_size_m})"
+            )
 
     @property
     def samples_per_tile(self) -> int:
@@ -107,8 +113,10 @@ class Terrain:
         """World xy of the centre of tile (level, column) (numpy or JAX arrays)."""
         c = self.config
         border = self.border_samples * c.horizontal_resolution_m
-        return (self.origin_xy[0] + border + (level + 0.5) * c.tile_size_m,
-                self.origin_xy[1] + border + (column + 0.5) * c.tile_size_m)
+        return (
+            self.origin_xy[0] + border + (level + 0.5) * c.tile_size_m,
+            self.origin_xy[1] + border + (column + 0.5) * c.tile_size_m,
+        )
 
     @property
     def border_samples(self) -> int:
@@ -143,14 +151,18 @@ def generate(config: TerrainConfig) -> Terrain:
         for column, kind in enumerate(kinds):
             tile = _TILES[kind](config, config.difficulty(level), rng)
             i0, j0 = border + column * n, border + level * n
-            heights[i0:i0 + n, j0:j0 + n] = tile
+            heights[i0 : i0 + n, j0 : j0 + n] = tile
     heights = np.round(heights / config.vertical_resolution_m) * config.vertical_resolution_m
-    half = (heights.shape[1] - 1) * config.horizontal_resolution_m / 2, (heights.shape[0] - 1) * config.horizontal_resolution_m / 2
+    half = (
+        (heights.shape[1] - 1) * config.horizontal_resolution_m / 2,
+        (heights.shape[0] - 1) * config.horizontal_resolution_m / 2,
+    )
     # The terrain is centred on the world origin.
     return Terrain(config, heights, np.array([-half[0], -half[1]]), kinds)
 
 
 # Tiles: (n, n) heights, rows along y, centred platform at height 0 -------------------------------
+
 
 def _tile_coords(config: TerrainConfig):
     n, res = config.samples_per_tile, config.horizontal_resolution_m
@@ -225,8 +237,14 @@ def _stepping_stones(config, d, rng):
     return tile
 
 
-_TILES = {"smooth_slope": _pyramid_slope, "rough_slope": _rough_slope, "stairs_up": _stairs_up,
-          "stairs_down": _stairs_down, "discrete": _discrete, "stepping_stones": _stepping_stones}
+_TILES = {
+    "smooth_slope": _pyramid_slope,
+    "rough_slope": _rough_slope,
+    "stairs_up": _stairs_up,
+    "stairs_down": _stairs_down,
+    "discrete": _discrete,
+    "stepping_stones": _stepping_stones,
+}
 
 
 def surface_height(heights, origin_xy, resolution, xy, xp):
@@ -257,12 +275,17 @@ def add_to_spec(spec, terrain: Terrain, name: str = "floor", base_thickness_m: f
     span = max(hi - lo, 1e-3)
     rows, cols = h.shape
     res = terrain.resolution_m
-    field = spec.add_hfield(name=f"{name}_hfield", nrow=rows, ncol=cols,
-                            size=[(cols - 1) * res / 2, (rows - 1) * res / 2, span, base_thickness_m],
-                            userdata=((h - lo) / span).astype(np.float32).ravel().tolist())
+    field = spec.add_hfield(
+        name=f"{name}_hfield",
+        nrow=rows,
+        ncol=cols,
+        size=[(cols - 1) * res / 2, (rows - 1) * res / 2, span, base_thickness_m],
+        userdata=((h - lo) / span).astype(np.float32).ravel().tolist(),
+    )
     centre = terrain.origin_xy + np.array([(cols - 1) * res / 2, (rows - 1) * res / 2])
-    return spec.worldbody.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=field.name,
-                                   pos=[centre[0], centre[1], lo])
+    return spec.worldbody.add_geom(
+        name=name, type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=field.name, pos=[centre[0], centre[1], lo]
+    )
 
 
 def preview(terrain: Terrain, path) -> None:
@@ -271,8 +294,12 @@ def preview(terrain: Terrain, path) -> None:
 
     c, h = terrain.config, terrain.heights_m
     res = terrain.resolution_m
-    extent = [terrain.origin_xy[0], terrain.origin_xy[0] + (h.shape[1] - 1) * res,
-              terrain.origin_xy[1], terrain.origin_xy[1] + (h.shape[0] - 1) * res]
+    extent = (
+        terrain.origin_xy[0],
+        terrain.origin_xy[0] + (h.shape[1] - 1) * res,
+        terrain.origin_xy[1],
+        terrain.origin_xy[1] + (h.shape[0] - 1) * res,
+    )
     fig = Figure(figsize=(6, 10))
     ax = fig.subplots()
     image = ax.imshow(np.clip(h, -0.5, None), origin="lower", extent=extent, cmap="terrain")
@@ -283,7 +310,10 @@ def preview(terrain: Terrain, path) -> None:
     for level in range(c.num_levels):
         x, _ = terrain.tile_center(level, 0)
         ax.text(x, extent[2] + 1, f"d={c.difficulty(level):.1f}", fontsize=5, ha="center")
-    ax.set(xlabel="x (m): difficulty rises", ylabel="y (m): columns of kinds",
-           title=f"terrain, seed {c.seed}, {res} m samples")
+    ax.set(
+        xlabel="x (m): difficulty rises",
+        ylabel="y (m): columns of kinds",
+        title=f"terrain, seed {c.seed}, {res} m samples",
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -29,8 +29,13 @@ def policy_side(state: State) -> State:
     (EnvConfig.float64_physics): PPO's networks, normaliser and loop carries stay float32, and a
     step returns the dtypes it was given (a scan's carry must). A no-op in float32."""
     narrow = lambda tree: jax.tree_util.tree_map(_narrow, tree)  # noqa: E731
-    return state.replace(obs=narrow(state.obs), reward=_narrow(state.reward), done=_narrow(state.done),
-                         metrics=narrow(state.metrics), info=narrow(state.info))
+    return state.replace(
+        obs=narrow(state.obs),
+        reward=_narrow(state.reward),
+        done=_narrow(state.done),
+        metrics=narrow(state.metrics),
+        info=narrow(state.info),
+    )
 
 
 class PolicySideWrapper(Wrapper):

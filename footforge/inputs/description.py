@@ -12,9 +12,9 @@ import contextlib
 import io
 import os
 import xml.parsers.expat
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, Mapping, Sequence
 
 from lxml import etree
 
@@ -52,8 +52,9 @@ def resolve_package_paths(user_paths: Sequence[str | Path] = ()) -> list[Path]:
     paths = [Path(p).expanduser().resolve() for p in user_paths]
     for p in paths:
         if not p.is_dir():
-            raise InputError("package path is not a folder", file=str(p),
-                             fix="pass an existing folder to --package-path")
+            raise InputError(
+                "package path is not a folder", file=str(p), fix="pass an existing folder to --package-path"
+            )
     paths += [p.resolve() for p in package_paths_from_env() if p.is_dir()]
     paths.append(descriptions_dir())
     return paths
@@ -83,8 +84,8 @@ def find_package(name: str, package_paths: Sequence[Path]) -> Path:
     raise InputError(
         f"cannot find ROS package '{name}' (searched {searched})",
         element=f"package '{name}'",
-        fix=f"pass the folder that contains {name}/package.xml with --package-path "
-            "(or add it to ROS_PACKAGE_PATH)")
+        fix=f"pass the folder that contains {name}/package.xml with --package-path (or add it to ROS_PACKAGE_PATH)",
+    )
 
 
 @contextlib.contextmanager
@@ -116,28 +117,31 @@ def is_xacro(path: Path, text: str) -> bool:
     return path.suffix == ".xacro" or "xmlns:xacro" in text
 
 
-def expand_xacro(path: Path, *, args: Mapping[str, str] = (),
-                 package_paths: Sequence[Path] = ()) -> str:
+def expand_xacro(path: Path, *, args: Mapping[str, str] | None = None, package_paths: Sequence[Path] = ()) -> str:
     """Runs xacro on `path` with `args`; returns the URDF text. Errors become InputError."""
     import xacro
 
     stderr = io.StringIO()
     try:
         with _xacro_find_resolver(package_paths), contextlib.redirect_stderr(stderr):
-            doc = xacro.process_file(str(path), mappings=dict(args))
+            doc = xacro.process_file(str(path), mappings=dict(args or {}))
     except InputError:
         raise
     except xml.parsers.expat.ExpatError as e:
-        raise InputError(f"malformed XML: {e}", file=str(path),
-                         fix="fix the XML syntax at that line and column") from None
+        raise InputError(
+            f"malformed XML: {e}", file=str(path), fix="fix the XML syntax at that line and column"
+        ) from None
     except Exception as e:  # xacro raises XacroException, NameError, KeyError, ArgException...
         detail = stderr.getvalue().strip()
         msg = f"xacro failed: {type(e).__name__}: {e}"
         if detail:
             msg += f" ({detail.splitlines()[-1]})"
-        raise InputError(msg, file=str(path),
-                         fix="check the macro, property or argument named above; declare "
-                             "missing arguments with <xacro:arg> or pass them with --arg NAME:=VALUE") from None
+        raise InputError(
+            msg,
+            file=str(path),
+            fix="check the macro, property or argument named above; declare "
+            "missing arguments with <xacro:arg> or pass them with --arg NAME:=VALUE",
+        ) from None
     return doc.toprettyxml(indent="  ")
 
 
@@ -161,8 +165,9 @@ class Description:
         return resolve_uri(uri, base_dir=self.source.parent, package_paths=self.package_paths)
 
 
-def load_description(path: str | Path, *, args: Mapping[str, str] | None = None,
-                     package_paths: Sequence[str | Path] = ()) -> Description:
+def load_description(
+    path: str | Path, *, args: Mapping[str, str] | None = None, package_paths: Sequence[str | Path] = ()
+) -> Description:
     """Reads a URDF or xacro file into a Description.
 
     Raises:
@@ -170,8 +175,7 @@ def load_description(path: str | Path, *, args: Mapping[str, str] | None = None,
     """
     path = Path(path).expanduser()
     if not path.is_file():
-        raise InputError("description file not found", file=str(path),
-                         fix="pass an existing .urdf or .xacro file")
+        raise InputError("description file not found", file=str(path), fix="pass an existing .urdf or .xacro file")
     paths = tuple(resolve_package_paths(package_paths))
     text = path.read_text()
     args = dict(args or {})
@@ -179,17 +183,22 @@ def load_description(path: str | Path, *, args: Mapping[str, str] | None = None,
         urdf = expand_xacro(path.resolve(), args=args, package_paths=paths)
     else:
         if args:
-            raise InputError("--arg given for a plain URDF", file=str(path),
-                             fix="--arg only applies to xacro files; remove it")
+            raise InputError(
+                "--arg given for a plain URDF", file=str(path), fix="--arg only applies to xacro files; remove it"
+            )
         urdf = text
     try:
         root = etree.fromstring(urdf.encode())
     except etree.XMLSyntaxError as e:
-        raise InputError(f"malformed XML: {e}", file=str(path),
-                         fix="fix the XML syntax at that line and column") from None
+        raise InputError(
+            f"malformed XML: {e}", file=str(path), fix="fix the XML syntax at that line and column"
+        ) from None
     if root.tag != "robot":
-        raise InputError(f"root element is <{root.tag}>, not <robot>", file=str(path),
-                         fix="pass a URDF (or a xacro that expands to one)")
+        raise InputError(
+            f"root element is <{root.tag}>, not <robot>",
+            file=str(path),
+            fix="pass a URDF (or a xacro that expands to one)",
+        )
     return Description(source=path.resolve(), urdf=urdf, package_paths=paths, args=args)
 
 
@@ -200,9 +209,9 @@ def resolve_uri(uri: str, *, base_dir: Path, package_paths: Sequence[Path]) -> P
       InputError: the package cannot be found.
     """
     if uri.startswith(PACKAGE_URI_PREFIX):
-        pkg, _, rel = uri[len(PACKAGE_URI_PREFIX):].partition("/")
+        pkg, _, rel = uri[len(PACKAGE_URI_PREFIX) :].partition("/")
         return find_package(pkg, package_paths) / rel
     if uri.startswith(FILE_URI_PREFIX):
-        return Path(uri[len(FILE_URI_PREFIX):])
+        return Path(uri[len(FILE_URI_PREFIX) :])
     p = Path(uri)
     return p if p.is_absolute() else (base_dir / p)

@@ -19,8 +19,8 @@ from pathlib import Path
 
 from lxml import etree
 
-from footforge.inputs.description import Description, descriptions_dir
 from footforge.errors import InputError
+from footforge.inputs.description import Description, descriptions_dir
 
 WORLD_LINK = "world"
 """MuJoCo's world body: a foot's root link cannot have this name."""
@@ -39,7 +39,7 @@ def _is_empty_link(link: etree._Element) -> bool:
 def _detect_root(root: etree._Element, description: Description, sidecar_path: Path | None) -> str:
     joints = root.findall("joint")
     children = {j.find("child").get("link") for j in joints}
-    links = {l.get("name"): l for l in root.findall("link")}
+    links = {e.get("name"): e for e in root.findall("link")}
     tops = [name for name in links if name not in children]
     if len(tops) != 1:
         return tops[0] if tops else ""  # parse_urdf reports a forest or a cycle
@@ -56,15 +56,18 @@ def _detect_root(root: etree._Element, description: Description, sidecar_path: P
             raise InputError(
                 f"the root link '{WORLD_LINK}' holds '{child}' by a {below[0].get('type')} joint "
                 f"'{below[0].get('name')}' (a test rig): the foot's own root link cannot be detected",
-                file=str(description.source), element=f"link '{WORLD_LINK}'",
+                file=str(description.source),
+                element=f"link '{WORLD_LINK}'",
                 fix=f"set root_link in {where} to the link that the robot's foot mount carries "
-                    "(the foot's top link); everything above it is dropped")
+                "(the foot's top link); everything above it is dropped",
+            )
         current = below[0].find("child").get("link")
     return current
 
 
-def select_foot_root(description: Description, root_link: str | None, *,
-                     sidecar_path: Path | None = None) -> tuple[Description, list[str]]:
+def select_foot_root(
+    description: Description, root_link: str | None, *, sidecar_path: Path | None = None
+) -> tuple[Description, list[str]]:
     """The description cut to the subtree of the foot's root link, and notes on what was dropped.
 
     Args:
@@ -75,14 +78,16 @@ def select_foot_root(description: Description, root_link: str | None, *,
       InputError: the named link does not exist, is `world`, or the root cannot be detected.
     """
     root = description.root()
-    links = [l.get("name") for l in root.findall("link")]
+    links = [e.get("name") for e in root.findall("link")]
     if not links:  # a file of macros only, e.g. the public package's model/softfoot_thing.urdf.xacro
         raise InputError(
             "the description expands to no links: it only defines xacro macros",
-            file=str(description.source), element="<robot>",
+            file=str(description.source),
+            element="<robot>",
             fix="pass a file that instantiates the foot (one that calls the macro, such as the "
-                "public package's robot/floating_softfoot.urdf.xacro), or write a small xacro that "
-                "includes this one and calls its macro")
+            "public package's robot/floating_softfoot.urdf.xacro), or write a small xacro that "
+            "includes this one and calls its macro",
+        )
     if root_link is None:
         chosen = _detect_root(root, description, sidecar_path)
     else:
@@ -91,20 +96,29 @@ def select_foot_root(description: Description, root_link: str | None, *,
             near = difflib.get_close_matches(chosen, links, n=3, cutoff=0.5)
             hint = f" (close: {', '.join(near)})" if near else ""
             if sidecar_path and _is_shipped(sidecar_path):
-                fix = (f"this sidecar, shipped with footforge, names one foot of a published description; "
-                       f"copy {sidecar_path}, set root_link and the other joint and link names to those of "
-                       "your file (e.g. another foot's prefix), and pass the copy with --sidecar")
+                fix = (
+                    f"this sidecar, shipped with footforge, names one foot of a published description; "
+                    f"copy {sidecar_path}, set root_link and the other joint and link names to those of "
+                    "your file (e.g. another foot's prefix), and pass the copy with --sidecar"
+                )
             else:
-                fix = (f"set root_link in {sidecar_path or 'the sidecar'} to one of the description's links "
-                       "(the one the robot's foot mount carries), or remove the key to detect it")
+                fix = (
+                    f"set root_link in {sidecar_path or 'the sidecar'} to one of the description's links "
+                    "(the one the robot's foot mount carries), or remove the key to detect it"
+                )
             raise InputError(
                 f"the sidecar's root_link '{chosen}' is not a link of {description.source.name}{hint}",
-                file=str(sidecar_path) if sidecar_path else None, element="root_link", fix=fix)
+                file=str(sidecar_path) if sidecar_path else None,
+                element="root_link",
+                fix=fix,
+            )
     if chosen == WORLD_LINK:
         raise InputError(
             f"the foot's root link is '{WORLD_LINK}', the name MuJoCo reserves for its world body",
-            file=str(sidecar_path or description.source), element="root_link",
-            fix=f"set root_link in {sidecar_path or 'the sidecar'} to the foot's top link, below '{WORLD_LINK}'")
+            file=str(sidecar_path or description.source),
+            element="root_link",
+            fix=f"set root_link in {sidecar_path or 'the sidecar'} to the foot's top link, below '{WORLD_LINK}'",
+        )
     joints = root.findall("joint")
     below: dict[str, list[etree._Element]] = {}
     for j in joints:
@@ -116,7 +130,7 @@ def select_foot_root(description: Description, root_link: str | None, *,
             continue
         keep.add(link)
         stack += [j.find("child").get("link") for j in below.get(link, [])]
-    dropped_links = [l for l in links if l not in keep]
+    dropped_links = [name for name in links if name not in keep]
     if not dropped_links:
         return description, []
     dropped_joints = []
@@ -124,12 +138,14 @@ def select_foot_root(description: Description, root_link: str | None, *,
         if j.find("parent").get("link") not in keep or j.find("child").get("link") not in keep:
             dropped_joints.append(j.get("name"))
             root.remove(j)
-    for l in root.findall("link"):
-        if l.get("name") not in keep:
-            root.remove(l)
+    for e in root.findall("link"):
+        if e.get("name") not in keep:
+            root.remove(e)
     for g in root.findall("gazebo"):  # Gazebo extensions of dropped links would name nothing
         if g.get("reference") in dropped_links:
             root.remove(g)
-    note = (f"root link '{chosen}': dropped {len(dropped_links)} link(s) above or beside it "
-            f"({', '.join(dropped_links)}) and joint(s) {', '.join(dropped_joints)}")
+    note = (
+        f"root link '{chosen}': dropped {len(dropped_links)} link(s) above or beside it "
+        f"({', '.join(dropped_links)}) and joint(s) {', '.join(dropped_joints)}"
+    )
     return replace(description, urdf=etree.tostring(root, encoding="unicode")), [note]

@@ -57,8 +57,14 @@ _PD_RTOL = 1e-13
 # A computed eigenvalue is only known to about eps·λ_max (2e-16·λ_max); moments at or below this
 # fraction of the largest are numerically zero. Below EIGEN_FLOOR_REL so balanced tensors pass.
 
-CODES = ("non_positive_mass", "non_finite", "not_symmetric", "not_positive_definite",
-         "triangle_inequality", "pseudo_inertia_not_psd")
+CODES = (
+    "non_positive_mass",
+    "non_finite",
+    "not_symmetric",
+    "not_positive_definite",
+    "triangle_inequality",
+    "pseudo_inertia_not_psd",
+)
 """Every InertiaDefect code, in the order `inertia_defects` tests them."""
 
 
@@ -91,8 +97,7 @@ def principal_moments(inertia: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     tensor = np.asarray(inertia, dtype=float)
     moments, axes = np.linalg.eigh(0.5 * (tensor + tensor.T))
     weight = np.abs(axes)
-    best = max(itertools.permutations(range(3)),
-               key=lambda perm: sum(weight[row, col] for row, col in enumerate(perm)))
+    best = max(itertools.permutations(range(3)), key=lambda perm: sum(weight[row, col] for row, col in enumerate(perm)))
     order = list(best)
     return moments[order], axes[:, order]
 
@@ -125,8 +130,7 @@ def pseudo_inertia(mass: float, com: ArrayLike, inertia: ArrayLike) -> np.ndarra
         return _pseudo_inertia_from_definition(mass, com_v, tensor)
 
 
-def _pseudo_inertia_from_definition(mass: float, com: np.ndarray,
-                                    tensor: np.ndarray) -> np.ndarray:
+def _pseudo_inertia_from_definition(mass: float, com: np.ndarray, tensor: np.ndarray) -> np.ndarray:
     origin = tensor + mass * (com @ com * np.eye(3) - np.outer(com, com))  # parallel axes
     sigma = 0.5 * np.trace(origin) * np.eye(3) - origin
     h = mass * com
@@ -158,8 +162,9 @@ def _is_positive_definite(moments: np.ndarray) -> bool:
     return largest > 0.0 and float(np.min(moments)) > _PD_RTOL * largest
 
 
-def inertia_defects(mass: float, com: ArrayLike, inertia: ArrayLike, *,
-                    rtol: float = DEFAULT_RTOL) -> list[InertiaDefect]:
+def inertia_defects(
+    mass: float, com: ArrayLike, inertia: ArrayLike, *, rtol: float = DEFAULT_RTOL
+) -> list[InertiaDefect]:
     """Checks that (mass, com, inertia) can be the mass properties of a real rigid body.
 
     The criteria and why they hold are in the module docstring. Non-finite input stops the
@@ -184,62 +189,77 @@ def inertia_defects(mass: float, com: ArrayLike, inertia: ArrayLike, *,
     com_v = np.asarray(com, dtype=float)
     tensor = np.asarray(inertia, dtype=float)
     if com_v.shape != (3,) or tensor.shape != (3, 3):
-        raise ValueError(f"com must have shape (3,) and inertia (3, 3); got {com_v.shape} "
-                         f"and {tensor.shape}")
+        raise ValueError(f"com must have shape (3,) and inertia (3, 3); got {com_v.shape} and {tensor.shape}")
     mass = float(mass)
     defects: list[InertiaDefect] = []
 
-    bad = {name: value for name, value in (("mass", [mass]), ("com", com_v.tolist()),
-                                           ("inertia", tensor.ravel().tolist()))
-           if not np.all(np.isfinite(value))}
+    bad = {
+        name: value
+        for name, value in (("mass", [mass]), ("com", com_v.tolist()), ("inertia", tensor.ravel().tolist()))
+        if not np.all(np.isfinite(value))
+    }
     if bad:
         listing = "; ".join(f"{name} {value}" for name, value in bad.items())
         return [InertiaDefect("non_finite", f"non-finite values: {listing}", bad)]
 
     if mass <= 0.0:
-        defects.append(InertiaDefect("non_positive_mass", f"mass {mass:g} kg is not positive",
-                                     {"mass": mass}))
+        defects.append(InertiaDefect("non_positive_mass", f"mass {mass:g} kg is not positive", {"mass": mass}))
 
     asymmetry = float(np.linalg.norm(tensor - tensor.T))
     norm = float(np.linalg.norm(tensor))
     if asymmetry > rtol * norm:
-        defects.append(InertiaDefect(
-            "not_symmetric",
-            f"inertia is not symmetric: |I - I^T| = {asymmetry:.3g}, |I| = {norm:.3g}",
-            {"asymmetry": asymmetry, "norm": norm}))
+        defects.append(
+            InertiaDefect(
+                "not_symmetric",
+                f"inertia is not symmetric: |I - I^T| = {asymmetry:.3g}, |I| = {norm:.3g}",
+                {"asymmetry": asymmetry, "norm": norm},
+            )
+        )
     tensor = 0.5 * (tensor + tensor.T)
 
     moments, _ = principal_moments(tensor)
     if not _is_positive_definite(moments):
-        defects.append(InertiaDefect(
-            "not_positive_definite",
-            f"principal moments {_fmt(moments)}: not all positive",
-            {"eigenvalues": moments.tolist()}))
+        defects.append(
+            InertiaDefect(
+                "not_positive_definite",
+                f"principal moments {_fmt(moments)}: not all positive",
+                {"eigenvalues": moments.tolist()},
+            )
+        )
 
     violation = _triangle_violation(moments, rtol)
     if violation is not None:
         big, excess = violation
         a, b = np.delete(moments, big)
-        defects.append(InertiaDefect(
-            "triangle_inequality",
-            f"principal moments {_fmt(moments)}: {_fmt([moments[big]])} > {_fmt([a])} + "
-            f"{_fmt([b])} (excess {excess:.3g})",
-            {"eigenvalues": moments.tolist(), "largest": float(moments[big]),
-             "sum_of_others": float(a + b), "excess": excess}))
+        defects.append(
+            InertiaDefect(
+                "triangle_inequality",
+                f"principal moments {_fmt(moments)}: {_fmt([moments[big]])} > {_fmt([a])} + "
+                f"{_fmt([b])} (excess {excess:.3g})",
+                {
+                    "eigenvalues": moments.tolist(),
+                    "largest": float(moments[big]),
+                    "sum_of_others": float(a + b),
+                    "excess": excess,
+                },
+            )
+        )
 
     if mass > 0.0:
         second, tolerance = _pseudo_inertia_schur(mass, com_v, tensor, rtol)
         if second[0] < -tolerance:
-            defects.append(InertiaDefect(
-                "pseudo_inertia_not_psd",
-                f"pseudo-inertia not positive semidefinite: second moments about the COM "
-                f"{_fmt(second)} kg·m² (eigenvalues of Σ - h hᵀ/m) must be >= 0",
-                {"second_moments": second.tolist(), "tolerance": tolerance}))
+            defects.append(
+                InertiaDefect(
+                    "pseudo_inertia_not_psd",
+                    f"pseudo-inertia not positive semidefinite: second moments about the COM "
+                    f"{_fmt(second)} kg·m² (eigenvalues of Σ - h hᵀ/m) must be >= 0",
+                    {"second_moments": second.tolist(), "tolerance": tolerance},
+                )
+            )
     return defects
 
 
-def _pseudo_inertia_schur(mass: float, com: np.ndarray, tensor: np.ndarray,
-                          rtol: float) -> tuple[np.ndarray, float]:
+def _pseudo_inertia_schur(mass: float, com: np.ndarray, tensor: np.ndarray, rtol: float) -> tuple[np.ndarray, float]:
     # J ⪰ 0 is tested through its Schur complement: with m > 0, J ⪰ 0 ⇔ Σ − h hᵀ/m ⪰ 0. The
     # eigenvalues of J itself mix kg and kg·m² and, with the COM far from the origin, J is so
     # ill-conditioned that a negative eigenvalue drowns in rounding; the Schur complement is a

@@ -5,11 +5,9 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-
 FLAT_MESH_THICKNESS_M = 1e-6
 """A collision mesh thinner than this across its thinnest direction encloses no volume: it has
 no convex hull (qhull fails on coplanar points) and no mass properties."""
-
 
 
 def mesh_thickness_m(vertices: np.ndarray) -> float:
@@ -25,7 +23,6 @@ def mesh_thickness_m(vertices: np.ndarray) -> float:
     return float(projection.max() - projection.min())
 
 
-
 def flat_mesh_problem(mesh: trimesh.Trimesh, scale: float = 1.0) -> str | None:
     """Why a collision mesh cannot be used (empty or flat), or None; `scale` converts its unit to
     metres (the URDF <mesh scale>)."""
@@ -33,6 +30,8 @@ def flat_mesh_problem(mesh: trimesh.Trimesh, scale: float = 1.0) -> str | None:
         return "it has no faces"
     thickness = mesh_thickness_m(mesh.vertices) * scale
     if thickness < FLAT_MESH_THICKNESS_M:
-        return (f"it is flat ({thickness:.2g} m thick across its thinnest direction): it encloses no volume, "
-                "so it has no convex hull and cannot collide as a solid")
+        return (
+            f"it is flat ({thickness:.2g} m thick across its thinnest direction): it encloses no volume, "
+            "so it has no convex hull and cannot collide as a solid"
+        )
     return None

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal, overload
 
 from footforge.inputs.description import descriptions_dir
 from footforge.inputs.yaml_reader import YamlReader, read_yaml
@@ -117,18 +118,23 @@ class VariantParams:
         return self.full.contact_solref if variant == "full" else self.contact_solref
 
 
-_JOINTS = {"aff": ("ankle_pitch", "ankle_roll"),
-           "aof": ("ankle_pitch", "ankle_roll", "sole_front", "sole_back")}
+_JOINTS = {"aff": ("ankle_pitch", "ankle_roll"), "aof": ("ankle_pitch", "ankle_roll", "sole_front", "sole_back")}
 
 
 def _passive(r: YamlReader) -> PassiveJoint:
     r.check_keys({"stiffness", "damping", "armature", "springref"})
-    return PassiveJoint(stiffness=r.get("stiffness").float(min_value=0.0),
-                        damping=r.get("damping").float(min_value=0.0),
-                        armature=r.get("armature", 0.0).float(min_value=0.0),
-                        springref=r.get("springref", 0.0).float())
+    return PassiveJoint(
+        stiffness=r.get("stiffness").float(min_value=0.0),
+        damping=r.get("damping").float(min_value=0.0),
+        armature=r.get("armature", 0.0).float(min_value=0.0),
+        springref=r.get("springref", 0.0).float(),
+    )
 
 
+@overload
+def _pair(r: YamlReader, n: Literal[2]) -> tuple[float, float]: ...
+@overload
+def _pair(r: YamlReader, n: Literal[3]) -> tuple[float, float, float]: ...
 def _pair(r: YamlReader, n: int) -> tuple[float, ...]:
     if not isinstance(r.data, list) or len(r.data) != n:
         raise r.fail(f"expected a list of {n} numbers, got {r.data!r}", f"give {n} numbers")
@@ -147,20 +153,26 @@ def _foot_contact(r: YamlReader) -> FootContact:
     if sole == "box":
         for key in ("grid", "radius_m"):
             if key in r.mapping():
-                raise r.get(key).fail("a box sole has no grid or radius",
-                                      "remove it, or choose sole: spheres or capsules")
+                raise r.get(key).fail(
+                    "a box sole has no grid or radius", "remove it, or choose sole: spheres or capsules"
+                )
     upper = r.get("upper_collisions", default.upper_collisions).data
     if not isinstance(upper, bool):
         raise r.get("upper_collisions").fail(f"expected true or false, got {upper!r}", "write true or false")
-    return FootContact(sole=sole, grid=(int(grid[0]), int(grid[1])),
-                       radius_m=r.get("radius_m", default.radius_m).float(min_value=1e-4, max_value=0.05),
-                       upper_collisions=upper)
+    return FootContact(
+        sole=sole,
+        grid=(int(grid[0]), int(grid[1])),
+        radius_m=r.get("radius_m", default.radius_m).float(min_value=1e-4, max_value=0.05),
+        upper_collisions=upper,
+    )
 
 
 def _check_timeconst(r: YamlReader, solref: tuple[float, ...], timestep: float) -> None:
     if solref[0] < 2 * timestep:
-        raise r.fail(f"timeconst {solref[0]} is below twice the timestep {timestep}",
-                     "MuJoCo cannot integrate a constraint faster than 2 steps: raise it or lower the timestep")
+        raise r.fail(
+            f"timeconst {solref[0]} is below twice the timestep {timestep}",
+            "MuJoCo cannot integrate a constraint faster than 2 steps: raise it or lower the timestep",
+        )
 
 
 def load_params(path: str | Path | None = None) -> VariantParams:
@@ -170,13 +182,14 @@ def load_params(path: str | Path | None = None) -> VariantParams:
       InputError: missing file, bad YAML, a missing or unknown key, a bad value.
     """
     path = Path(path) if path else default_params_path()
-    top = YamlReader(read_yaml(path, what="parameter file", fix="pass an existing file to --params"),
-                     "", path)
+    top = YamlReader(read_yaml(path, what="parameter file", fix="pass an existing file to --params"), "", path)
     top.check_keys({"format", "full", "simplified", "aff", "aof", "rig", "contact"})
     fmt = top.get("format")
     if fmt.data != PARAMS_FORMAT:
-        raise fmt.fail(f"format {fmt.data!r} is not {PARAMS_FORMAT}, the one this footforge reads",
-                       f"write the file in format {PARAMS_FORMAT} (see the shipped {default_params_path().name})")
+        raise fmt.fail(
+            f"format {fmt.data!r} is not {PARAMS_FORMAT}, the one this footforge reads",
+            f"write the file in format {PARAMS_FORMAT} (see the shipped {default_params_path().name})",
+        )
     full = top.get("full")
     full.check_keys({"timestep", "iterations", "tolerance", "closure_solref", "closure_solimp", "contact_solref"})
     iterations = full.get("iterations").float(min_value=1)
@@ -186,7 +199,8 @@ def load_params(path: str | Path | None = None) -> VariantParams:
         tolerance=full.get("tolerance").float(min_value=0.0),
         closure_solref=_pair(full.get("closure_solref"), 2),
         closure_solimp=_pair(full.get("closure_solimp"), 3),
-        contact_solref=_pair(full.get("contact_solref"), 2))
+        contact_solref=_pair(full.get("contact_solref"), 2),
+    )
     for key in ("closure_solref", "contact_solref"):
         _check_timeconst(full.get(key), getattr(settings, key), settings.timestep)
     simplified = top.get("simplified")
@@ -210,19 +224,27 @@ def load_params(path: str | Path | None = None) -> VariantParams:
     contact_solref = _pair(contact.get("solref"), 2)
     solimp = _pair(contact.get("solimp", [0.9, 0.95, 0.001]), 3)  # MuJoCo's default
     if not (0 < solimp[0] <= solimp[1] < 1 and solimp[2] > 0):
-        raise contact.get("solimp").fail(f"bad solimp {list(solimp)}", "give [dmin, dmax, width] with 0 < dmin <= dmax < 1 "
-                                         "and width > 0")
+        raise contact.get("solimp").fail(
+            f"bad solimp {list(solimp)}", "give [dmin, dmax, width] with 0 < dmin <= dmax < 1 and width > 0"
+        )
     cone = contact.get("cone", "pyramidal").str()
     if cone not in ("elliptic", "pyramidal"):
         raise contact.get("cone").fail(f"unknown friction cone '{cone}'", "use elliptic or pyramidal")
     _check_timeconst(contact.get("solref"), contact_solref, simplified.get("timestep").float(min_value=1e-6))
     return VariantParams(
-        source=path.resolve(), full=settings,
+        source=path.resolve(),
+        full=settings,
         simplified_timestep=simplified.get("timestep").float(min_value=1e-6),
-        aff=variants["aff"], aof=variants["aof"],
-        aof_split_x=aof.get("split_x").float(), aof_sole_range=sole_range, sole_lift_m=lifts,
+        aff=variants["aff"],
+        aof=variants["aof"],
+        aof_split_x=aof.get("split_x").float(),
+        aof_sole_range=sole_range,
+        sole_lift_m=lifts,
         foot_contact=contacts,
         rig_payload_mass=rig.get("payload_mass").float(min_value=0.0),
         rig_slider_damping=rig.get("slider_damping", 0.0).float(min_value=0.0),
-        contact_solref=contact_solref, contact_solimp=solimp, contact_cone=cone,
-        contact_impratio=contact.get("impratio", 1.0).float(min_value=1e-3))
+        contact_solref=contact_solref,
+        contact_solimp=solimp,
+        contact_cone=cone,
+        contact_impratio=contact.get("impratio", 1.0).float(min_value=1e-3),
+    )

@@ -8,9 +8,9 @@ documented field by field in descriptions/softfoot_q/urdf/softfoot_q.sidecar.yam
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 from footforge.inputs.yaml_reader import YamlReader, read_yaml
 
@@ -126,8 +126,18 @@ def default_sidecar_path(description: Path) -> Path:
     return description.parent / f"{name}.sidecar.yaml"
 
 
-_TOP_KEYS = {"format", "root_link", "arch_joints", "roll_joints", "roll_coupling", "closures",
-             "arch_spring", "joint_dynamics", "reference_pose", "friction"}
+_TOP_KEYS = {
+    "format",
+    "root_link",
+    "arch_joints",
+    "roll_joints",
+    "roll_coupling",
+    "closures",
+    "arch_spring",
+    "joint_dynamics",
+    "reference_pose",
+    "friction",
+}
 FAMILIES = ("arch", "roll", "chain")
 
 
@@ -138,8 +148,11 @@ def load_sidecar(path: str | Path) -> Sidecar:
       InputError: missing file, malformed YAML, unknown or missing keys, bad values.
     """
     path = Path(path)
-    data = read_yaml(path, what="sidecar file", fix="write one (see descriptions/softfoot_q/urdf/"
-                     "softfoot_q.sidecar.yaml) or pass --sidecar PATH")
+    data = read_yaml(
+        path,
+        what="sidecar file",
+        fix="write one (see descriptions/softfoot_q/urdf/softfoot_q.sidecar.yaml) or pass --sidecar PATH",
+    )
     top = YamlReader(data, "", path)
     top.check_keys(_TOP_KEYS)
     fmt = top.get("format").data
@@ -152,8 +165,7 @@ def load_sidecar(path: str | Path) -> Sidecar:
     if top.mapping().get("roll_coupling") is not None:
         c = top.get("roll_coupling")
         c.check_keys({"joint", "follows", "multiplier"})
-        coupling = Coupling(c.get("joint").str(), c.get("follows").str(),
-                            c.get("multiplier").float())
+        coupling = Coupling(c.get("joint").str(), c.get("follows").str(), c.get("multiplier").float())
 
     closures = []
     cl = top.get("closures")
@@ -166,27 +178,37 @@ def load_sidecar(path: str | Path) -> Sidecar:
         norm = math.sqrt(sum(a * a for a in axis))
         if norm < 1e-9:
             raise r.get("axis").fail("zero pin axis", "give a unit vector such as [1, 0, 0]")
-        closures.append(Closure(
-            name=r.get("name").str(), link=r.get("link").str(), point=r.get("point").vec3(),
-            to_link=r.get("to_link").str(), to_point=r.get("to_point").vec3(),
-            axis=tuple(a / norm for a in axis)))
+        closures.append(
+            Closure(
+                name=r.get("name").str(),
+                link=r.get("link").str(),
+                point=r.get("point").vec3(),
+                to_link=r.get("to_link").str(),
+                to_point=r.get("to_point").vec3(),
+                axis=(axis[0] / norm, axis[1] / norm, axis[2] / norm),
+            )
+        )
 
     spring = None
     if top.mapping().get("arch_spring") is not None:
         s = top.get("arch_spring")
         s.check_keys({"joints", "stiffness", "rest"})
-        spring = TendonSpring(joints=s.get("joints").float_map(),
-                              stiffness=s.get("stiffness").float(min_value=0.0),
-                              rest=s.get("rest", 0.0).float())
+        spring = TendonSpring(
+            joints=s.get("joints").float_map(),
+            stiffness=s.get("stiffness").float(min_value=0.0),
+            rest=s.get("rest", 0.0).float(),
+        )
 
     dyn = {}
     jd = top.get("joint_dynamics", {}).check_keys(set(FAMILIES))
     for fam in FAMILIES:
         f = jd.get(fam, {"damping": 0.0, "frictionloss": 0.0, "armature": 0.0})
         f.check_keys({"damping", "frictionloss", "armature"})
-        dyn[fam] = JointDynamics(damping=f.get("damping", 0.0).float(min_value=0.0),
-                                 frictionloss=f.get("frictionloss", 0.0).float(min_value=0.0),
-                                 armature=f.get("armature", 0.0).float(min_value=0.0))
+        dyn[fam] = JointDynamics(
+            damping=f.get("damping", 0.0).float(min_value=0.0),
+            frictionloss=f.get("frictionloss", 0.0).float(min_value=0.0),
+            armature=f.get("armature", 0.0).float(min_value=0.0),
+        )
 
     ref = top.get("reference_pose", {"joints": {}, "solve_closures": True})
     ref.check_keys({"joints", "solve_closures"})

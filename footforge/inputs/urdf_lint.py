@@ -33,10 +33,12 @@ Findings (severity; repairable or not):
 from __future__ import annotations
 
 import copy
+import functools
 import math
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable, Iterable, Literal, Sequence
+from typing import Literal, cast
 
 import numpy as np
 from lxml import etree
@@ -56,27 +58,25 @@ SINGLE_CHILDREN = {
     "inertial": ("origin", "mass", "inertia"),
     "visual": ("origin", "geometry", "material"),
     "collision": ("origin", "geometry"),
-    "joint": ("origin", "parent", "child", "axis", "limit", "dynamics", "mimic", "calibration",
-              "safety_controller"),
+    "joint": ("origin", "parent", "child", "axis", "limit", "dynamics", "mimic", "calibration", "safety_controller"),
 }
 """Children that URDF allows at most once, per parent element."""
 
-_REPAIRABLE_INERTIA = ("not_symmetric", "not_positive_definite", "triangle_inequality",
-                       "pseudo_inertia_not_psd")
+_REPAIRABLE_INERTIA = ("not_symmetric", "not_positive_definite", "triangle_inequality", "pseudo_inertia_not_psd")
 
 _INERTIA_FIXES = {
     "non_positive_mass": "set <mass value> to the part's mass in kg (> 0); for a massless frame "
-                         "remove the <inertial> and attach the link with a fixed joint",
+    "remove the <inertial> and attach the link with a fixed joint",
     "non_finite": "replace the nan/inf value with the CAD value",
     "not_symmetric": "use one value for each off-diagonal pair (Ixy = Iyx, ...)",
     "not_positive_definite": "take the inertia from CAD (about the COM, in the inertial frame); "
-                             "--repair (footforge build) raises the zero or negative principal moments to a tiny "
-                             "positive floor",
+    "--repair (footforge build) raises the zero or negative principal moments to a tiny "
+    "positive floor",
     "triangle_inequality": "compare the moments with CAD (a dropped digit is the usual cause); "
-                           "--repair (footforge build) raises the smallest principal moment to the difference "
-                           "of the other two",
+    "--repair (footforge build) raises the smallest principal moment to the difference "
+    "of the other two",
     "pseudo_inertia_not_psd": "no mass distribution has these moments: take them from CAD; "
-                              "--repair (footforge build) balances the principal moments",
+    "--repair (footforge build) balances the principal moments",
 }
 
 
@@ -130,8 +130,14 @@ class Inertial:
 def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
     """Rotation matrix of URDF roll-pitch-yaw angles: Rz(yaw) @ Ry(pitch) @ Rx(roll)."""
     roll, pitch, yaw = rpy
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch),
-                              math.cos(yaw), math.sin(yaw))
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
+    )
     rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
     ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
     rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
@@ -189,14 +195,16 @@ def read_inertial(link: etree._Element) -> Inertial | None:
     inertia_el = inertial.find("inertia")
     if inertia_el is None:
         problems.append("<inertia> is missing")
-        moments = (0.0,) * 6
+        moments: tuple[float, ...] = (0.0,) * 6
     else:
-        moments = tuple(_number(inertia_el.get(a), f"<inertia {a}>", problems)
-                        for a in INERTIA_ATTRIBUTES)
+        moments = tuple(_number(inertia_el.get(a), f"<inertia {a}>", problems) for a in INERTIA_ATTRIBUTES)
     if problems:
-        raise InputError("; ".join(problems), element=_link_label(link),
-                         fix="give <mass value> and all six of ixx, ixy, ixz, iyy, iyz, izz "
-                             "as numbers (origin xyz and rpy as three numbers each)")
+        raise InputError(
+            "; ".join(problems),
+            element=_link_label(link),
+            fix="give <mass value> and all six of ixx, ixy, ixz, iyy, iyz, izz "
+            "as numbers (origin xyz and rpy as three numbers each)",
+        )
     return Inertial(mass=mass, xyz=xyz, rpy=rpy, moments=moments)  # type: ignore[arg-type]
 
 
@@ -204,6 +212,7 @@ def read_inertial(link: etree._Element) -> Inertial | None:
 # Detection. Each detector yields _Items on the tree it is given; a repairable item carries the
 # action that repairs it on that tree. repair_urdf reruns the detectors on a copy and applies the
 # actions of the findings it was asked to repair.
+
 
 @dataclass
 class _Item:
@@ -228,8 +237,7 @@ def _joint_label(joint: etree._Element) -> str:
     return f"joint '{name}'"
 
 
-def _error(code: str, element: str, message: str, fix: str, *,
-           repairable: bool = False) -> Finding:
+def _error(code: str, element: str, message: str, fix: str, *, repairable: bool = False) -> Finding:
     return Finding("error", code, element, message, fix, repairable)
 
 
@@ -244,15 +252,15 @@ def _repeated_items(container: etree._Element, label: str, where: str) -> list[_
         def remove(extra=extra, tag=tag, label=label, where=where) -> str:
             for element in extra:
                 element.getparent().remove(element)
-            return (f"{label}: removed {len(extra)} repeated <{tag}> {where}(kept the first, "
-                    "as ROS does)")
+            return f"{label}: removed {len(extra)} repeated <{tag}> {where}(kept the first, as ROS does)"
 
         finding = _error(
-            "repeated_element", label,
-            f"{len(found)} <{tag}> elements {where}(URDF allows one: ROS takes the first, "
-            "MuJoCo rejects the file)",
+            "repeated_element",
+            label,
+            f"{len(found)} <{tag}> elements {where}(URDF allows one: ROS takes the first, MuJoCo rejects the file)",
             f"keep one <{tag}> {where}and delete the others (footforge build --repair keeps the first)",
-            repairable=True)
+            repairable=True,
+        )
         items.append(_Item(finding, key=("repeated", container, tag), action=remove))
     return items
 
@@ -262,22 +270,35 @@ def _structure_items(root: etree._Element) -> list[_Item]:
     links = root.findall("link")
     joints = root.findall("joint")
 
-    for kind, elements, label_of in (("link", links, _link_label),
-                                     ("joint", joints, _joint_label)):
+    for kind, elements, label_of in (("link", links, _link_label), ("joint", joints, _joint_label)):
         seen: dict[str, int] = {}
         for element in elements:
             name = element.get("name")
             if not name:
-                items.append(_Item(_error(
-                    "missing_name", label_of(element), f"<{kind}> has no name attribute",
-                    f"give every <{kind}> a unique name")))
+                items.append(
+                    _Item(
+                        _error(
+                            "missing_name",
+                            label_of(element),
+                            f"<{kind}> has no name attribute",
+                            f"give every <{kind}> a unique name",
+                        )
+                    )
+                )
                 continue
             seen[name] = seen.get(name, 0) + 1
         for name, count in seen.items():
             if count > 1:
-                items.append(_Item(_error(
-                    "duplicate_name", f"{kind} '{name}'", f"{count} {kind}s are named '{name}'",
-                    f"rename all but one {kind} '{name}' (and the joints that refer to it)")))
+                items.append(
+                    _Item(
+                        _error(
+                            "duplicate_name",
+                            f"{kind} '{name}'",
+                            f"{count} {kind}s are named '{name}'",
+                            f"rename all but one {kind} '{name}' (and the joints that refer to it)",
+                        )
+                    )
+                )
 
     for link in links:
         label = _link_label(link)
@@ -301,9 +322,16 @@ def _inertia_items(root: etree._Element) -> list[_Item]:
         try:
             inertial = read_inertial(link)
         except InputError as e:
-            items.append(_Item(_error(
-                "unparsable_inertial", label,
-                f"{e.message} (Pinocchio would load this link as massless)", e.fix or "")))
+            items.append(
+                _Item(
+                    _error(
+                        "unparsable_inertial",
+                        label,
+                        f"{e.message} (Pinocchio would load this link as massless)",
+                        e.fix or "",
+                    )
+                )
+            )
             continue
         if inertial is None or inertial.is_massless_marker():
             continue
@@ -311,11 +339,11 @@ def _inertia_items(root: etree._Element) -> list[_Item]:
         inertia_el = link.find("inertial").find("inertia")
         for defect in defects:
             repairable = defect.code in _REPAIRABLE_INERTIA
-            finding = _error(defect.code, label, defect.message, _INERTIA_FIXES[defect.code],
-                             repairable=repairable)
+            finding = _error(defect.code, label, defect.message, _INERTIA_FIXES[defect.code], repairable=repairable)
             if repairable:
-                items.append(_Item(finding, key=("balance", inertia_el),
-                                   action=lambda el=inertia_el, label=label: _balance(el, label)))
+                items.append(
+                    _Item(finding, key=("balance", inertia_el), action=functools.partial(_balance, inertia_el, label))
+                )
             else:
                 items.append(_Item(finding))
     return items
@@ -337,14 +365,18 @@ def _balance(inertia_el: etree._Element, label: str) -> str:
 def _parse_joint(joint: etree._Element) -> tuple[str | None, str | None, str | None]:
     parent = joint.find("parent")
     child = joint.find("child")
-    return (joint.get("type"), parent.get("link") if parent is not None else None,
-            child.get("link") if child is not None else None)
+    return (
+        joint.get("type"),
+        parent.get("link") if parent is not None else None,
+        child.get("link") if child is not None else None,
+    )
 
 
 def _tree_items(root: etree._Element) -> list[_Item]:
     items: list[_Item] = []
-    links = {link.get("name"): link for link in reversed(root.findall("link"))
-             if link.get("name")}  # reversed: the first of duplicates wins, as in ROS
+    links: dict[str, etree._Element] = {
+        link.get("name"): link for link in reversed(root.findall("link")) if link.get("name")
+    }  # reversed: the first of duplicates wins, as in ROS
     parents_of: dict[str, list[str]] = {}
     fixed_children: dict[str, list[str]] = {}
     moving: list[tuple[str, str, str]] = []  # (joint label, type, child)
@@ -354,19 +386,40 @@ def _tree_items(root: etree._Element) -> list[_Item]:
         jtype, parent, child = _parse_joint(joint)
         for role, name in (("parent", parent), ("child", child)):
             if name is None:
-                items.append(_Item(_error(
-                    "dangling_joint", label, f"no <{role} link=...>",
-                    f"add <{role} link=\"...\"/> naming an existing link")))
+                items.append(
+                    _Item(
+                        _error(
+                            "dangling_joint",
+                            label,
+                            f"no <{role} link=...>",
+                            f'add <{role} link="..."/> naming an existing link',
+                        )
+                    )
+                )
             elif name not in links:
-                items.append(_Item(_error(
-                    "dangling_joint", label, f"{role} link '{name}' does not exist",
-                    f"correct the {role} link name or add <link name=\"{name}\">")))
+                items.append(
+                    _Item(
+                        _error(
+                            "dangling_joint",
+                            label,
+                            f"{role} link '{name}' does not exist",
+                            f'correct the {role} link name or add <link name="{name}">',
+                        )
+                    )
+                )
         if child in links:
             parents_of.setdefault(child, []).append(label)
         if jtype not in JOINT_TYPES:
-            items.append(_Item(_error(
-                "unknown_joint_type", label, f"type '{jtype}' is not a URDF joint type",
-                f"use one of {', '.join(JOINT_TYPES)}")))
+            items.append(
+                _Item(
+                    _error(
+                        "unknown_joint_type",
+                        label,
+                        f"type '{jtype}' is not a URDF joint type",
+                        f"use one of {', '.join(JOINT_TYPES)}",
+                    )
+                )
+            )
         elif jtype == "fixed":
             if parent in links and child in links:
                 fixed_children.setdefault(parent, []).append(child)
@@ -378,22 +431,40 @@ def _tree_items(root: etree._Element) -> list[_Item]:
     roots = [name for name in links if name not in children]
     if len(roots) > 1:
         listing = ", ".join(f"'{r}'" for r in sorted(roots))
-        items.append(_Item(_error(
-            "multiple_roots", f"robot '{root.get('name', '')}'",
-            f"{len(roots)} root links (no joint has them as child): {listing}",
-            "attach every link but the base to the tree with a joint, or remove it")))
+        items.append(
+            _Item(
+                _error(
+                    "multiple_roots",
+                    f"robot '{root.get('name', '')}'",
+                    f"{len(roots)} root links (no joint has them as child): {listing}",
+                    "attach every link but the base to the tree with a joint, or remove it",
+                )
+            )
+        )
     elif not roots and links:
-        items.append(_Item(_error(
-            "no_root", f"robot '{root.get('name', '')}'",
-            "no root link: every link is some joint's child (the joints form a loop)",
-            "a URDF is a tree: break the loop and close it in the simulator instead")))
+        items.append(
+            _Item(
+                _error(
+                    "no_root",
+                    f"robot '{root.get('name', '')}'",
+                    "no root link: every link is some joint's child (the joints form a loop)",
+                    "a URDF is a tree: break the loop and close it in the simulator instead",
+                )
+            )
+        )
     for child, labels in sorted(parents_of.items()):
         if len(labels) > 1:
-            items.append(_Item(_error(
-                "multiple_roots", f"link '{child}'",
-                f"child of {len(labels)} joints: {', '.join(labels)}",
-                "a URDF is a tree: keep one parent joint and close the loop in the simulator "
-                "(as the SoftFoot-Q chain closures are)")))
+            items.append(
+                _Item(
+                    _error(
+                        "multiple_roots",
+                        f"link '{child}'",
+                        f"child of {len(labels)} joints: {', '.join(labels)}",
+                        "a URDF is a tree: keep one parent joint and close the loop in the simulator "
+                        "(as the SoftFoot-Q chain closures are)",
+                    )
+                )
+            )
 
     items += _massless_items(links, fixed_children, moving)
     return items
@@ -411,34 +482,56 @@ def _joint_sanity_items(joint: etree._Element, label: str, jtype: str | None) ->
         if axis is not None:
             xyz = _vector(axis.get("xyz", "1 0 0"), "<axis xyz>", problems)
             if not problems and math.sqrt(sum(v * v for v in xyz)) < 1e-12:
-                items.append(_Item(_error(
-                    "zero_axis", label, f"axis xyz = '{axis.get('xyz')}' has zero length",
-                    "give the joint axis as a non-zero vector, e.g. <axis xyz=\"0 1 0\"/>")))
+                items.append(
+                    _Item(
+                        _error(
+                            "zero_axis",
+                            label,
+                            f"axis xyz = '{axis.get('xyz')}' has zero length",
+                            'give the joint axis as a non-zero vector, e.g. <axis xyz="0 1 0"/>',
+                        )
+                    )
+                )
     if jtype in ("revolute", "prismatic"):
         limit = joint.find("limit")
         if limit is None:
             unit = "rad" if jtype == "revolute" else "m"
-            items.append(_Item(_error(
-                "missing_limit", label, f"{jtype} joint without <limit> (URDF requires one)",
-                f"add <limit lower=\"...\" upper=\"...\" effort=\"...\" velocity=\"...\"/> "
-                f"({unit}), or make the joint continuous")))
+            items.append(
+                _Item(
+                    _error(
+                        "missing_limit",
+                        label,
+                        f"{jtype} joint without <limit> (URDF requires one)",
+                        f'add <limit lower="..." upper="..." effort="..." velocity="..."/> '
+                        f"({unit}), or make the joint continuous",
+                    )
+                )
+            )
         else:
             count = len(problems)
             lower = _number(limit.get("lower", "0"), "<limit lower>", problems)
             upper = _number(limit.get("upper", "0"), "<limit upper>", problems)
             if len(problems) == count and lower > upper:
-                items.append(_Item(_error(
-                    "inverted_limit", label, f"lower {lower:g} > upper {upper:g}",
-                    "swap lower and upper")))
+                items.append(
+                    _Item(_error("inverted_limit", label, f"lower {lower:g} > upper {upper:g}", "swap lower and upper"))
+                )
     if problems:
-        items.append(_Item(_error(
-            "unparsable_joint", label, "; ".join(problems),
-            "write each vector as three numbers and each limit as a number")))
+        items.append(
+            _Item(
+                _error(
+                    "unparsable_joint",
+                    label,
+                    "; ".join(problems),
+                    "write each vector as three numbers and each limit as a number",
+                )
+            )
+        )
     return items
 
 
-def _massless_items(links: dict[str, etree._Element], fixed_children: dict[str, list[str]],
-                    moving: list[tuple[str, str, str]]) -> list[_Item]:
+def _massless_items(
+    links: dict[str, etree._Element], fixed_children: dict[str, list[str]], moving: list[tuple[str, str, str]]
+) -> list[_Item]:
     def carries_mass(name: str) -> bool:
         # Unparsable or defective inertials count as mass: they are reported on their own.
         try:
@@ -451,18 +544,22 @@ def _massless_items(links: dict[str, etree._Element], fixed_children: dict[str, 
         if name in seen:
             return False
         seen.add(name)
-        return carries_mass(name) or any(group_has_mass(c, seen)
-                                         for c in fixed_children.get(name, ()))
+        return carries_mass(name) or any(group_has_mass(c, seen) for c in fixed_children.get(name, ()))
 
     items = []
     for joint_label, jtype, child in moving:
         if not group_has_mass(child, set()):
-            items.append(_Item(_error(
-                "massless_moving_link", f"link '{child}'",
-                f"moved by {jtype} {joint_label} but carries no mass (no <inertial> on it or "
-                "on the links fixed to it); MuJoCo cannot simulate a massless moving body",
-                f"add an <inertial> with the part's mass and inertia, or make {joint_label} "
-                "fixed")))
+            items.append(
+                _Item(
+                    _error(
+                        "massless_moving_link",
+                        f"link '{child}'",
+                        f"moved by {jtype} {joint_label} but carries no mass (no <inertial> on it or "
+                        "on the links fixed to it); MuJoCo cannot simulate a massless moving body",
+                        f"add an <inertial> with the part's mass and inertia, or make {joint_label} fixed",
+                    )
+                )
+            )
     return items
 
 
@@ -470,12 +567,20 @@ def _geometry_items(root: etree._Element) -> list[_Item]:
     items = []
     for link in root.findall("link"):
         if link.find("collision") is not None and link.find("inertial") is None:
-            items.append(_Item(Finding(
-                "warning", "inertia_from_geometry", _link_label(link),
-                "collision geoms but no <inertial>: MuJoCo infers a mass from the geoms unless "
-                "inertiafromgeom is off; footforge treats the link as massless",
-                "add an <inertial> with the part's mass, COM and inertia (or confirm that the "
-                "link is massless)", False)))
+            items.append(
+                _Item(
+                    Finding(
+                        "warning",
+                        "inertia_from_geometry",
+                        _link_label(link),
+                        "collision geoms but no <inertial>: MuJoCo infers a mass from the geoms unless "
+                        "inertiafromgeom is off; footforge treats the link as massless",
+                        "add an <inertial> with the part's mass, COM and inertia (or confirm that the "
+                        "link is massless)",
+                        False,
+                    )
+                )
+            )
     return items
 
 
@@ -489,9 +594,16 @@ def _mesh_items(root: etree._Element, resolve_uri: Callable[[str], Path]) -> lis
                 for mesh in element.findall("geometry/mesh"):
                     uri = mesh.get("filename")
                     if not uri:
-                        items.append(_Item(_error(
-                            "missing_mesh", label, "<mesh> has no filename",
-                            "give the mesh file as filename=\"package://pkg/meshes/part.stl\"")))
+                        items.append(
+                            _Item(
+                                _error(
+                                    "missing_mesh",
+                                    label,
+                                    "<mesh> has no filename",
+                                    'give the mesh file as filename="package://pkg/meshes/part.stl"',
+                                )
+                            )
+                        )
                         continue
                     if uri not in cache:
                         try:
@@ -500,20 +612,40 @@ def _mesh_items(root: etree._Element, resolve_uri: Callable[[str], Path]) -> lis
                             cache[uri] = e
                     resolved = cache[uri]
                     if isinstance(resolved, InputError):
-                        items.append(_Item(_error(
-                            "unresolved_package", label, f"mesh '{uri}': {resolved.message}",
-                            resolved.fix or "pass the package's folder on the package path")))
+                        items.append(
+                            _Item(
+                                _error(
+                                    "unresolved_package",
+                                    label,
+                                    f"mesh '{uri}': {resolved.message}",
+                                    resolved.fix or "pass the package's folder on the package path",
+                                )
+                            )
+                        )
                     elif not resolved.is_file():
-                        items.append(_Item(_error(
-                            "missing_mesh", label,
-                            f"mesh '{uri}' resolves to {resolved}, which does not exist",
-                            "check the file name, its case and the package's meshes folder")))
+                        items.append(
+                            _Item(
+                                _error(
+                                    "missing_mesh",
+                                    label,
+                                    f"mesh '{uri}' resolves to {resolved}, which does not exist",
+                                    "check the file name, its case and the package's meshes folder",
+                                )
+                            )
+                        )
                     elif kind == "collision":
                         problem = _collision_mesh_problem(resolved, mesh.get("scale"))
                         if problem:
-                            items.append(_Item(_error(
-                                "unusable_collision_mesh", label, f"mesh '{uri}': {problem}",
-                                "export a closed solid mesh, or remove this <collision> element")))
+                            items.append(
+                                _Item(
+                                    _error(
+                                        "unusable_collision_mesh",
+                                        label,
+                                        f"mesh '{uri}': {problem}",
+                                        "export a closed solid mesh, or remove this <collision> element",
+                                    )
+                                )
+                            )
     return items
 
 
@@ -524,7 +656,7 @@ def _collision_mesh_problem(path: Path, scale: str | None) -> str | None:
     from footforge.inputs.meshes import flat_mesh_problem
 
     try:
-        mesh = trimesh.load(path, force="mesh")
+        mesh = cast(trimesh.Trimesh, trimesh.load(path, force="mesh"))  # force="mesh": one Trimesh
     except Exception as e:  # trimesh raises many kinds for a malformed file
         return f"cannot be read ({e})"
     try:
@@ -542,8 +674,7 @@ def _sort_key(finding: Finding) -> tuple[str, str, str]:
     return (finding.element, finding.code, finding.message)
 
 
-def check_urdf(root: etree._Element, *,
-               resolve_uri: Callable[[str], Path]) -> list[Finding]:
+def check_urdf(root: etree._Element, *, resolve_uri: Callable[[str], Path]) -> list[Finding]:
     """Checks an expanded URDF for physical, structural and file problems.
 
     Args:
@@ -559,15 +690,14 @@ def check_urdf(root: etree._Element, *,
       InputError: root is not a `<robot>` element.
     """
     if root.tag != "robot":
-        raise InputError(f"root element is <{root.tag}>, not <robot>",
-                         fix="pass the <robot> element of an expanded URDF")
-    items = (_repairable_scope_items(root) + _tree_items(root) + _geometry_items(root)
-             + _mesh_items(root, resolve_uri))
+        raise InputError(
+            f"root element is <{root.tag}>, not <robot>", fix="pass the <robot> element of an expanded URDF"
+        )
+    items = _repairable_scope_items(root) + _tree_items(root) + _geometry_items(root) + _mesh_items(root, resolve_uri)
     return sorted((item.finding for item in items), key=_sort_key)
 
 
-def repair_urdf(root: etree._Element,
-                findings: Iterable[Finding]) -> tuple[etree._Element, list[str]]:
+def repair_urdf(root: etree._Element, findings: Iterable[Finding]) -> tuple[etree._Element, list[str]]:
     """Applies the repairs of the repairable findings to a copy of the tree.
 
     Repeated elements: all but the first are removed (ROS reads the first). Inertia defects:
@@ -633,8 +763,9 @@ def format_findings(findings: Iterable[Finding]) -> str:
 INPUT_ERROR_CODES = frozenset({"missing_mesh", "unresolved_package"})
 
 
-
-def lint_and_repair(description: Description, *, repair: bool, what: str) -> tuple[Description, list[Finding], list[str]]:
+def lint_and_repair(
+    description: Description, *, repair: bool, what: str
+) -> tuple[Description, list[Finding], list[str]]:
     """Runs `check` on a description; repairs it if asked; refuses one with errors.
 
     Raises:
@@ -648,18 +779,23 @@ def lint_and_repair(description: Description, *, repair: bool, what: str) -> tup
         findings = check_urdf(description.root(), resolve_uri=description.resolve_uri)
     missing = [f for f in findings if f.severity == "error" and f.code in INPUT_ERROR_CODES]
     if missing:  # files that are not there are input errors (exit 2), not model defects
-        raise InputError(f"the {what} description refers to files it cannot find:\n{format_findings(missing)}",
-                         file=str(description.source),
-                         fix="fix the paths, or add the folder holding the package with --package-path")
+        raise InputError(
+            f"the {what} description refers to files it cannot find:\n{format_findings(missing)}",
+            file=str(description.source),
+            fix="fix the paths, or add the folder holding the package with --package-path",
+        )
     if has_errors(findings):
         repairable = all(f.repairable for f in findings if f.severity == "error")
         raise CheckFailure(
             f"the {what} description has errors:\n{format_findings([f for f in findings if f.severity == 'error'])}",
             file=str(description.source),
-            fix=("rerun with --repair to apply the listed repairs (recorded in the build report)"
-                 if repairable else "fix the description as suggested above"))
+            fix=(
+                "rerun with --repair to apply the listed repairs (recorded in the build report)"
+                if repairable
+                else "fix the description as suggested above"
+            ),
+        )
     return description, findings, notes
-
 
 
 def link_inertia_checks(description: Description, findings: list[Finding]) -> dict[str, str]:

@@ -10,8 +10,9 @@ MJCF conventions of the written models:
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -20,31 +21,41 @@ from dm_control import mjcf
 from footforge.errors import InputError
 from footforge.models.urdf import ParsedURDF, children_in_urdf_order, joint_axis, joint_kind, quat_wxyz
 
-
 CONTACT_SOLMIX = 1000.0
 """MuJoCo averages two geoms' solref weighted by solmix: the robot's collision geoms outweigh a
 ground geom's default 1, so the sole pad's contact stiffness holds on any terrain."""
 
 
-
-def add_default_classes(root: mjcf.RootElement, *, friction: float, contact_solref: tuple[float, float],
-                        contact_solimp: tuple[float, float, float] | None = None) -> None:
+def add_default_classes(
+    root: mjcf.RootElement,
+    *,
+    friction: float,
+    contact_solref: tuple[float, float],
+    contact_solimp: tuple[float, float, float] | None = None,
+) -> None:
     """The visual and collision classes every footforge model uses."""
     visual = root.default.add("default", dclass="visual")
     visual.geom.set_attributes(group=2, contype=0, conaffinity=0, density=0, mass=0)
     collision = root.default.add("default", dclass="collision")
-    collision.geom.set_attributes(group=3, contype=0, conaffinity=1, friction=[friction, 0.005, 0.0001],
-                                  solref=list(contact_solref), solmix=CONTACT_SOLMIX)
+    collision.geom.set_attributes(
+        group=3,
+        contype=0,
+        conaffinity=1,
+        friction=[friction, 0.005, 0.0001],
+        solref=list(contact_solref),
+        solmix=CONTACT_SOLMIX,
+    )
     if contact_solimp is not None:
         collision.geom.solimp = list(contact_solimp)
 
 
-
 def inertial_attributes(inertia: pin.Inertia) -> dict:
-    I = inertia.inertia
-    return dict(pos=np.array(inertia.lever), mass=float(inertia.mass),
-                fullinertia=[I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
-
+    I = inertia.inertia  # noqa: E741  (the inertia tensor, named as in the equations)
+    return dict(
+        pos=np.array(inertia.lever),
+        mass=float(inertia.mass),
+        fullinertia=[I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]],
+    )
 
 
 class MeshAssets:
@@ -68,7 +79,8 @@ class MeshAssets:
         key = f"bytes|{name}"
         if key not in self._by_key:
             self._by_key[key] = self._root.asset.add(
-                "mesh", name=self._unique(name), file=mjcf.Asset(contents=contents, extension=extension))
+                "mesh", name=self._unique(name), file=mjcf.Asset(contents=contents, extension=extension)
+            )
         return self._by_key[key]
 
     def _unique(self, stem: str) -> str:
@@ -79,13 +91,12 @@ class MeshAssets:
         return name
 
 
-
 def geom_attributes(geom_object, assets: MeshAssets) -> dict:
     """MJCF geom attributes (type, size or mesh, pos, quat) of a Pinocchio geometry object."""
     g = geom_object.geometry
     kind = type(g).__name__
     placement = geom_object.placement
-    attrs = dict(pos=np.array(placement.translation), quat=quat_wxyz(placement.rotation))
+    attrs: dict[str, Any] = dict(pos=np.array(placement.translation), quat=quat_wxyz(placement.rotation))
     if kind == "Box":
         attrs.update(type="box", size=np.array(g.halfSide))
     elif kind == "Sphere":
@@ -98,10 +109,10 @@ def geom_attributes(geom_object, assets: MeshAssets) -> dict:
         mesh = assets.from_file(geom_object.meshPath, tuple(geom_object.meshScale))
         attrs.update(type="mesh", mesh=mesh)
     else:
-        raise InputError(f"unsupported geometry {kind} of '{geom_object.name}'",
-                         fix="use box, sphere, cylinder or mesh geometry")
+        raise InputError(
+            f"unsupported geometry {kind} of '{geom_object.name}'", fix="use box, sphere, cylinder or mesh geometry"
+        )
     return attrs
-
 
 
 def add_joint(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, *, dclass: str | None = None):
@@ -123,10 +134,16 @@ def add_joint(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, *, dclass: 
     return body.add("joint", **attrs)
 
 
-
-def add_geoms(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, assets: MeshAssets,
-              *, collision_geoms: Mapping[str, list[dict]] | None = None,
-              offset: pin.SE3 | None = None, kinds: tuple[str, ...] = ("visual", "collision")) -> None:
+def add_geoms(
+    body: mjcf.Element,
+    parsed: ParsedURDF,
+    joint_id: int,
+    assets: MeshAssets,
+    *,
+    collision_geoms: Mapping[str, list[dict]] | None = None,
+    offset: pin.SE3 | None = None,
+    kinds: tuple[str, ...] = ("visual", "collision"),
+) -> None:
     """Adds the geoms of `kinds` (visual, collision) carried by `joint_id` to `body`.
 
     `collision_geoms` maps a Pinocchio geometry name to replacement geom attribute dicts (the
@@ -153,10 +170,15 @@ def add_geoms(body: mjcf.Element, parsed: ParsedURDF, joint_id: int, assets: Mes
             body.add("geom", name=f"{go.name}_{kind}", dclass=kind, **attrs)
 
 
-
-def add_body_tree(parsed: ParsedURDF, root_body: mjcf.Element, assets: MeshAssets, *,
-                  joint_class, collision_geoms: Mapping[str, list[dict]] | None = None,
-                  reference: Mapping[str, float] | None = None) -> dict[int, mjcf.Element]:
+def add_body_tree(
+    parsed: ParsedURDF,
+    root_body: mjcf.Element,
+    assets: MeshAssets,
+    *,
+    joint_class,
+    collision_geoms: Mapping[str, list[dict]] | None = None,
+    reference: Mapping[str, float] | None = None,
+) -> dict[int, mjcf.Element]:
     """Adds one MJCF body per Pinocchio joint below the root joint (id 1) under `root_body`, in
     URDF order: frame, inertial, joint (class `joint_class(joint_id)`), geoms.
 
@@ -179,11 +201,16 @@ def add_body_tree(parsed: ParsedURDF, root_body: mjcf.Element, assets: MeshAsset
             ref = reference.get(name, 0.0) if kind in ("hinge", "slide") else 0.0
             if ref:
                 axis = joint_axis(model.joints[child])
-                motion = (pin.SE3(pin.exp3(axis * ref), np.zeros(3)) if kind == "hinge"
-                          else pin.SE3(np.eye(3), axis * ref))
+                motion = (
+                    pin.SE3(pin.exp3(axis * ref), np.zeros(3)) if kind == "hinge" else pin.SE3(np.eye(3), axis * ref)
+                )
                 placement = placement * motion
-            body = bodies[joint_id].add("body", name=parsed.link_of(child), pos=np.array(placement.translation),
-                                        quat=quat_wxyz(placement.rotation))
+            body = bodies[joint_id].add(
+                "body",
+                name=parsed.link_of(child),
+                pos=np.array(placement.translation),
+                quat=quat_wxyz(placement.rotation),
+            )
             body.add("inertial", **inertial_attributes(model.inertias[child]))
             joint = add_joint(body, parsed, child, dclass=joint_class(child))
             if ref:

@@ -39,8 +39,9 @@ def set_options(root: mjcf.RootElement, variant: str, params: VariantParams, *, 
         root.option.set_attributes(cone=params.contact_cone, impratio=params.contact_impratio)
     if variant == "full":
         full = params.full
-        root.option.set_attributes(timestep=full.timestep, iterations=full.iterations, tolerance=full.tolerance,
-                                   solver="Newton")
+        root.option.set_attributes(
+            timestep=full.timestep, iterations=full.iterations, tolerance=full.tolerance, solver="Newton"
+        )
     else:
         root.option.timestep = params.simplified_timestep
 
@@ -51,19 +52,28 @@ def add_passive_sensors(foot_root: mjcf.RootElement, joints) -> None:
         foot_root.sensor.add("jointvel", name=f"{joint}_vel", joint=joint)
 
 
-def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, params: VariantParams,
-                friction: float, stand_keyframe: bool = True) -> BuiltModel:
+def build_robot(
+    parsed: ParsedURDF,
+    foot: FootModel | None,
+    *,
+    variant: str,
+    params: VariantParams,
+    friction: float,
+    stand_keyframe: bool = True,
+) -> BuiltModel:
     """ANYmal C with four feet of `variant` (`foot` None for the ball feet of the description),
     with keyframes `home` and (unless stand_keyframe is False) `stand`."""
     model = parsed.model
     root = mjcf.RootElement(model=f"anymal_c_{variant}")
     set_options(root, variant, params, robot=True)
-    add_default_classes(root, friction=friction, contact_solref=params.contact_solref_for(variant),
-                        contact_solimp=params.contact_solimp)
+    add_default_classes(
+        root, friction=friction, contact_solref=params.contact_solref_for(variant), contact_solimp=params.contact_solimp
+    )
     root.default.add("default", dclass="leg").joint.set_attributes(type="hinge")
     actuator_class = root.default.add("default", dclass="leg_actuator")
-    actuator_class.position.set_attributes(kp=C.KP_NM_PER_RAD, kv=C.KD_NMS_PER_RAD,
-                                           forcerange=[-C.EFFORT_LIMIT_NM, C.EFFORT_LIMIT_NM])
+    actuator_class.position.set_attributes(
+        kp=C.KP_NM_PER_RAD, kv=C.KD_NMS_PER_RAD, forcerange=[-C.EFFORT_LIMIT_NM, C.EFFORT_LIMIT_NM]
+    )
     assets = MeshAssets(root)
     base = root.worldbody.add("body", name=parsed.link_of_joint[FLOATING_JOINT])
     base.add("freejoint", name=C.FLOATING_JOINT)
@@ -73,8 +83,9 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
 
     def frame_site(link: str, name: str, **kw):
         joint_id, placement = parsed.body_of_link(link)
-        return bodies[joint_id].add("site", name=name, pos=np.array(placement.translation),
-                                    quat=quat_wxyz(placement.rotation), **kw)
+        return bodies[joint_id].add(
+            "site", name=name, pos=np.array(placement.translation), quat=quat_wxyz(placement.rotation), **kw
+        )
 
     imu = frame_site(C.IMU_FRAME, "imu", size=[0.01], group=4)
     root.sensor.add("gyro", name="imu_gyro", site=imu)
@@ -108,7 +119,7 @@ def build_robot(parsed: ParsedURDF, foot: FootModel | None, *, variant: str, par
 
 def foot_reference_qpos(mj: mujoco.MjModel, foot: FootModel | None, prefix_format: str) -> dict[int, float]:
     """qpos address -> value of every foot joint at the reference pose."""
-    values = {}
+    values: dict[int, float] = {}
     if foot is None:
         return values
     for leg in C.LEGS:
@@ -167,9 +178,9 @@ def _add_stand_keyframe(root: mjcf.RootElement) -> None:
     try:
         qpos, ctrl = rest_pose(spec.compile())
     except NoRest as e:
-        raise CheckFailure(f"the robot standing at its home keyframe did not come to rest within {SETTLE_MAX_S:g} s "
-                           f"(largest velocity {e.speed:.3g}, joint '{e.joint}')",
-                           fix="check the contact settings (parameter file, `contact`) and the passive joints") from None
+        raise CheckFailure(
+            f"the robot standing at its home keyframe did not come to rest within {SETTLE_MAX_S:g} s "
+            f"(largest velocity {e.speed:.3g}, joint '{e.joint}')",
+            fix="check the contact settings (parameter file, `contact`) and the passive joints",
+        ) from None
     root.keyframe.add("key", name="stand", qpos=qpos, ctrl=ctrl)
-
-

@@ -6,19 +6,25 @@ from __future__ import annotations
 from dm_control import mjcf
 from lxml import etree
 
-
 FLOOR_CONTYPE = 1  # environment geoms touch robot collision geoms (conaffinity 1)
 
 
-
 def add_floor(root: mjcf.RootElement) -> None:
-    grid = root.asset.add("texture", name="grid", type="2d", builtin="checker", width=512, height=512,
-                          rgb1=[0.2, 0.3, 0.4], rgb2=[0.1, 0.2, 0.3])
+    grid = root.asset.add(
+        "texture",
+        name="grid",
+        type="2d",
+        builtin="checker",
+        width=512,
+        height=512,
+        rgb1=[0.2, 0.3, 0.4],
+        rgb2=[0.1, 0.2, 0.3],
+    )
     material = root.asset.add("material", name="grid", texture=grid, texrepeat=[8, 8], reflectance=0.1)
     root.worldbody.add("light", name="sun", pos=[0, 0, 3], dir=[0, 0, -1], directional=True)
-    root.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material=material,
-                       contype=FLOOR_CONTYPE, conaffinity=1)
-
+    root.worldbody.add(
+        "geom", name="floor", type="plane", size=[0, 0, 0.05], material=material, contype=FLOOR_CONTYPE, conaffinity=1
+    )
 
 
 def scene_xml(robot_file: str, variant: str) -> str:

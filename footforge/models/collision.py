@@ -19,6 +19,7 @@ import multiprocessing as mp
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 import trimesh
@@ -68,7 +69,7 @@ class Hulls:
 
     def stl_bytes(self, i: int) -> bytes:
         mesh = trimesh.Trimesh(self.vertices[i], self.faces[i], process=False)
-        return mesh.export(file_type="stl")
+        return cast(bytes, mesh.export(file_type="stl"))  # STL: bytes
 
 
 def _coacd_worker(vertices, faces, config: dict, queue, parent_pid: int) -> None:
@@ -78,9 +79,15 @@ def _coacd_worker(vertices, faces, config: dict, queue, parent_pid: int) -> None
 
         coacd.set_log_level("error")
         parts = coacd.run_coacd(
-            coacd.Mesh(vertices, faces), threshold=config["threshold"],
-            max_convex_hull=config["max_convex_hulls"], preprocess_resolution=config["preprocess_resolution"],
-            merge=True, decimate=True, max_ch_vertex=config["max_hull_vertices"], seed=config["seed"])
+            coacd.Mesh(vertices, faces),
+            threshold=config["threshold"],
+            max_convex_hull=config["max_convex_hulls"],
+            preprocess_resolution=config["preprocess_resolution"],
+            merge=True,
+            decimate=True,
+            max_ch_vertex=config["max_hull_vertices"],
+            seed=config["seed"],
+        )
         queue.put([(np.asarray(v, dtype=float), np.asarray(f, dtype=np.int64)) for v, f in parts])
     except Exception as e:  # reported to the parent, which names the mesh
         queue.put(e)
@@ -95,13 +102,14 @@ def cache_key(mesh_bytes: bytes, config: DecompositionConfig) -> str:
 
 def default_cache_dir() -> Path:
     base = os.environ.get("FOOTFORGE_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "footforge")
+        os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "footforge"
+    )
     return Path(base) / "coacd"
 
 
-
-def decompose(mesh_path: Path, config: DecompositionConfig = DecompositionConfig(), *,
-              cache_dir: Path | None = None) -> Hulls:
+def decompose(
+    mesh_path: Path, config: DecompositionConfig = DecompositionConfig(), *, cache_dir: Path | None = None
+) -> Hulls:
     """Convex hulls of the mesh at `mesh_path` (see the module docstring).
 
     Raises:
@@ -114,16 +122,26 @@ def decompose(mesh_path: Path, config: DecompositionConfig = DecompositionConfig
     if entry.is_file():
         with np.load(entry) as z:
             n = int(z["count"])
-            return Hulls(tuple(z[f"v{i}"] for i in range(n)), tuple(z[f"f{i}"] for i in range(n)),
-                         decomposed=bool(z["decomposed"]), cached=True)
+            return Hulls(
+                tuple(z[f"v{i}"] for i in range(n)),
+                tuple(z[f"f{i}"] for i in range(n)),
+                decomposed=bool(z["decomposed"]),
+                cached=True,
+            )
     try:
-        mesh = trimesh.load(io.BytesIO(data), file_type=mesh_path.suffix.lstrip(".").lower(), force="mesh")
+        mesh = cast(
+            trimesh.Trimesh,  # force="mesh": one Trimesh
+            trimesh.load(io.BytesIO(data), file_type=mesh_path.suffix.lstrip(".").lower(), force="mesh"),
+        )
     except Exception as e:
         raise InputError(f"cannot read mesh: {e}", file=str(mesh_path), fix="export it as STL or OBJ") from None
     problem = flat_mesh_problem(mesh)
     if problem:
-        raise InputError(f"collision mesh unusable: {problem}", file=str(mesh_path),
-                         fix="export a closed solid mesh, or remove the <collision> element that uses it")
+        raise InputError(
+            f"collision mesh unusable: {problem}",
+            file=str(mesh_path),
+            fix="export a closed solid mesh, or remove the <collision> element that uses it",
+        )
     hull = mesh.convex_hull
     convex = mesh.is_volume and hull.volume <= mesh.volume * (1.0 + config.convex_tolerance)
     if convex and len(hull.vertices) <= config.max_hull_vertices:
@@ -136,7 +154,7 @@ def decompose(mesh_path: Path, config: DecompositionConfig = DecompositionConfig
         parts = _run_coacd(mesh_path, mesh, config)
         decomposed = True
     cache_dir.mkdir(parents=True, exist_ok=True)
-    arrays = {"count": len(parts), "decomposed": decomposed}
+    arrays: dict[str, Any] = {"count": len(parts), "decomposed": decomposed}
     for i, (v, f) in enumerate(parts):
         arrays[f"v{i}"], arrays[f"f{i}"] = v, f
     tmp = entry.with_suffix(f".tmp{os.getpid()}.npz")
@@ -148,8 +166,11 @@ def decompose(mesh_path: Path, config: DecompositionConfig = DecompositionConfig
 def _run_coacd(mesh_path: Path, mesh: trimesh.Trimesh, config: DecompositionConfig):
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    proc = ctx.Process(target=_coacd_worker, daemon=True,
-                       args=(np.asarray(mesh.vertices), np.asarray(mesh.faces), asdict(config), queue, os.getpid()))
+    proc = ctx.Process(
+        target=_coacd_worker,
+        daemon=True,
+        args=(np.asarray(mesh.vertices), np.asarray(mesh.faces), asdict(config), queue, os.getpid()),
+    )
     proc.start()
     try:
         result = queue.get(timeout=config.timeout_s)
@@ -158,15 +179,20 @@ def _run_coacd(mesh_path: Path, mesh: trimesh.Trimesh, config: DecompositionConf
         raise
     except Exception:
         proc.kill()
-        raise InputError(f"CoACD did not finish within {config.timeout_s:.0f} s ({len(mesh.faces)} faces)",
-                         file=str(mesh_path),
-                         fix=f"raise --coacd-timeout (now {config.timeout_s:.0f} s), lower --face-budget "
-                             f"(now {config.face_budget}), or replace the mesh by primitives in the description") from None
+        raise InputError(
+            f"CoACD did not finish within {config.timeout_s:.0f} s ({len(mesh.faces)} faces)",
+            file=str(mesh_path),
+            fix=f"raise --coacd-timeout (now {config.timeout_s:.0f} s), lower --face-budget "
+            f"(now {config.face_budget}), or replace the mesh by primitives in the description",
+        ) from None
     finally:
         proc.join(timeout=5)
     if isinstance(result, Exception):
-        raise InputError(f"CoACD failed: {result}", file=str(mesh_path),
-                         fix="repair the mesh (closed, manifold) or replace it by primitives")
+        raise InputError(
+            f"CoACD failed: {result}",
+            file=str(mesh_path),
+            fix="repair the mesh (closed, manifold) or replace it by primitives",
+        )
     parts = []
     for v, f in result:
         # The vertex cap is CoACD's decimation target; enforce it exactly on the convex hull.

@@ -63,28 +63,75 @@ def derived_bodies(source: FootSource, variant: str) -> list[DerivedBody]:
 
     def body(name, parent, origin, members, joint, axis, limit, envelopes) -> DerivedBody:
         frame = pin.SE3(np.eye(3), np.asarray(origin, dtype=float))
-        return DerivedBody(name, parent, frame, tuple(members), joint, np.asarray(axis, dtype=float), limit,
-                           kinematics.composite_inertia(parsed, members, q, frame),
-                           tuple((n, tuple(m)) for n, m in envelopes))
+        return DerivedBody(
+            name,
+            parent,
+            frame,
+            tuple(members),
+            joint,
+            np.asarray(axis, dtype=float),
+            limit,
+            kinematics.composite_inertia(parsed, members, q, frame),
+            tuple((n, tuple(m)) for n, m in envelopes),
+        )
 
     pitch_axis = oMi[arch[0]].rotation @ joint_axis(parsed.model.joints[arch[0]])
     front_pivot, back_pivot = oMi[front].translation, oMi[back].translation
     roll_axis = (front_pivot - back_pivot) / np.linalg.norm(front_pivot - back_pivot)
     roll_origin = (front_pivot + back_pivot) / 2
     roll_envelopes = [(parsed.link_of(r), [r]) for r in (front, back)]
-    bodies = [body("pitch", None, oMi[arch[0]].translation, arch + other, "ankle_pitch", pitch_axis,
-                   joint_range(parsed, arch[0]), [(parsed.link_of(a), [a]) for a in arch])]
+    bodies = [
+        body(
+            "pitch",
+            None,
+            oMi[arch[0]].translation,
+            arch + other,
+            "ankle_pitch",
+            pitch_axis,
+            joint_range(parsed, arch[0]),
+            [(parsed.link_of(a), [a]) for a in arch],
+        )
+    ]
     if variant == "aff":
-        bodies.append(body("sole", "pitch", roll_origin, [front, back] + chain, "ankle_roll", roll_axis,
-                           joint_range(parsed, front), roll_envelopes + [("sole", chain)]))
+        bodies.append(
+            body(
+                "sole",
+                "pitch",
+                roll_origin,
+                [front, back] + chain,
+                "ankle_roll",
+                roll_axis,
+                joint_range(parsed, front),
+                roll_envelopes + [("sole", chain)],
+            )
+        )
         return bodies
-    bodies.append(body("roll", "pitch", roll_origin, [front, back], "ankle_roll", roll_axis,
-                       joint_range(parsed, front), roll_envelopes))
+    bodies.append(
+        body(
+            "roll",
+            "pitch",
+            roll_origin,
+            [front, back],
+            "ankle_roll",
+            roll_axis,
+            joint_range(parsed, front),
+            roll_envelopes,
+        )
+    )
     for name, members in aof_sole_halves(source).items():
         pivot = front if name == "sole_front" else back
-        bodies.append(body(name, "roll", oMi[pivot].translation, members, name,
-                           oMi[pivot].rotation[:, 1],  # the roll link's transversal axis
-                           params.aof_sole_range, [(name, members)]))
+        bodies.append(
+            body(
+                name,
+                "roll",
+                oMi[pivot].translation,
+                members,
+                name,
+                oMi[pivot].rotation[:, 1],  # the roll link's transversal axis
+                params.aof_sole_range,
+                [(name, members)],
+            )
+        )
     return bodies
 
 
@@ -97,8 +144,10 @@ def aof_sole_halves(source: FootSource) -> dict[str, list[int]]:
     chain = [j for j, f in source.families.items() if f == "chain"]
     com_x = {j: data.oMi[j].act(parsed.model.inertias[j]).lever[0] for j in chain}
     split_x = source.params.aof_split_x
-    return {"sole_front": [j for j in chain if com_x[j] > split_x],
-            "sole_back": [j for j in chain if com_x[j] <= split_x]}
+    return {
+        "sole_front": [j for j in chain if com_x[j] > split_x],
+        "sole_back": [j for j in chain if com_x[j] <= split_x],
+    }
 
 
 def joint_range(parsed: ParsedURDF, joint_id: int) -> tuple[float, float]:

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import difflib
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from footforge.inputs.description import default_foot_description, load_descript
 from footforge.inputs.foot_root import select_foot_root
 from footforge.inputs.params import VariantParams, load_params
 from footforge.inputs.sidecar import Sidecar, find_sidecar, load_sidecar
-from footforge.inputs.urdf_lint import lint_and_repair, link_inertia_checks
+from footforge.inputs.urdf_lint import link_inertia_checks, lint_and_repair
 from footforge.models import kinematics
 from footforge.models.collision import DecompositionConfig, Hulls, decompose
 from footforge.models.urdf import ParsedURDF, is_mesh, parse_urdf
@@ -62,9 +62,9 @@ class FootSource:
         return kinematics.joint_families(self.parsed, self.sidecar)
 
 
-
-def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, *, cache_dir=None,
-                               progress=None, starting=None) -> dict[str, Hulls]:
+def decompose_collision_meshes(
+    parsed: ParsedURDF, config: DecompositionConfig, *, cache_dir=None, progress=None, starting=None
+) -> dict[str, Hulls]:
     """Hulls of every collision mesh of `parsed`, decomposing each distinct file once.
 
     `starting(mesh_path, number, count)` is called before each distinct mesh (CoACD can take a
@@ -80,8 +80,12 @@ def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, 
                 starting(go.meshPath, distinct.index(key) + 1, len(distinct))
             hulls = decompose(go.meshPath, config, cache_dir=cache_dir)
             if not np.allclose(go.meshScale, 1.0):
-                hulls = Hulls(tuple(v * np.asarray(go.meshScale) for v in hulls.vertices), hulls.faces,
-                              hulls.decomposed, hulls.cached)
+                hulls = Hulls(
+                    tuple(v * np.asarray(go.meshScale) for v in hulls.vertices),
+                    hulls.faces,
+                    hulls.decomposed,
+                    hulls.cached,
+                )
             by_file[key] = hulls
             if progress:
                 progress(go.meshPath, hulls)
@@ -89,8 +93,9 @@ def decompose_collision_meshes(parsed: ParsedURDF, config: DecompositionConfig, 
     return out
 
 
-def load_foot_source(options: FootInputs, stage: StageTimer, report: dict,
-                     params: VariantParams | None = None) -> FootSource:
+def load_foot_source(
+    options: FootInputs, stage: StageTimer, report: dict, params: VariantParams | None = None
+) -> FootSource:
     """Reads and checks the foot description and its sidecar, solves the reference pose and
     decomposes the collision meshes: everything every foot variant is built from.
 
@@ -114,8 +119,11 @@ def load_foot_source(options: FootInputs, stage: StageTimer, report: dict,
         report.setdefault("repairs", []).extend(f"{path.name}: {n}" for n in notes)
         report.setdefault("warnings", []).extend(f"{path.name}: {f.element}: {f.message}" for f in findings)
         inputs = report.setdefault("inputs", {})
-        inputs["foot_description"] = {"path": str(description.source), "sha256": sha256_file(description.source),
-                                      "args": dict(options.foot_args)}
+        inputs["foot_description"] = {
+            "path": str(description.source),
+            "sha256": sha256_file(description.source),
+            "args": dict(options.foot_args),
+        }
         inputs["sidecar"] = {"path": str(sidecar.source), "sha256": sha256_file(sidecar.source)}
         report["link_inertia_checks"] = {"foot": link_inertia_checks(description, findings)}
         parsed = parse_urdf(description, floating=True)
@@ -125,8 +133,12 @@ def load_foot_source(options: FootInputs, stage: StageTimer, report: dict,
         problems = kinematics.closure_axis_problems(parsed, sidecar, reference.q)
         if problems:
             element, message, fix = problems[0]
-            raise CheckFailure(f"{element}: {message}" + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""),
-                               file=str(sidecar.source), element=element, fix=fix)
+            raise CheckFailure(
+                f"{element}: {message}" + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""),
+                file=str(sidecar.source),
+                element=element,
+                fix=fix,
+            )
     with stage("decompose collision meshes"):
         hull_report = []
         started_s = [0.0]
@@ -136,14 +148,23 @@ def load_foot_source(options: FootInputs, stage: StageTimer, report: dict,
             stage.progress(f"decompose collision meshes: {i}/{n} {Path(mesh).name}")
 
         hulls = decompose_collision_meshes(
-            parsed, options.decomposition, cache_dir=options.cache_dir, starting=starting,
+            parsed,
+            options.decomposition,
+            cache_dir=options.cache_dir,
+            starting=starting,
             progress=lambda mesh, h: hull_report.append(
-                {"mesh": str(mesh), "hulls": len(h.vertices), "vertices": [len(v) for v in h.vertices],
-                 "decomposed": h.decomposed, "cached": h.cached,
-                 "seconds": round(time.perf_counter() - started_s[0], 3)}))
+                {
+                    "mesh": str(mesh),
+                    "hulls": len(h.vertices),
+                    "vertices": [len(v) for v in h.vertices],
+                    "decomposed": h.decomposed,
+                    "cached": h.cached,
+                    "seconds": round(time.perf_counter() - started_s[0], 3),
+                }
+            ),
+        )
         report["collision"] = {"config": asdict(options.decomposition), "meshes": hull_report}
     return FootSource(parsed, sidecar, params, reference, hulls)
-
 
 
 def check_sidecar_names(parsed, sidecar: Sidecar) -> None:
@@ -152,26 +173,34 @@ def check_sidecar_names(parsed, sidecar: Sidecar) -> None:
     wanted: list[tuple[str, str, str]] = [(f"arch_joints[{i}]", "joint", n) for i, n in enumerate(sidecar.arch_joints)]
     wanted += [("roll_joints.front", "joint", sidecar.roll_front), ("roll_joints.back", "joint", sidecar.roll_back)]
     if sidecar.roll_coupling:
-        wanted += [("roll_coupling.joint", "joint", sidecar.roll_coupling.joint),
-                   ("roll_coupling.follows", "joint", sidecar.roll_coupling.follows)]
+        wanted += [
+            ("roll_coupling.joint", "joint", sidecar.roll_coupling.joint),
+            ("roll_coupling.follows", "joint", sidecar.roll_coupling.follows),
+        ]
     if sidecar.arch_spring:
         wanted += [("arch_spring.joints", "joint", n) for n in sidecar.arch_spring.joints]
     wanted += [("reference_pose.joints", "joint", n) for n in sidecar.reference_joints]
     for i, c in enumerate(sidecar.closures):
         wanted += [(f"closures[{i}].link", "link", c.link), (f"closures[{i}].to_link", "link", c.to_link)]
     root = parsed.description.root()
-    names = {"joint": [j.get("name") for j in root.findall("joint")],
-             "link": [l.get("name") for l in root.findall("link")]}
+    names = {
+        "joint": [j.get("name") for j in root.findall("joint")],
+        "link": [e.get("name") for e in root.findall("link")],
+    }
     unknown = [(key, kind, name) for key, kind, name in wanted if name not in names[kind]]
     if unknown:
         lines = []
         for key, kind, name in unknown:
             near = difflib.get_close_matches(name, names[kind], n=2, cutoff=0.5)
-            lines.append(f"  {key}: {kind} '{name}' is not in the description"
-                         + (f" (closest: {', '.join(near)})" if near else ""))
+            lines.append(
+                f"  {key}: {kind} '{name}' is not in the description"
+                + (f" (closest: {', '.join(near)})" if near else "")
+            )
         raise InputError(
             f"the sidecar names {len(unknown)} joint(s)/link(s) that {parsed.description.source.name} "
             "does not have:\n" + "\n".join(lines),
-            file=str(sidecar.source), element=unknown[0][0],
+            file=str(sidecar.source),
+            element=unknown[0][0],
             fix=f"edit those keys in {sidecar.source} to the description's names as expanded "
-                "(with the macro's prefix, if any), or pass the right sidecar with --sidecar")
+            "(with the macro's prefix, if any), or pass the right sidecar with --sidecar",
+        )

@@ -33,8 +33,7 @@ def joint_families(parsed: ParsedURDF, sidecar: Sidecar) -> dict[int, str]:
     chain = {d for r in roll for d in descendants(parsed, r)}
     families = {}
     for j in range(2, parsed.model.njoints):  # 0 universe, 1 root free-flyer
-        families[j] = ("arch" if j in arch else "roll" if j in roll
-                       else "chain" if j in chain else "other")
+        families[j] = "arch" if j in arch else "roll" if j in roll else "chain" if j in chain else "other"
     return families
 
 
@@ -45,9 +44,12 @@ def chain_of(parsed: ParsedURDF, sidecar: Sidecar, closure: Closure) -> list[int
     chain = []
     while joint_id not in roll:
         if joint_id <= 1:
-            raise InputError(f"closure '{closure.name}': link '{closure.link}' is not below a roll joint",
-                             file=str(sidecar.source), element=f"closure '{closure.name}'",
-                             fix="closures must start on a chain that hangs from a roll link")
+            raise InputError(
+                f"closure '{closure.name}': link '{closure.link}' is not below a roll joint",
+                file=str(sidecar.source),
+                element=f"closure '{closure.name}'",
+                fix="closures must start on a chain that hangs from a roll link",
+            )
         chain.append(joint_id)
         joint_id = parsed.model.parents[joint_id]
     return chain[::-1]
@@ -62,8 +64,12 @@ def closure_residuals(parsed: ParsedURDF, sidecar: Sidecar, q: np.ndarray) -> np
     """(n_closures, 3) gap between each closure's two points in the root frame, m."""
     data = parsed.model.createData()
     pin.forwardKinematics(parsed.model, data, q)
-    return np.array([point_in_root(parsed, data, c.link, c.point)
-                     - point_in_root(parsed, data, c.to_link, c.to_point) for c in sidecar.closures])
+    return np.array(
+        [
+            point_in_root(parsed, data, c.link, c.point) - point_in_root(parsed, data, c.to_link, c.to_point)
+            for c in sidecar.closures
+        ]
+    )
 
 
 CLOSURE_AXIS_TOL_RAD = 0.0175
@@ -92,12 +98,16 @@ def closure_axis_problems(parsed: ParsedURDF, sidecar: Sidecar, q: np.ndarray) -
     problems = []
     for c, angle in zip(sidecar.closures, closure_axis_errors_rad(parsed, sidecar, q)):
         if angle > CLOSURE_AXIS_TOL_RAD:
-            problems.append((
-                f"closure '{c.name}'",
-                f"its pin axis {list(c.axis)} (in {c.link}'s frame) is {np.degrees(angle):.1f} deg off the axis of the "
-                f"pin that carries {c.link}; footforge closes loops with a point coincidence and relies on the "
-                "chain's parallel pins for the rotation",
-                f"give the axis of the chain's pins in {c.link}'s frame (closures, axis) in {sidecar.source}"))
+            problems.append(
+                (
+                    f"closure '{c.name}'",
+                    f"its pin axis {list(c.axis)} (in {c.link}'s frame) is {np.degrees(angle):.1f} deg off "
+                    "the axis of the "
+                    f"pin that carries {c.link}; footforge closes loops with a point coincidence and relies on the "
+                    "chain's parallel pins for the rotation",
+                    f"give the axis of the chain's pins in {c.link}'s frame (closures, axis) in {sidecar.source}",
+                )
+            )
     return problems
 
 
@@ -144,13 +154,15 @@ def reference_pose(parsed: ParsedURDF, sidecar: Sidecar) -> ReferencePose:
     gaps = np.linalg.norm(closure_residuals(parsed, sidecar, q), axis=1)
     worst = int(np.argmax(gaps))
     if gaps[worst] > CLOSURE_TOLERANCE_M:
-        c = sidecar.closures[worst]
+        closure = sidecar.closures[worst]
         raise CheckFailure(
-            f"closure '{c.name}' does not close at the reference pose: gap {gaps[worst] * 1e3:.3f} mm "
-            f"between '{c.link}' {list(c.point)} and '{c.to_link}' {list(c.to_point)}",
-            file=str(sidecar.source), element=f"closure '{c.name}'",
+            f"closure '{closure.name}' does not close at the reference pose: gap {gaps[worst] * 1e3:.3f} mm "
+            f"between '{closure.link}' {list(closure.point)} and '{closure.to_link}' {list(closure.to_point)}",
+            file=str(sidecar.source),
+            element=f"closure '{closure.name}'",
             fix="check the closure points against the description (a sign of y, a frame), or the "
-                "reference_pose joints (the chain must be slack enough to reach)")
+            "reference_pose joints (the chain must be slack enough to reach)",
+        )
     data = model.createData()
     pin.forwardKinematics(model, data, q)
     sag = 0.0
@@ -171,8 +183,9 @@ def _solve_chain(parsed, sidecar, closure, chain, q0):
         q = q0.copy()
         q[idx] = x
         pin.forwardKinematics(model, data, q)
-        return (point_in_root(parsed, data, closure.link, closure.point)
-                - point_in_root(parsed, data, closure.to_link, closure.to_point))
+        return point_in_root(parsed, data, closure.link, closure.point) - point_in_root(
+            parsed, data, closure.to_link, closure.to_point
+        )
 
     def smooth(x, weight):
         return np.concatenate([gap(x), weight * np.diff(x[1:])])

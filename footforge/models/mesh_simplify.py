@@ -23,8 +23,9 @@ falls from about 200 s to about 70 s on 2 shared cores (benchmarks/log/2026-11-2
 meshes have fewer faces and are left as they are."""
 
 
-def simplify_to_budget(vertices: np.ndarray, faces: np.ndarray,
-                       face_budget: int = DEFAULT_FACE_BUDGET) -> tuple[np.ndarray, np.ndarray]:
+def simplify_to_budget(
+    vertices: np.ndarray, faces: np.ndarray, face_budget: int = DEFAULT_FACE_BUDGET
+) -> tuple[np.ndarray, np.ndarray]:
     """The mesh with at most `face_budget` faces (unchanged if it already has no more, or if the
     budget is 0), by quadric decimation."""
     vertices = np.asarray(vertices, dtype=float)

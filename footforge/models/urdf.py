@@ -14,16 +14,20 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from footforge.inputs.description import Description
 from footforge.errors import InputError
+from footforge.inputs.description import Description
 
 FLOATING_JOINT = "root_joint"  # Pinocchio's name for the free-flyer it adds at the root
 
 _AXIS_OF_SHORTNAME = {
-    "JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0),
-    "JointModelRZ": (0.0, 0.0, 1.0), "JointModelPX": (1.0, 0.0, 0.0),
-    "JointModelPY": (0.0, 1.0, 0.0), "JointModelPZ": (0.0, 0.0, 1.0),
-    "JointModelRUBX": (1.0, 0.0, 0.0), "JointModelRUBY": (0.0, 1.0, 0.0),
+    "JointModelRX": (1.0, 0.0, 0.0),
+    "JointModelRY": (0.0, 1.0, 0.0),
+    "JointModelRZ": (0.0, 0.0, 1.0),
+    "JointModelPX": (1.0, 0.0, 0.0),
+    "JointModelPY": (0.0, 1.0, 0.0),
+    "JointModelPZ": (0.0, 0.0, 1.0),
+    "JointModelRUBX": (1.0, 0.0, 0.0),
+    "JointModelRUBY": (0.0, 1.0, 0.0),
     "JointModelRUBZ": (0.0, 0.0, 1.0),
 }
 
@@ -78,15 +82,23 @@ class ParsedURDF:
 
     def joint_id(self, name: str) -> int:
         if not self.model.existJointName(name):
-            raise InputError(f"no joint named '{name}' in the description", file=str(self.description.source),
-                             element=f"joint '{name}'", fix="check the name against the URDF")
+            raise InputError(
+                f"no joint named '{name}' in the description",
+                file=str(self.description.source),
+                element=f"joint '{name}'",
+                fix="check the name against the URDF",
+            )
         return self.model.getJointId(name)
 
     def body_of_link(self, link: str) -> tuple[int, pin.SE3]:
         """Pinocchio joint id that carries `link`, and the link frame's placement in it."""
         if not self.model.existFrame(link, pin.BODY):
-            raise InputError(f"no link named '{link}' in the description", file=str(self.description.source),
-                             element=f"link '{link}'", fix="check the name against the URDF")
+            raise InputError(
+                f"no link named '{link}' in the description",
+                file=str(self.description.source),
+                element=f"link '{link}'",
+                fix="check the name against the URDF",
+            )
         frame = self.model.frames[self.model.getFrameId(link, pin.BODY)]
         return frame.parentJoint, frame.placement
 
@@ -111,9 +123,12 @@ def parse_urdf(description: Description, *, floating: bool) -> ParsedURDF:
         if not path.is_file():
             owner = mesh.getparent().getparent()
             link = owner.getparent()
-            raise InputError(f"mesh file not found: {path}", file=str(description.source),
-                             element=f"link '{link.get('name')}' {owner.tag} mesh '{uri}'",
-                             fix="fix the filename, or add the folder holding the package with --package-path")
+            raise InputError(
+                f"mesh file not found: {path}",
+                file=str(description.source),
+                element=f"link '{link.get('name')}' {owner.tag} mesh '{uri}'",
+                fix="fix the filename, or add the folder holding the package with --package-path",
+            )
         mesh.set("filename", str(path.resolve()))
     urdf = etree.tostring(root, encoding="unicode")
     try:
@@ -124,27 +139,39 @@ def parse_urdf(description: Description, *, floating: bool) -> ParsedURDF:
         collision = pin.buildGeomFromUrdfString(model, urdf, pin.COLLISION)
         visual = pin.buildGeomFromUrdfString(model, urdf, pin.VISUAL)
     except (ValueError, RuntimeError) as e:
-        raise InputError(f"Pinocchio cannot read the URDF: {e}", file=str(description.source),
-                         fix="run `footforge check` on it for the element at fault") from None
+        raise InputError(
+            f"Pinocchio cannot read the URDF: {e}",
+            file=str(description.source),
+            fix="run `footforge check` on it for the element at fault",
+        ) from None
 
     children = {j.find("child").get("link") for j in root.findall("joint")}
-    links = [l.get("name") for l in root.findall("link")]
-    roots = [l for l in links if l not in children]
+    links = [e.get("name") for e in root.findall("link")]
+    roots = [name for name in links if name not in children]
     if len(roots) != 1:
-        raise InputError(f"the URDF has {len(roots)} root links {roots}", file=str(description.source),
-                         fix="connect every link to one tree; run `footforge check`")
+        raise InputError(
+            f"the URDF has {len(roots)} root links {roots}",
+            file=str(description.source),
+            fix="connect every link to one tree; run `footforge check`",
+        )
     link_of_joint = {j.get("name"): j.find("child").get("link") for j in root.findall("joint")}
     link_of_joint[FLOATING_JOINT] = roots[0]
     mimics = []
     for j in root.findall("joint"):
         m = j.find("mimic")
         if m is not None:
-            mimics.append((j.get("name"), m.get("joint"), float(m.get("multiplier", 1.0)),
-                           float(m.get("offset", 0.0))))
-    return ParsedURDF(description=description, urdf=urdf, model=model, collision=collision,
-                      visual=visual, root_link=roots[0], link_of_joint=link_of_joint,
-                      child_order={name: i for i, name in enumerate(links)}, mimics=tuple(mimics))
-
+            mimics.append((j.get("name"), m.get("joint"), float(m.get("multiplier", 1.0)), float(m.get("offset", 0.0))))
+    return ParsedURDF(
+        description=description,
+        urdf=urdf,
+        model=model,
+        collision=collision,
+        visual=visual,
+        root_link=roots[0],
+        link_of_joint=link_of_joint,
+        child_order={name: i for i, name in enumerate(links)},
+        mimics=tuple(mimics),
+    )
 
 
 def is_mesh(geom_object) -> bool:
@@ -154,5 +181,3 @@ def is_mesh(geom_object) -> bool:
 def children_in_urdf_order(parsed: ParsedURDF, joint_id: int) -> list[int]:
     kids = [j for j in range(1, parsed.model.njoints) if parsed.model.parents[j] == joint_id]
     return sorted(kids, key=lambda j: parsed.child_order[parsed.link_of(j)])
-
-

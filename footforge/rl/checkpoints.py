@@ -20,14 +20,13 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from footforge.atomic import write_json
 from footforge.errors import InputError
 from footforge.rl.config import PPOConfig
 from footforge.rl.networks import network_factory
-
 
 CHECKPOINT_MANIFEST = "footforge_checkpoint.json"
 """In every checkpoint folder (and the policy folder copied from one): {"files": {relative path:
@@ -73,8 +72,11 @@ def _sha256(path: Path) -> str:
 def write_checkpoint_manifest(folder: Path) -> None:
     """Records every file under the checkpoint folder `folder` (size and SHA-256) in its manifest."""
     folder = Path(folder)
-    files = {str(p.relative_to(folder)): {"bytes": p.stat().st_size, "sha256": _sha256(p)}
-             for p in sorted(folder.rglob("*")) if p.is_file() and p.name != CHECKPOINT_MANIFEST}
+    files = {
+        str(p.relative_to(folder)): {"bytes": p.stat().st_size, "sha256": _sha256(p)}
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.name != CHECKPOINT_MANIFEST
+    }
     write_json(folder / CHECKPOINT_MANIFEST, {"files": files})
 
 
@@ -145,9 +147,12 @@ def resume_point(run_dir: Path, notice: Callable[[str], None], set_aside: bool):
     """
     found = _resumable(run_dir)
     if not found:
-        raise InputError(f"nothing to resume: no checkpoints in {run_dir / 'checkpoints'} and no policy/", file=str(run_dir),
-                         fix="start without --resume (with --force to start this run over), or give another run")
-    skipped = []
+        raise InputError(
+            f"nothing to resume: no checkpoints in {run_dir / 'checkpoints'} and no policy/",
+            file=str(run_dir),
+            fix="start without --resume (with --force to start this run over), or give another run",
+        )
+    skipped: list[tuple[int, Path]] = []
     legacy = legacy_run(run_dir)
     for step, path in reversed(found):
         problem = checkpoint_problem(path, read=False, legacy=legacy)
@@ -168,20 +173,35 @@ def resume_point(run_dir: Path, notice: Callable[[str], None], set_aside: bool):
             return step, params
         notice(f"skipping checkpoint {path.name} of {run_dir}: {problem}")
         skipped.append((step, path))
-    raise InputError(f"no intact checkpoint to resume in {run_dir / 'checkpoints'} ({len(found)} checked, "
-                     f"all damaged; the reasons are above)", file=str(run_dir),
-                     fix="start the run over with --force (it removes the run's files), or give another --out")
+    raise InputError(
+        f"no intact checkpoint to resume in {run_dir / 'checkpoints'} ({len(found)} checked, "
+        f"all damaged; the reasons are above)",
+        file=str(run_dir),
+        fix="start the run over with --force (it removes the run's files), or give another --out",
+    )
 
 
-def save_checkpoint(run_dir: Path, global_step: int, params, observation_size, action_size: int, ppo: PPOConfig,
-                    privileged: bool = False) -> Path:
+def save_checkpoint(
+    run_dir: Path,
+    global_step: int,
+    params,
+    observation_size,
+    action_size: int,
+    ppo: PPOConfig,
+    privileged: bool = False,
+) -> Path:
     """Writes <run_dir>/checkpoints/<global_step>/ as training does: Brax's checkpoint of
     (normaliser, policy, value) parameters, then its manifest (CHECKPOINT_MANIFEST)."""
     from brax.training.agents.ppo import checkpoint as brax_checkpoint
 
-    brax_checkpoint.save(str(Path(run_dir) / "checkpoints"), global_step, params,
-                         brax_checkpoint.network_config(observation_size, action_size, ppo.normalize_observations,
-                                                        network_factory(ppo, privileged)))
+    brax_checkpoint.save(
+        str(Path(run_dir) / "checkpoints"),
+        global_step,
+        params,
+        brax_checkpoint.network_config(
+            observation_size, action_size, ppo.normalize_observations, network_factory(ppo, privileged)
+        ),
+    )
     folder = Path(run_dir) / "checkpoints" / f"{global_step:012d}"
     write_checkpoint_manifest(folder)
     return folder

@@ -36,9 +36,11 @@ def default_folder() -> Path | None:
     return base / "footforge" / "jax"
 
 
-CPU_NOTE = ("note: JAX's compilation cache is on for the CPU ({folder}); XLA may log 'Loading XLA:CPU AOT "
-            "result ... could lead to execution errors such as SIGILL' for each program it loads: tuning flags it "
-            "cannot match (jax-ml/jax#38445). FOOTFORGE_COMPILE_CACHE=off turns the cache off")
+CPU_NOTE = (
+    "note: JAX's compilation cache is on for the CPU ({folder}); XLA may log 'Loading XLA:CPU AOT "
+    "result ... could lead to execution errors such as SIGILL' for each program it loads: tuning flags it "
+    "cannot match (jax-ml/jax#38445). FOOTFORGE_COMPILE_CACHE=off turns the cache off"
+)
 """Said once where the CPU cache is chosen (FOOTFORGE_COMPILE_CACHE set)."""
 
 
@@ -51,8 +53,9 @@ def enable(enabled: bool = True) -> Path | None:
 
     if not enabled:
         return None
-    if jax.config.jax_compilation_cache_dir:  # set by JAX_COMPILATION_CACHE_DIR (the GPU kit) or the caller
-        return Path(jax.config.jax_compilation_cache_dir)
+    # jax.config's options are attributes made at run time (no type information).
+    if jax.config.jax_compilation_cache_dir:  # type: ignore[attr-defined]  # set by JAX_COMPILATION_CACHE_DIR (the GPU kit) or the caller
+        return Path(jax.config.jax_compilation_cache_dir)  # type: ignore[attr-defined]
     folder = default_folder()
     if folder is None:
         return None

@@ -68,18 +68,31 @@ class PPOConfig:
     def check(self, names: dict[str, str] | None = None) -> None:
         """Raises InputError on values Brax would reject later with a cryptic assertion; each
         field is named as `names` spells it for the user (a command's flags), else by itself."""
+
         def name(f: str) -> str:
             return (names or {}).get(f, f)
 
-        for f in ("num_timesteps", "num_envs", "unroll_length", "num_minibatches", "batch_size",
-                  "num_updates_per_batch", "checkpoint_every_steps", "num_eval_envs"):
+        for f in (
+            "num_timesteps",
+            "num_envs",
+            "unroll_length",
+            "num_minibatches",
+            "batch_size",
+            "num_updates_per_batch",
+            "checkpoint_every_steps",
+            "num_eval_envs",
+        ):
             if getattr(self, f) < 1:
-                raise InputError(f"{name(f)} must be positive, got {getattr(self, f)}", fix=f"give a positive {name(f)}")
+                raise InputError(
+                    f"{name(f)} must be positive, got {getattr(self, f)}", fix=f"give a positive {name(f)}"
+                )
         if (self.batch_size * self.num_minibatches) % self.num_envs:
-            raise InputError(f"{name('batch_size')} x {name('num_minibatches')} ({self.batch_size} x "
-                             f"{self.num_minibatches}) is not a multiple of {name('num_envs')} ({self.num_envs})",
-                             fix=f"e.g. {name('num_envs')} = {name('batch_size')} x {name('num_minibatches')} "
-                                 "(the defaults: 2048 = 512 x 4)")
+            raise InputError(
+                f"{name('batch_size')} x {name('num_minibatches')} ({self.batch_size} x "
+                f"{self.num_minibatches}) is not a multiple of {name('num_envs')} ({self.num_envs})",
+                fix=f"e.g. {name('num_envs')} = {name('batch_size')} x {name('num_minibatches')} "
+                "(the defaults: 2048 = 512 x 4)",
+            )
 
 
 def steps_per_iteration(ppo: PPOConfig) -> int:
@@ -109,17 +122,22 @@ def default_ppo(task: str, **overrides) -> PPOConfig:
     the rough baseline's budget (OmniIsaacGymEnvs' AnymalTerrainPPO: 2000 iterations of 2048
     robots x 48 steps, about 200 M steps; the paper stopped when 1000 iterations brought no gain)."""
     if task == "rough":
-        overrides = {"policy_hidden_layers": (512, 256, 128), "value_hidden_layers": (512, 256, 128),
-                     "num_timesteps": 200_000_000} | overrides
+        overrides = {
+            "policy_hidden_layers": (512, 256, 128),
+            "value_hidden_layers": (512, 256, 128),
+            "num_timesteps": 200_000_000,
+        } | overrides
     return PPOConfig(**overrides)
 
 
 def to_dict(config) -> dict:
     """A (nested) frozen dataclass as config.json holds it: every field but those declared in code
     (metadata "saved": False, e.g. an observation group's reading function)."""
-    return {f.name: to_dict(v) if is_dataclass(v := getattr(config, f.name)) else
-            (list(v) if isinstance(v, tuple) else v)
-            for f in fields(config) if f.metadata.get("saved", True)}
+    return {
+        f.name: to_dict(v) if is_dataclass(v := getattr(config, f.name)) else (list(v) if isinstance(v, tuple) else v)
+        for f in fields(config)
+        if f.metadata.get("saved", True)
+    }
 
 
 def from_dict(cls, data: dict, default=None):
@@ -129,10 +147,14 @@ def from_dict(cls, data: dict, default=None):
     types = {f.name: f for f in fields(cls)}
     for name, value in data.items():
         if name not in types:
-            raise InputError(f"unknown configuration key '{name}' for {cls.__name__}",
-                             fix="use the footforge version that wrote the configuration")
-        field_default = getattr(default, name) if default is not None else (
-            types[name].default_factory() if callable(types[name].default_factory) else types[name].default)
+            raise InputError(
+                f"unknown configuration key '{name}' for {cls.__name__}",
+                fix="use the footforge version that wrote the configuration",
+            )
+        factory = types[name].default_factory
+        field_default = (
+            getattr(default, name) if default is not None else (factory() if callable(factory) else types[name].default)
+        )
         if is_dataclass(field_default):
             value = from_dict(type(field_default), value, field_default)
         elif isinstance(value, list):

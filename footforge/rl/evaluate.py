@@ -20,14 +20,28 @@ import mujoco
 import numpy as np
 
 from footforge.envs.config import check_policy_on_feet
-from footforge.rl.verdict import judge
 from footforge.errors import InputError
+from footforge.rl.verdict import judge
 from footforge.tables import markdown_table
 
-INDICES = ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "action_rate", "joint_vel_rate", "torques",
-           "base_height")
-INDEX_UNITS = {"lin_vel_x_error": "m/s", "lin_vel_y_error": "m/s", "yaw_rate_error": "rad/s", "action_rate": "-",
-               "joint_vel_rate": "rad/s per step", "torques": "N m", "base_height": "m"}
+INDICES = (
+    "lin_vel_x_error",
+    "lin_vel_y_error",
+    "yaw_rate_error",
+    "action_rate",
+    "joint_vel_rate",
+    "torques",
+    "base_height",
+)
+INDEX_UNITS = {
+    "lin_vel_x_error": "m/s",
+    "lin_vel_y_error": "m/s",
+    "yaw_rate_error": "rad/s",
+    "action_rate": "-",
+    "joint_vel_rate": "rad/s per step",
+    "torques": "N m",
+    "base_height": "m",
+}
 """Unit of each index (action_rate: policy outputs, unitless)."""
 SECONDS = {"flat": 60.0, "rough": 17.5}
 """The paper's evaluation length per task, s."""
@@ -57,8 +71,9 @@ def slippage_index(slip, travel, alive) -> float:
     return float(np.where(alive, slip, 0.0).sum() / travel_m) if travel_m > 0 else float("nan")
 
 
-def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, build_dir: str | None,
-                    physics: str = "auto"):
+def _policy_and_env(
+    policy_dir: Path, feet: str | None, seconds: float | None, build_dir: str | None, physics: str = "auto"
+):
     """(policy, its training EnvConfig, feet, seconds, an environment of `feet` whose episodes
     outlast `seconds`). `feet` defaults to the training feet (a haptic policy runs on those only),
     `seconds` to SECONDS of the policy's task, `physics` (footforge.envs.engine: auto, mjx or
@@ -78,24 +93,35 @@ def _policy_and_env(policy_dir: Path, feet: str | None, seconds: float | None, b
     config = on_feet(env_config, feet)
     # One schedule of new commands for every policy, whatever it trained with (EVALUATION_COMMAND_EVERY_S).
     # No standing commands either (CommandConfig.standing_fraction): every policy is judged walking.
-    config = replace(config, commands=replace(config.commands, resample_s=EVALUATION_COMMAND_EVERY_S,
-                                              standing_fraction=0.0))
+    config = replace(
+        config, commands=replace(config.commands, resample_s=EVALUATION_COMMAND_EVERY_S, standing_fraction=0.0)
+    )
     from footforge.envs import engine
 
-    env = from_config(replace(config, build_dir=build_dir, episode_length_s=seconds + 1.0,
-                              physics=engine.resolve(physics)))
+    env = from_config(
+        replace(config, build_dir=build_dir, episode_length_s=seconds + 1.0, physics=engine.resolve(physics))
+    )
     return policy, env_config, feet, seconds, env
 
 
-def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024, seconds: float | None = None,
-             seed: int = 0, build_dir: str | None = None, physics: str = "auto") -> dict:
+def evaluate(
+    policy_dir: Path,
+    *,
+    feet: str | None = None,
+    num_envs: int = 1024,
+    seconds: float | None = None,
+    seed: int = 0,
+    build_dir: str | None = None,
+    physics: str = "auto",
+) -> dict:
     """Runs `policy_dir`'s policy on `feet` (default: the feet it was trained on) for `seconds`
     (default: SECONDS of its task).
 
     Returns {"indices": {name: {"mean", "std"}}, "slippage", "falls", "diverged", "traces": {...}}
     where "falls" counts the robots that fell, "diverged" those of them whose simulation diverged
-    (a non-finite state or reward term: the environment's `diverged` metric), and the traces (robot 0's foot contacts, the mean base velocity error) feed the plots. Rough-terrain
-    policies walk the terrain they trained on (its seed), the robots spread over the terrain kinds
+    (a non-finite state or reward term: the environment's `diverged` metric), and the traces
+    (robot 0's foot contacts, the mean base velocity error) feed the plots. Rough-terrain policies
+    walk the terrain they trained on (its seed), the robots spread over the terrain kinds
     first, then the levels, then each kind's columns (spawn_tiles); "by_terrain" then holds each
     kind's and level's indices and falls, and "kinds_not_covered" the kinds that too few robots left
     out.
@@ -110,8 +136,7 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
     config, robot = env.config, env.robot
     steps = int(round(seconds / env_config.policy_dt))
     rough = config.task == "rough"
-    levels, columns = spawn_tiles(num_envs, env.terrain.column_kinds if rough else ("flat",),
-                                  config.terrain.num_levels)
+    levels, columns = spawn_tiles(num_envs, env.terrain.column_kinds if rough else ("flat",), config.terrain.num_levels)
 
     from footforge.envs import rewards as reward_module
 
@@ -132,54 +157,91 @@ def evaluate(policy_dir: Path, *, feet: str | None = None, num_envs: int = 1024,
         diverged = alive & (m["diverged"] > 0)  # the step that ends a standing robot's walk, if it diverged
         alive = alive & (state.done == 0)
         lin, _, _ = env.base_state(d)
-        row = {"lin_vel_x_error": m["error/lin_vel_x_per_step"], "lin_vel_y_error": m["error/lin_vel_y_per_step"],
-               "yaw_rate_error": m["error/yaw_rate_per_step"], "action_rate": jp.linalg.norm(action - last_action),
-               "joint_vel_rate": jp.linalg.norm(qd - prev_qd), "torques": jp.linalg.norm(d.actuator_force),
-               "base_height": m["base_height_m_per_step"], "alive": alive,
-               "slip": foot_slip(feet_xy, xy, touched, touching),
-               "travel": jp.linalg.norm(new_base_xy - base_xy), "contacts": touching,
-               "base_vx_error": state.info["command"][0] - lin[0], "diverged": diverged,
-               "command_vx": state.info["command"][0], "vx": lin[0],
-               "command_speed": jp.linalg.norm(state.info["command"][:2]),
-               # The summed reward before its clip at zero (RewardConfig.clip_total_at_zero).
-               "clipped": clip & (sum(m[f"reward/{t}"] for t in reward_terms) < 0)}
+        row = {
+            "lin_vel_x_error": m["error/lin_vel_x_per_step"],
+            "lin_vel_y_error": m["error/lin_vel_y_per_step"],
+            "yaw_rate_error": m["error/yaw_rate_per_step"],
+            "action_rate": jp.linalg.norm(action - last_action),
+            "joint_vel_rate": jp.linalg.norm(qd - prev_qd),
+            "torques": jp.linalg.norm(d.actuator_force),
+            "base_height": m["base_height_m_per_step"],
+            "alive": alive,
+            "slip": foot_slip(feet_xy, xy, touched, touching),
+            "travel": jp.linalg.norm(new_base_xy - base_xy),
+            "contacts": touching,
+            "base_vx_error": state.info["command"][0] - lin[0],
+            "diverged": diverged,
+            "command_vx": state.info["command"][0],
+            "vx": lin[0],
+            "command_speed": jp.linalg.norm(state.info["command"][:2]),
+            # The summed reward before its clip at zero (RewardConfig.clip_total_at_zero).
+            "clipped": clip & (sum(m[f"reward/{t}"] for t in reward_terms) < 0),
+        }
         return (state, qd, alive, xy, new_base_xy, touching), row
 
     def rollout(key, level, column):
         k_reset, k_run = jax.random.split(key)
         state = env.reset_on_tile(k_reset, level, column) if rough else env.reset(k_reset)
         d = state.pipeline_state
-        carry = (state, d.qvel[robot.actuated_dof], jp.array(True), env.foot_positions(d)[:, :2],
-                 d.qpos[:2], env.foot_contacts(d))
+        carry = (
+            state,
+            d.qvel[robot.actuated_dof],
+            jp.array(True),
+            env.foot_positions(d)[:, :2],
+            d.qpos[:2],
+            env.foot_contacts(d),
+        )
         _, rows = jax.lax.scan(one_step, carry, jax.random.split(k_run, steps))
         return rows
 
     rows = jax.jit(jax.vmap(rollout))(jax.random.split(jax.random.PRNGKey(seed), num_envs), levels, columns)
     rows = jax.tree.map(np.asarray, rows)
     alive = rows["alive"]
-    indices = {name: {"mean": float(rows[name][alive].mean()), "std": float(rows[name][alive].std())}
-               for name in INDICES}
+    indices = {
+        name: {"mean": float(rows[name][alive].mean()), "std": float(rows[name][alive].std())} for name in INDICES
+    }
     slippage = slippage_index(rows["slip"], rows["travel"], alive)
     vx_error = np.where(alive, rows["base_vx_error"], np.nan)
     walking = judge(rows["contacts"], alive, rows["base_height"], rows["command_vx"], rows["vx"], rows["command_speed"])
     falls = fall_times(alive, env_config.policy_dt)
     pushes = event_times(config.pushes.interval_s, config.policy_dt, steps) if config.pushes.enabled else []
     commands = event_times(config.commands.resample_s, config.policy_dt, steps)
-    return {"policy": str(policy_dir), "trained_on": env_config.feet, "feet": feet, "policy_type": env_config.policy,
-            "physics": config.physics,
-            "num_envs": num_envs, "seconds": seconds, "seed": seed, "policy_dt_s": env_config.policy_dt,
-            "push_interval_s": env_config.pushes.interval_s,
-            "task": config.task, "indices": indices, "slippage": slippage, "falls": int((~alive[:, -1]).sum()),
-            "fall_times_s": falls, "push_times_s": pushes, "falls_after_push": len(falls_after(falls, pushes)),
-            "command_times_s": commands, "falls_after_command": len(falls_after(falls, commands)),
-            "diverged": int(rows["diverged"].any(axis=1).sum()),
-            "walking": walking.to_dict() | {"line": walking.line()},
-            "clipped_fraction": float(rows["clipped"][alive].mean()) if alive.any() else float("nan"),
-            **({"by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns),
+    return {
+        "policy": str(policy_dir),
+        "trained_on": env_config.feet,
+        "feet": feet,
+        "policy_type": env_config.policy,
+        "physics": config.physics,
+        "num_envs": num_envs,
+        "seconds": seconds,
+        "seed": seed,
+        "policy_dt_s": env_config.policy_dt,
+        "push_interval_s": env_config.pushes.interval_s,
+        "task": config.task,
+        "indices": indices,
+        "slippage": slippage,
+        "falls": int((~alive[:, -1]).sum()),
+        "fall_times_s": falls,
+        "push_times_s": pushes,
+        "falls_after_push": len(falls_after(falls, pushes)),
+        "command_times_s": commands,
+        "falls_after_command": len(falls_after(falls, commands)),
+        "diverged": int(rows["diverged"].any(axis=1).sum()),
+        "walking": walking.to_dict() | {"line": walking.line()},
+        "clipped_fraction": float(rows["clipped"][alive].mean()) if alive.any() else float("nan"),
+        **(
+            {
+                "by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns),
                 "kinds_covered": sorted(set(np.array(env.terrain.column_kinds)[columns])),
-                "kinds_not_covered": sorted(set(env.terrain.column_kinds) - set(np.array(env.terrain.column_kinds)[columns]))}
-               if rough else {}),
-            "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": _mean_over_standing(vx_error)}}
+                "kinds_not_covered": sorted(
+                    set(env.terrain.column_kinds) - set(np.array(env.terrain.column_kinds)[columns])
+                ),
+            }
+            if rough
+            else {}
+        ),
+        "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": _mean_over_standing(vx_error)},
+    }
 
 
 AFTER_EVENT_S = 2.0
@@ -241,8 +303,11 @@ def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarra
         for level in sorted(set(levels[kinds == kind])):
             robots = (kinds == kind) & (levels == level)
             alive = rows["alive"][robots]
-            cell = {"robots": int(robots.sum()), "falls": int((~alive[:, -1]).sum()),
-                    "diverged": int(rows["diverged"][robots].any(axis=1).sum())}
+            cell: dict[str, float] = {
+                "robots": int(robots.sum()),
+                "falls": int((~alive[:, -1]).sum()),
+                "diverged": int(rows["diverged"][robots].any(axis=1).sum()),
+            }
             cell |= {name: float(rows[name][robots][alive].mean()) if alive.any() else float("nan") for name in INDICES}
             out.setdefault(kind, {})[int(level)] = cell
     return out
@@ -268,9 +333,17 @@ def terrain_markdown(results: list[dict]) -> str:
     return "\n".join(markdown_table(head, rows)) + "\n"
 
 
-def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, seed: int = 0,
-           build_dir: str | None = None, kind: str | None = None,
-           forward_mps: float = 0.6, physics: str = "auto") -> tuple[mujoco.MjModel, np.ndarray]:
+def record(
+    policy_dir: Path,
+    *,
+    feet: str | None = None,
+    seconds: float = 5.0,
+    seed: int = 0,
+    build_dir: str | None = None,
+    kind: str | None = None,
+    forward_mps: float = 0.6,
+    physics: str = "auto",
+) -> tuple[mujoco.MjModel, np.ndarray]:
     """One robot walking `seconds` under the policy (random commands and pushes; after a fall the
     environment restarts it), for footforge.rl.render: (the environment's CPU MjModel, qpos after
     every policy step (T, nq)). A rough-terrain policy with a terrain `kind` instead starts on the
@@ -284,14 +357,17 @@ def record(policy_dir: Path, *, feet: str | None = None, seconds: float = 5.0, s
     policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir, physics)
     steps = int(round(seconds / env_config.policy_dt))
     if kind is not None and (env_config.task != "rough" or kind not in env.terrain.column_kinds):
-        raise InputError(f"the policy's terrain has no '{kind}' tiles",
-                         fix="record a kind of the rough terrain's proportions, or none on flat ground")
+        raise InputError(
+            f"the policy's terrain has no '{kind}' tiles",
+            fix="record a kind of the rough terrain's proportions, or none on flat ground",
+        )
 
     def reset(key):
         if kind is None:
             return env.reset(key)
-        return env.reset_on_tile(key, env_config.terrain.num_levels // 2, env.terrain.column_kinds.index(kind),
-                                 forward_mps=forward_mps)
+        return env.reset_on_tile(
+            key, env_config.terrain.num_levels // 2, env.terrain.column_kinds.index(kind), forward_mps=forward_mps
+        )
 
     def one_step(state, key):
         action, _ = policy(state.obs, key)
@@ -314,8 +390,7 @@ def comparison_markdown(results: list[dict]) -> str:
     for r in results:
         cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
         cells += [f"{r['indices'][k]['mean']:.3f} ± {r['indices'][k]['std']:.3f}" for k in INDICES]
-        cells += [f"{r['slippage']:.3f}", falls_cell(r),
-                  r["walking"]["line"] if "walking" in r else "not judged"]
+        cells += [f"{r['slippage']:.3f}", falls_cell(r), r["walking"]["line"] if "walking" in r else "not judged"]
         rows.append(cells)
     return "\n".join(markdown_table(head, rows)) + "\n"
 
@@ -351,11 +426,17 @@ def plot(results: list[dict], out_dir: Path) -> list[str]:
     labels = [f"{Path(r['policy']).parent.name}\non {r['feet']}" for r in results]
     for ax, name in zip(axes, INDICES):
         for k, r in enumerate(results):  # coloured by the feet walked on; hatched when zero-shot
-            ax.bar(k, r["indices"][name]["mean"], yerr=r["indices"][name]["std"], capsize=2,
-                   color=FEET_COLOURS.get(r["feet"], "tab:blue"), hatch="//" if r["feet"] != r["trained_on"] else None)
+            ax.bar(
+                k,
+                r["indices"][name]["mean"],
+                yerr=r["indices"][name]["std"],
+                capsize=2,
+                color=FEET_COLOURS.get(r["feet"], "tab:blue"),
+                hatch="//" if r["feet"] != r["trained_on"] else None,
+            )
         ax.set_title(f"{name} ({INDEX_UNITS[name]})", fontsize=9)
         ax.set_xticks(range(len(results)), labels, fontsize=6, rotation=90)
-    for ax in axes[len(INDICES):]:
+    for ax in axes[len(INDICES) :]:
         ax.set_visible(False)
     fig.tight_layout()
     fig.savefig(out_dir / "comparison.png", dpi=90)
@@ -368,8 +449,12 @@ def plot(results: list[dict], out_dir: Path) -> list[str]:
         for leg in range(4):
             on = np.flatnonzero(contacts[:, leg])
             ax.broken_barh([(k * dt, dt) for k in on], (leg - 0.4, 0.8), color="k")
-        ax.set(yticks=range(4), yticklabels=["LF", "RF", "LH", "RH"], xlabel="time (s)",
-               title=f"feet contact schedule: {labels[i].replace(chr(10), ' ')}")
+        ax.set(
+            yticks=range(4),
+            yticklabels=["LF", "RF", "LH", "RH"],
+            xlabel="time (s)",
+            title=f"feet contact schedule: {labels[i].replace(chr(10), ' ')}",
+        )
         fig.tight_layout()
         fig.savefig(out_dir / f"contacts_{i}.png", dpi=90)
         err = np.asarray(r["traces"]["base_vx_error_mean"])

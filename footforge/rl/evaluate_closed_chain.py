@@ -41,8 +41,8 @@ import mujoco
 import numpy as np
 
 from footforge.envs.anymal import Robot, ensure_built, load_robot
-from footforge.envs.engine_mujoco import CpuRobots
 from footforge.envs.config import check_policy_on_feet
+from footforge.envs.engine_mujoco import CpuRobots
 from footforge.envs.terrain import Terrain, TerrainConfig
 from footforge.errors import InputError
 from footforge.rl.evaluate import INDICES
@@ -51,8 +51,14 @@ from footforge.rl.verdict import judge
 from footforge.tables import markdown_table
 
 FULL = "full"
-TERRAIN_TILES = TerrainConfig(num_levels=2, num_columns=4, tile_size_m=4.0, platform_m=2.0, border_m=20.0,
-                              proportions=(1.0, 1.0, 0.0, 1.0, 1.0, 0.0))
+TERRAIN_TILES = TerrainConfig(
+    num_levels=2,
+    num_columns=4,
+    tile_size_m=4.0,
+    platform_m=2.0,
+    border_m=20.0,
+    proportions=(1.0, 1.0, 0.0, 1.0, 1.0, 0.0),
+)
 """"A few terrain tiles": smooth slope, rough slope, stairs down, obstacles at difficulty 0 and 0.5;
 robot i spawns on the centre of a tile of the hardest level (one kind after the other). The 20 m
 border keeps a robot walking 10 s at the fastest command on the heightfield. The 2 m platform
@@ -67,9 +73,16 @@ class _State(NamedTuple):
     qvel: object
 
 
-def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots: int = 4, seed: int = 0,
-                          build_root: Path | None = None, terrain_tiles: TerrainConfig | None = None,
-                          progress: Callable[[str, int, int], None] | None = None) -> dict:
+def evaluate_closed_chain(
+    policy_dir: Path,
+    *,
+    seconds: float = 10.0,
+    num_robots: int = 4,
+    seed: int = 0,
+    build_root: Path | None = None,
+    terrain_tiles: TerrainConfig | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> dict:
     """Runs `policy_dir`'s policy on the feet it was trained on and on the closed chain.
 
     build_root: folder with one build per feet, <root>/<feet>/ (default build/<feet>, which
@@ -99,20 +112,46 @@ def evaluate_closed_chain(policy_dir: Path, *, seconds: float = 10.0, num_robots
     terrain = getattr(env, "terrain", None)
     full = cpu_robot(config, FULL, build_root, terrain, own_physics=True)
     steps = int(round(seconds / config.policy_dt))
-    result = {"policy": str(policy_dir), "policy_type": config.policy, "trained_on": config.feet, "seconds": seconds,
-              "num_robots": num_robots, "seed": seed, "policy_dt_s": config.policy_dt,
-              "push_interval_s": config.pushes.interval_s if config.pushes.enabled else None,
-              "terrain": None if terrain is None else {
-                  "config": asdict(terrain.config), "difficulty": terrain.config.difficulty(terrain.config.num_levels - 1),
-                  "robot_tiles": [terrain.column_kinds[i % terrain.config.num_columns] for i in range(num_robots)]},
-              "feet": {}}
+    result = {
+        "policy": str(policy_dir),
+        "policy_type": config.policy,
+        "trained_on": config.feet,
+        "seconds": seconds,
+        "num_robots": num_robots,
+        "seed": seed,
+        "policy_dt_s": config.policy_dt,
+        "push_interval_s": config.pushes.interval_s if config.pushes.enabled else None,
+        "terrain": None
+        if terrain is None
+        else {
+            "config": asdict(terrain.config),
+            "difficulty": terrain.config.difficulty(terrain.config.num_levels - 1),
+            "robot_tiles": [terrain.column_kinds[i % terrain.config.num_columns] for i in range(num_robots)],
+        },
+        "feet": {},
+    }
     imu = FootImuEstimator(full.model, trained.passive_names) if config.haptic else None
-    result["passive_joints_on_full"] = None if imu is None else {
-        "estimated_from": "IMUs (footforge.rl.foot_imu)", "imu_bodies": list(IMU_BODIES), "joints": list(trained.passive_names)}
+    result["passive_joints_on_full"] = (
+        None
+        if imu is None
+        else {
+            "estimated_from": "IMUs (footforge.rl.foot_imu)",
+            "imu_bodies": list(IMU_BODIES),
+            "joints": list(trained.passive_names),
+        }
+    )
     for feet, robot in ((config.feet, trained), (FULL, full)):
-        result["feet"][feet] = run(env, robot, policy, steps=steps, num_robots=num_robots, seed=seed, terrain=terrain,
-                                   progress=(lambda done, f=feet: progress(f, done, steps)) if progress else None,
-                                   imu=imu if feet == FULL else None)
+        result["feet"][feet] = run(
+            env,
+            robot,
+            policy,
+            steps=steps,
+            num_robots=num_robots,
+            seed=seed,
+            terrain=terrain,
+            progress=(lambda done, f=feet: progress(f, done, steps)) if progress else None,  # type: ignore[misc]
+            imu=imu if feet == FULL else None,
+        )
     return result
 
 
@@ -127,10 +166,14 @@ def policy_environment(config, build_root: Path | None = None, terrain_tiles: Te
 
     enable_float64_physics(config)  # a policy trained in float64 physics: its environment's maths need x64
     if terrain_tiles:
-        env = RoughEnv(replace(config, task="rough", terrain=terrain_tiles, build_dir=_build_dir(config.feet, build_root)))
+        env = RoughEnv(
+            replace(config, task="rough", terrain=terrain_tiles, build_dir=_build_dir(config.feet, build_root))
+        )
         return env, cpu_robot(config, config.feet, build_root, env.terrain)
     robot = cpu_robot(config, config.feet, build_root, None)
-    return LocomotionEnv(replace(config, task="flat", build_dir=_build_dir(config.feet, build_root)), robot=robot), robot
+    return LocomotionEnv(
+        replace(config, task="flat", build_dir=_build_dir(config.feet, build_root)), robot=robot
+    ), robot
 
 
 def _build_dir(feet: str, build_root: Path | None) -> str | None:
@@ -138,8 +181,9 @@ def _build_dir(feet: str, build_root: Path | None) -> str | None:
     return str(Path(build_root) / feet) if build_root else None
 
 
-def cpu_robot(config, feet: str, build_root: Path | None, terrain: Terrain | None, *,
-              own_physics: bool = False) -> Robot:
+def cpu_robot(
+    config, feet: str, build_root: Path | None, terrain: Terrain | None, *, own_physics: bool = False
+) -> Robot:
     """`feet`'s robot for the CPU: the environment's index tables, on `terrain` if given (its
     base and thighs colliding with the heightfield for real: MuJoCo on the CPU can, so falls are
     real contacts); physics at the environment's step and solver, or (own_physics) at the build's."""
@@ -148,15 +192,34 @@ def cpu_robot(config, feet: str, build_root: Path | None, terrain: Terrain | Non
         o = mujoco.MjSpec.from_file(str(ensure_built(config) / "scene.xml")).option
         decimation = config.policy_dt / o.timestep
         if abs(decimation - round(decimation)) > 1e-9:
-            raise InputError(f"the policy step {config.policy_dt} s is not a multiple of the {feet} model's "
-                             f"{o.timestep} s step", file=str(ensure_built(config) / "robot.xml"), fix="rebuild the model")
-        config = replace(config, sim_dt=o.timestep, decimation=int(round(decimation)), solver_iterations=o.iterations,
-                         solver_ls_iterations=o.ls_iterations, contact_model="build")
+            raise InputError(
+                f"the policy step {config.policy_dt} s is not a multiple of the {feet} model's {o.timestep} s step",
+                file=str(ensure_built(config) / "robot.xml"),
+                fix="rebuild the model",
+            )
+        config = replace(
+            config,
+            sim_dt=o.timestep,
+            decimation=int(round(decimation)),
+            solver_iterations=o.iterations,
+            solver_ls_iterations=o.ls_iterations,
+            contact_model="build",
+        )
     return load_robot(config, terrain, for_mjx=False)
 
 
-def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, terrain: Terrain | None = None,
-        progress: Callable[[int], None] | None = None, imu: FootImuEstimator | None = None) -> dict:
+def run(
+    env,
+    robot: Robot,
+    policy,
+    *,
+    steps: int,
+    num_robots: int,
+    seed: int,
+    terrain: Terrain | None = None,
+    progress: Callable[[int], None] | None = None,
+    imu: FootImuEstimator | None = None,
+) -> dict:
     """One column: `num_robots` robots on `robot`'s model for `steps` policy steps (see the module
     docstring), stepped together by the C engine's CPU runner (footforge.envs.engine_mujoco.CpuRobots).
     `env` is the policy's environment (LocomotionEnv on flat ground, RoughEnv on `terrain`), whose
@@ -209,29 +272,49 @@ def run(env, robot: Robot, policy, *, steps: int, num_robots: int, seed: int, te
     wall = time.perf_counter() - t_start
     if progress:
         progress(steps)
-    indices = {name: {"mean": float(rows[name][live].mean()) if live.any() else float("nan"),
-                      "std": float(rows[name][live].std()) if live.any() else float("nan")} for name in INDICES}
+    indices = {
+        name: {
+            "mean": float(rows[name][live].mean()) if live.any() else float("nan"),
+            "std": float(rows[name][live].std()) if live.any() else float("nan"),
+        }
+        for name in INDICES
+    }
     simulated = float(np.where(fall_step >= 0, fall_step + 1, steps).sum() * config.policy_dt)
-    walking = judge(feet_down, live, rows["base_height"], rows["vx_command"], rows["vx"],
-                    np.hypot(rows["vx_command"], rows["vy_command"]))
+    walking = judge(
+        feet_down,
+        live,
+        rows["base_height"],
+        rows["vx_command"],
+        rows["vx"],
+        np.hypot(rows["vx_command"], rows["vy_command"]),
+    )
     traces = {"vx_m_s": rows["vx"], "vx_command_m_s": rows["vx_command"]}
-    closure = None
+    closure: dict[str, float] | None = None
     if robots.closure is not None:
         traces |= worst
         closure = {"num_closures": len(robots.closure.connect), "num_couplings": len(robots.closure.coupling)}
-        for k, mean, peak in (("closure_gap_m", "closure_gap_mean_m", "closure_gap_max_m"),
-                              ("coupling_rad", "coupling_mean_rad", "coupling_max_rad")):
+        for k, mean, peak in (
+            ("closure_gap_m", "closure_gap_mean_m", "closure_gap_max_m"),
+            ("coupling_rad", "coupling_mean_rad", "coupling_max_rad"),
+        ):
             total, count = totals[k]
             closure |= {mean: float(total / count), peak: float(np.nanmax(worst[k]))}
-    return {"timestep_s": model.opt.timestep,
-            "physics_steps_per_policy_step": decimation, "indices": indices,
-            "falls": int((fall_step >= 0).sum()),
-            "fall_times_s": [float((s + 1) * config.policy_dt) if s >= 0 else None for s in fall_step],
-            "diverged": int((~ok).sum()), "finite": bool(ok.all()),
-            "walking": walking.to_dict() | {"line": walking.line()},
-            "simulated_s": simulated, "wall_s": wall, "physics_wall_s": physics_wall,
-            "real_time_factor": simulated / physics_wall if physics_wall > 0 else float("nan"),
-            "closure": closure, "traces": traces}
+    return {
+        "timestep_s": model.opt.timestep,
+        "physics_steps_per_policy_step": decimation,
+        "indices": indices,
+        "falls": int((fall_step >= 0).sum()),
+        "fall_times_s": [float((s + 1) * config.policy_dt) if s >= 0 else None for s in fall_step],
+        "diverged": int((~ok).sum()),
+        "finite": bool(ok.all()),
+        "walking": walking.to_dict() | {"line": walking.line()},
+        "simulated_s": simulated,
+        "wall_s": wall,
+        "physics_wall_s": physics_wall,
+        "real_time_factor": simulated / physics_wall if physics_wall > 0 else float("nan"),
+        "closure": closure,
+        "traces": traces,
+    }
 
 
 def observed_robot(robot: Robot, imu: FootImuEstimator | None) -> Robot:
@@ -241,8 +324,12 @@ def observed_robot(robot: Robot, imu: FootImuEstimator | None) -> Robot:
     if imu is None:
         return robot
     model, n = robot.model, len(imu.names)
-    return replace(robot, passive_qpos=np.arange(model.nq, model.nq + n), passive_dof=np.arange(model.nv, model.nv + n),
-                   passive_names=tuple(imu.names))
+    return replace(
+        robot,
+        passive_qpos=np.arange(model.nq, model.nq + n),
+        passive_dof=np.arange(model.nv, model.nv + n),
+        passive_names=tuple(imu.names),
+    )
 
 
 def observed_states(robots: CpuRobots, imu: FootImuEstimator | None) -> tuple[np.ndarray, np.ndarray]:
@@ -251,8 +338,10 @@ def observed_states(robots: CpuRobots, imu: FootImuEstimator | None) -> tuple[np
     if imu is None:
         return qpos, qvel
     estimates = [imu(robots.sync(i)) for i in range(len(qpos))]
-    return (np.concatenate([qpos, np.stack([e[0] for e in estimates])], axis=1),
-            np.concatenate([qvel, np.stack([e[1] for e in estimates])], axis=1))
+    return (
+        np.concatenate([qpos, np.stack([e[0] for e in estimates])], axis=1),
+        np.concatenate([qvel, np.stack([e[1] for e in estimates])], axis=1),
+    )
 
 
 def place_at_start(robot: Robot, data: mujoco.MjData, terrain: Terrain | None = None, i: int = 0) -> None:
@@ -303,8 +392,10 @@ class Controller:
 
         def act(obs, qpos, info):
             if config.privileged_critic:  # the policy reads "state" only; the critic's slice is not needed
-                obs = {"state": obs, "privileged_state": jp.zeros((obs.shape[0], env.observation_size[
-                    "privileged_state"][0]))}
+                obs = {
+                    "state": obs,
+                    "privileged_state": jp.zeros((obs.shape[0], env.observation_size["privileged_state"][0])),
+                }
             return jax.vmap(env.policy_act)(info, policy(obs, jax.random.PRNGKey(0))[0])
 
         def settle(qpos, qvel, info, keys, action, actuator_force, command):
@@ -312,12 +403,20 @@ class Controller:
             info, _ = env.policy_command(info, state, keys, command)
             lin, ang, _ = env.base_state(state)
             qd, command = qvel[r.actuated_dof], info["command"]
-            row = {"lin_vel_x_error": jp.abs(command[0] - lin[0]), "lin_vel_y_error": jp.abs(command[1] - lin[1]),
-                   "yaw_rate_error": jp.abs(command[2] - ang[2]),
-                   "action_rate": jp.linalg.norm(action - info["last_action"]),
-                   "joint_vel_rate": jp.linalg.norm(qd - info["last_joint_vel"]),
-                   "torques": jp.linalg.norm(actuator_force), "base_height": env.base_height(state),
-                   "vx": lin[0], "vx_command": command[0], "vy_command": command[1], "vy": lin[1], "yaw_rate": ang[2]}
+            row = {
+                "lin_vel_x_error": jp.abs(command[0] - lin[0]),
+                "lin_vel_y_error": jp.abs(command[1] - lin[1]),
+                "yaw_rate_error": jp.abs(command[2] - ang[2]),
+                "action_rate": jp.linalg.norm(action - info["last_action"]),
+                "joint_vel_rate": jp.linalg.norm(qd - info["last_joint_vel"]),
+                "torques": jp.linalg.norm(actuator_force),
+                "base_height": env.base_height(state),
+                "vx": lin[0],
+                "vx_command": command[0],
+                "vy_command": command[1],
+                "vy": lin[1],
+                "yaw_rate": ang[2],
+            }
             info, obs = env.policy_observe(state, info, keys, action)
             return info, obs, row
 
@@ -346,8 +445,7 @@ class Controller:
     def settle(self, qpos, qvel, info, keys, action, actuator_force, command: np.ndarray | None = None):
         """(info, observations, index rows as numpy) after the physics of a policy step;
         `command` (robots, 3): see the class docstring."""
-        info, obs, row = self._settle(qpos, qvel, info, keys, action, actuator_force,
-                                      _commands(command, len(qpos)))
+        info, obs, row = self._settle(qpos, qvel, info, keys, action, actuator_force, _commands(command, len(qpos)))
         return info, obs, {k: np.asarray(v) for k, v in row.items()}
 
 
@@ -360,24 +458,46 @@ def _commands(command: np.ndarray | None, robots: int) -> np.ndarray:
 
 def comparison_markdown(results: list[dict]) -> str:
     """One row per (policy, feet): the policy on its training feet, then on the closed chain."""
-    head = ["policy", "type", "trained on", "feet", "vx error (m/s)", "vy error (m/s)", "yaw-rate error (rad/s)",
-            "base height (m)", "falls", "verdict", "closure gap mean / max (mm)", "roll coupling max (mrad)",
-            "finite", "real-time factor"]
+    head = [
+        "policy",
+        "type",
+        "trained on",
+        "feet",
+        "vx error (m/s)",
+        "vy error (m/s)",
+        "yaw-rate error (rad/s)",
+        "base height (m)",
+        "falls",
+        "verdict",
+        "closure gap mean / max (mm)",
+        "roll coupling max (mrad)",
+        "finite",
+        "real-time factor",
+    ]
     rows = []
     for r in results:
         for feet, c in r["feet"].items():
-            cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"],
-                     f"{feet} ({'trained' if feet == r['trained_on'] else 'zero-shot'}"
-                     f"{', passive joints from its sensors' if feet == FULL and r.get('passive_joints_on_full') else ''})"]
-            cells += [f"{c['indices'][k]['mean']:.3f} ± {c['indices'][k]['std']:.3f}"
-                      for k in ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "base_height")]
+            cells = [
+                Path(r["policy"]).parent.name or r["policy"],
+                r["policy_type"],
+                r["trained_on"],
+                f"{feet} ({'trained' if feet == r['trained_on'] else 'zero-shot'}"
+                f"{', passive joints from its sensors' if feet == FULL and r.get('passive_joints_on_full') else ''})",
+            ]
+            cells += [
+                f"{c['indices'][k]['mean']:.3f} ± {c['indices'][k]['std']:.3f}"
+                for k in ("lin_vel_x_error", "lin_vel_y_error", "yaw_rate_error", "base_height")
+            ]
             falls = [f"{t:.2f}" for t in c["fall_times_s"] if t is not None]
             cells.append(f"{c['falls']}/{r['num_robots']}" + (f" (at {', '.join(falls)} s)" if falls else ""))
             cells.append(c["walking"]["line"])
             eq = c["closure"]
-            cells += [f"{eq['closure_gap_mean_m'] * 1e3:.4f} / {eq['closure_gap_max_m'] * 1e3:.4f}" if eq else "-",
-                      f"{eq['coupling_max_rad'] * 1e3:.3f}" if eq else "-",
-                      "yes" if c["finite"] else f"no ({c['diverged']} diverged)", f"{c['real_time_factor']:.2f}"]
+            cells += [
+                f"{eq['closure_gap_mean_m'] * 1e3:.4f} / {eq['closure_gap_max_m'] * 1e3:.4f}" if eq else "-",
+                f"{eq['coupling_max_rad'] * 1e3:.3f}" if eq else "-",
+                "yes" if c["finite"] else f"no ({c['diverged']} diverged)",
+                f"{c['real_time_factor']:.2f}",
+            ]
             rows.append(cells)
     return "\n".join(markdown_table(head, rows)) + "\n"
 
@@ -400,8 +520,11 @@ def plot(result: dict, path: Path) -> None:
             gaps = c["traces"]["closure_gap_m"] * 1e3
             for i, g in enumerate(gaps):
                 bottom.plot(time_s, g, lw=0.8, label=f"robot {i}")
-    top.set(ylabel="forward velocity (m/s)", title=f"{Path(result['policy']).parent.name or result['policy']}: "
-            f"{result['policy_type']} policy trained on {result['trained_on']}, robot 0")
+    top.set(
+        ylabel="forward velocity (m/s)",
+        title=f"{Path(result['policy']).parent.name or result['policy']}: "
+        f"{result['policy_type']} policy trained on {result['trained_on']}, robot 0",
+    )
     top.legend(fontsize=7, ncol=2)
     bottom.set(xlabel="time (s)", ylabel="worst closure gap (mm)", title="closed chain: closure drift per policy step")
     bottom.legend(fontsize=7, ncol=4)

@@ -42,8 +42,10 @@ import numpy as np
 from footforge import constants as C
 from footforge.errors import InputError
 
-FRONT_LINKS, BACK_LINKS = ("chain_middle_2", "chain_middle_3", "chain_middle_4"), ("chain_middle_6", "chain_middle_7",
-                                                                                  "chain_middle_8")
+FRONT_LINKS, BACK_LINKS = (
+    ("chain_middle_2", "chain_middle_3", "chain_middle_4"),
+    ("chain_middle_6", "chain_middle_7", "chain_middle_8"),
+)
 """The middle chain's links whose orientations give the front and back halves of the sole."""
 IMU_BODIES = ("front_arch", "back_arch") + FRONT_LINKS + BACK_LINKS
 """The orientation sensors of each foot (body names under <LEG>_foot/); the mount's orientation
@@ -92,8 +94,10 @@ class FootImuEstimator:
         for name in names:
             leg, _, joint = name.partition("_foot/")
             if leg not in C.LEGS or joint not in ESTIMATED:
-                raise InputError(f"cannot estimate the passive joint {name!r} on the closed chain",
-                                 fix=f"joints <leg>_foot/<name> with name one of {', '.join(ESTIMATED)}")
+                raise InputError(
+                    f"cannot estimate the passive joint {name!r} on the closed chain",
+                    fix=f"joints <leg>_foot/<name> with name one of {', '.join(ESTIMATED)}",
+                )
             self._legs.append(C.LEGS.index(leg))
             self._which.append(ESTIMATED.index(joint))
         self._bodies = np.zeros((len(C.LEGS), 1 + len(IMU_BODIES)), int)  # mount, then the IMUs
@@ -101,19 +105,27 @@ class FootImuEstimator:
             for k, body in enumerate(("mount",) + IMU_BODIES):
                 b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{leg}_foot/{body}")
                 if b < 0:
-                    raise InputError(f"the model has no body {leg}_foot/{body}: not a closed-chain SoftFoot-Q robot",
-                                     fix="run haptic policies on the `full` build")
+                    raise InputError(
+                        f"the model has no body {leg}_foot/{body}: not a closed-chain SoftFoot-Q robot",
+                        fix="run haptic policies on the `full` build",
+                    )
                 self._bodies[i, k] = b
         key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
         if key < 0:
-            raise InputError("the closed-chain model has no `home` keyframe (the feet's reference pose)",
-                             fix="rebuild it with `footforge build --variant full`")
+            raise InputError(
+                "the closed-chain model has no `home` keyframe (the feet's reference pose)",
+                fix="rebuild it with `footforge build --variant full`",
+            )
         data = mujoco.MjData(model)
         mujoco.mj_resetDataKeyframe(model, data, key)
         mujoco.mj_kinematics(model, data)
         # Each IMU's orientation in its mount's frame at the reference pose.
-        self._reference = np.array([[data.xmat[bodies[0]].reshape(3, 3).T @ data.xmat[b].reshape(3, 3)
-                                     for b in bodies[1:]] for bodies in self._bodies])
+        self._reference = np.array(
+            [
+                [data.xmat[bodies[0]].reshape(3, 3).T @ data.xmat[b].reshape(3, 3) for b in bodies[1:]]
+                for bodies in self._bodies
+            ]
+        )
 
     def leg_estimates(self, data: mujoco.MjData, leg: int) -> tuple[np.ndarray, np.ndarray]:
         """(angles, rates) of ESTIMATED for one leg (index into constants.LEGS), rad and rad/s,

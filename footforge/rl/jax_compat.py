@@ -119,10 +119,10 @@ def evaluator_state_committed() -> Iterator[None]:
 
     original = acting.Evaluator
 
-    class CommittedEvaluator(original):
+    class CommittedEvaluator(acting.Evaluator):  # `original`, replaced below
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
-            self._eval_state_to_donate = jax.device_put(self._eval_state_to_donate, jax.local_devices()[0])
+            self._eval_state_to_donate = jax.device_put(self._eval_state_to_donate, jax.local_devices()[0])  # type: ignore[has-type]
 
     acting.Evaluator = CommittedEvaluator
     try:

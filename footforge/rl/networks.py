@@ -26,15 +26,23 @@ def network_factory(ppo: PPOConfig, privileged: bool = False):
         # decay rates float64 too, which turns the float32 parameters' moments float64 and breaks
         # PPO's minibatch scan. Every parameter is made float32 (a no-op without x64).
         networks = ppo_networks.make_ppo_networks(*args, **kwargs)
-        return dataclasses.replace(networks, policy_network=_float32_init(networks.policy_network,
-                                                                           ppo.policy_output_init_scale),
-                                   value_network=_float32_init(networks.value_network))
+        return dataclasses.replace(
+            networks,
+            policy_network=_float32_init(networks.policy_network, ppo.policy_output_init_scale),
+            value_network=_float32_init(networks.value_network),
+        )
 
     return functools.partial(
-        float32_networks, policy_hidden_layer_sizes=ppo.policy_hidden_layers,
-        value_hidden_layer_sizes=ppo.value_hidden_layers, activation=linen.elu,
-        distribution_type="normal", noise_std_type="log", init_noise_std=ppo.init_noise_std,
-        **({"mean_clip_scale": ppo.policy_mean_clip} if ppo.policy_mean_clip is not None else {}), **keys)
+        float32_networks,
+        policy_hidden_layer_sizes=ppo.policy_hidden_layers,
+        value_hidden_layer_sizes=ppo.value_hidden_layers,
+        activation=linen.elu,
+        distribution_type="normal",
+        noise_std_type="log",
+        init_noise_std=ppo.init_noise_std,
+        **({"mean_clip_scale": ppo.policy_mean_clip} if ppo.policy_mean_clip is not None else {}),
+        **keys,
+    )
 
 
 def _float32_init(network, output_scale: float = 1.0):
@@ -49,6 +57,8 @@ def _float32_init(network, output_scale: float = 1.0):
             inner = dict(params["params"])
             inner["Dense_0"] = jax.tree_util.tree_map(lambda x: x * output_scale, inner["Dense_0"])
             params = dict(params) | {"params": inner}
-        return jax.tree_util.tree_map(lambda x: x.astype(jp.float32) if jp.issubdtype(x.dtype, jp.floating) else x,
-                                      params)
+        return jax.tree_util.tree_map(
+            lambda x: x.astype(jp.float32) if jp.issubdtype(x.dtype, jp.floating) else x, params
+        )
+
     return dataclasses.replace(network, init=init)

@@ -29,11 +29,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from footforge.errors import InputError
-from footforge.variants import PLAY_FEET as FEET  # the training feet and the closed chain
+from footforge.variants import (
+    PLAY_FEET as FEET,  # the training feet and the closed chain
+    Variant,
+)
+
+if TYPE_CHECKING:
+    from footforge.envs.config import EnvConfig
 
 TOOL = "footforge play"
 """Written into play's outputs (the GIF's comment, the log's "tool"): files play may replace."""
@@ -63,11 +70,11 @@ class OnnxPolicy:
 
     source: Path
     """The policy folder or the .onnx file it was read from."""
-    session: object
+    session: Any
     """onnxruntime.InferenceSession of the graph (input "obs", output "actions")."""
     metadata: dict
     """The ONNX metadata_props, JSON-decoded (footforge.rl.export_onnx.METADATA_KEYS)."""
-    config: object
+    config: EnvConfig
     """footforge.envs.config.EnvConfig: the policy folder's own, or for an .onnx file the task's
     default configuration with the file's action, physics step and observation settings."""
 
@@ -88,6 +95,7 @@ class OnnxPolicy:
                 obs = obs["state"]
             shape = jax.ShapeDtypeStruct((obs.shape[0], size), jp.float32)
             return jax.pure_callback(self.actions, shape, obs.astype(jp.float32)), {}
+
         return policy
 
 
@@ -107,8 +115,11 @@ def load_policy(path: Path) -> OnnxPolicy:
 
     path = Path(path)
     if not path.exists():
-        raise InputError("no such policy folder or file", file=str(path),
-                         fix="pass a policy/ folder of a training run or an .onnx file from footforge export")
+        raise InputError(
+            "no such policy folder or file",
+            file=str(path),
+            fix="pass a policy/ folder of a training run or an .onnx file from footforge export",
+        )
     if path.is_dir():
         config = load_policy_config(path)  # an InputError for a folder that is not a policy
         model = build_model(path)
@@ -116,29 +127,44 @@ def load_policy(path: Path) -> OnnxPolicy:
         try:
             model = onnx.load(str(path))
         except Exception as e:  # protobuf's DecodeError, OSError...
-            raise InputError(f"cannot be read as ONNX ({e.__class__.__name__})", file=str(path),
-                             fix="export the policy again: footforge export POLICY_DIR --out FILE.onnx") from None
+            raise InputError(
+                f"cannot be read as ONNX ({e.__class__.__name__})",
+                file=str(path),
+                fix="export the policy again: footforge export POLICY_DIR --out FILE.onnx",
+            ) from None
         config = None
     else:
-        raise InputError("is neither a policy folder nor an .onnx file", file=str(path),
-                         fix="pass a policy/ folder of a training run or an .onnx file from footforge export")
+        raise InputError(
+            "is neither a policy folder nor an .onnx file",
+            file=str(path),
+            fix="pass a policy/ folder of a training run or an .onnx file from footforge export",
+        )
     props = {p.key: p.value for p in model.metadata_props}
     missing = [k for k in METADATA_KEYS if k not in props]
     if missing:
-        raise InputError(f"not a footforge policy (metadata {', '.join(missing[:3])} missing)", file=str(path),
-                         fix="export the policy with footforge export POLICY_DIR")
+        raise InputError(
+            f"not a footforge policy (metadata {', '.join(missing[:3])} missing)",
+            file=str(path),
+            fix="export the policy with footforge export POLICY_DIR",
+        )
     try:
         metadata = {k: json.loads(props[k]) for k in METADATA_KEYS}
     except ValueError:
-        raise InputError("its footforge metadata is not JSON", file=str(path),
-                         fix="export the policy again with footforge export POLICY_DIR") from None
+        raise InputError(
+            "its footforge metadata is not JSON",
+            file=str(path),
+            fix="export the policy again with footforge export POLICY_DIR",
+        ) from None
     if config is None:
         config = _config_from_metadata(metadata, path)
     try:
         session = onnxruntime.InferenceSession(model.SerializeToString(), providers=["CPUExecutionProvider"])
     except Exception as e:  # onnxruntime's own exception types
-        raise InputError(f"onnxruntime cannot load it: {e}", file=str(path),
-                         fix="export the policy again with footforge export POLICY_DIR") from None
+        raise InputError(
+            f"onnxruntime cannot load it: {e}",
+            file=str(path),
+            fix="export the policy again with footforge export POLICY_DIR",
+        ) from None
     return OnnxPolicy(path, session, metadata, config)
 
 
@@ -152,25 +178,43 @@ def _config_from_metadata(meta: dict, path: Path):
 
     config = envs.default_config(meta["task"], meta["feet"], meta["policy_type"])
     a, o = meta["action"], meta["observation"]
-    config = replace(config, action=a["model"], action_scale=a["scale"], action_clip=a["clip"], sim_dt=meta["sim_dt_s"],
-                     decimation=meta["decimation"],
-                     observations=replace(config.observations, clip=o["clip"], noise=o["noise_in_training"],
-                                          pd_targets=any(s["name"] == "pd_target" for s in o["layout"])))
-    ours = [(name, width, np.ravel(observation_layout.scale(config, name)).tolist())
-            for name, width in observation_layout.layout(config, o["passive_foot_joints"])]
+    config = replace(
+        config,
+        action=a["model"],
+        action_scale=a["scale"],
+        action_clip=a["clip"],
+        sim_dt=meta["sim_dt_s"],
+        decimation=meta["decimation"],
+        observations=replace(
+            config.observations,
+            clip=o["clip"],
+            noise=o["noise_in_training"],
+            pd_targets=any(s["name"] == "pd_target" for s in o["layout"]),
+        ),
+    )
+    ours = [
+        (name, width, np.ravel(observation_layout.scale(config, name)).tolist())
+        for name, width in observation_layout.layout(config, o["passive_foot_joints"])
+    ]
     theirs = [(s["name"], s["size"], np.ravel(s["scale"]).tolist()) for s in o["layout"]]
     scan = o.get("height_scan")
-    same_scan = scan is None or (scan["x_m"] == list(config.height_scan.x_m) and scan["y_m"] == list(config.height_scan.y_m)
-                                 and scan["offset_m"] == config.observations.height_offset_m
-                                 and scan["clip_m"] == config.observations.height_clip_m)
+    same_scan = scan is None or (
+        scan["x_m"] == list(config.height_scan.x_m)
+        and scan["y_m"] == list(config.height_scan.y_m)
+        and scan["offset_m"] == config.observations.height_offset_m
+        and scan["clip_m"] == config.observations.height_clip_m
+    )
     if ours != theirs or not same_scan:
-        raise InputError(f"its observation layout is not this footforge's default for a {meta['policy_type']} "
-                         f"policy on the {meta['task']} task", file=str(path),
-                         fix="play the policy folder itself (its footforge.json has the configuration)")
+        raise InputError(
+            f"its observation layout is not this footforge's default for a {meta['policy_type']} "
+            f"policy on the {meta['task']} task",
+            file=str(path),
+            fix="play the policy folder itself (its footforge.json has the configuration)",
+        )
     return config
 
 
-def check_feet(policy: OnnxPolicy, feet: str | None) -> str:
+def check_feet(policy: OnnxPolicy, feet: str | None) -> Variant:
     """The feet to walk on (default the policy's own).
 
     Raises:
@@ -194,7 +238,13 @@ class Player:
         import mujoco
 
         from footforge.envs.engine_mujoco import CpuRobots
-        from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, Controller, cpu_robot, observed_robot, policy_environment
+        from footforge.rl.evaluate_closed_chain import (
+            TERRAIN_TILES,
+            Controller,
+            cpu_robot,
+            observed_robot,
+            policy_environment,
+        )
         from footforge.rl.foot_imu import FootImuEstimator
 
         feet = check_feet(policy, config.feet)
@@ -203,8 +253,11 @@ class Player:
         env, own = policy_environment(env_config, config.build_root, TERRAIN_TILES if config.terrain else None)
         self.terrain = getattr(env, "terrain", None)
         self.feet, self.policy, self.config = feet, policy, config
-        self.robot = own if feet == env_config.feet else cpu_robot(env_config, feet, config.build_root, self.terrain,
-                                                                   own_physics=True)
+        self.robot = (
+            own
+            if feet == env_config.feet
+            else cpu_robot(env_config, feet, config.build_root, self.terrain, own_physics=True)
+        )
         self.robots = CpuRobots(self.robot, 1)  # the C engine's CPU runner, as the closed-chain evaluation
         self.model = self.robots.model
         self.data = mujoco.MjData(self.model)
@@ -216,8 +269,7 @@ class Player:
         self.command_low = np.array([limits.lin_vel_x_range[0], limits.lin_vel_y_range[0], -limits.yaw_rate_limit])
         self.command_high = np.array([limits.lin_vel_x_range[1], limits.lin_vel_y_range[1], limits.yaw_rate_limit])
         # A haptic policy on the closed chain reads its passive joints' estimates (footforge.rl.foot_imu).
-        self._imu = (FootImuEstimator(self.model, own.passive_names) if policy.config.haptic and feet == "full"
-                     else None)
+        self._imu = FootImuEstimator(self.model, own.passive_names) if policy.config.haptic and feet == "full" else None
         self._control = Controller(env, observed_robot(self.robot, self._imu), policy.jax_policy())
         self.resets = 0
         self.reset(np.zeros(3))
@@ -228,8 +280,9 @@ class Player:
 
         place_at_start(self.robot, self.data, self.terrain, 0)
         self.robots.take(0, self.data)
-        self._info, self._obs = self._control.start(*observed_states(self.robots, self._imu),
-                                                    self.config.seed + self.resets, self._command(command))
+        self._info, self._obs = self._control.start(
+            *observed_states(self.robots, self._imu), self.config.seed + self.resets, self._command(command)
+        )
         self.resets += 1
 
     def warm_up(self) -> None:
@@ -253,12 +306,19 @@ class Player:
         self.robots.step(targets, self.decimation, xfrc=self.data.xfrc_applied[None])
         fell = bool(self._control.fallen(self.robots)[0])
         feet = self.robots.feet_on_ground()[0].tolist()
-        self._info, self._obs, row = self._control.settle(*observed_states(self.robots, self._imu), self._info, keys,
-                                                          action, self.robots.actuator_force(), command)
+        self._info, self._obs, row = self._control.settle(
+            *observed_states(self.robots, self._imu), self._info, keys, action, self.robots.actuator_force(), command
+        )
         self.robots.sync(0, self.data)
-        record = {"fell": fell, "base_height_m": float(row["base_height"][0]), "vx": float(row["vx"][0]),
-                  "vy": float(row["vy"][0]), "yaw_rate": float(row["yaw_rate"][0]), "command": command[0].tolist(),
-                  "feet_on_ground": feet}
+        record = {
+            "fell": fell,
+            "base_height_m": float(row["base_height"][0]),
+            "vx": float(row["vx"][0]),
+            "vy": float(row["vy"][0]),
+            "yaw_rate": float(row["yaw_rate"][0]),
+            "command": command[0].tolist(),
+            "feet_on_ground": feet,
+        }
         if fell:
             self.reset(command[0])
         return record
@@ -276,7 +336,7 @@ def play_headless(player: Player, *, seconds: float, command=(0.0, 0.0, 0.0)) ->
     steps = int(round(seconds / player.policy_dt))
     qpos = np.empty((steps, player.model.nq))
     keys = ("base_height_m", "vx", "vy", "yaw_rate", "fell", "feet_on_ground")
-    states = {k: [] for k in ("time_s", "base_pos_m", *keys)}
+    states: dict[str, list] = {k: [] for k in ("time_s", "base_pos_m", *keys)}
     start = time.perf_counter()
     for t in range(steps):
         record = player.step(command)
@@ -288,13 +348,27 @@ def play_headless(player: Player, *, seconds: float, command=(0.0, 0.0, 0.0)) ->
     wall = time.perf_counter() - start
     falls = [t for t, fell in zip(states["time_s"], states["fell"]) if fell]
     commanded = player._command(command)[0]
-    walking = judge(np.array([states["feet_on_ground"]], bool), ~np.cumsum(states["fell"])[None].astype(bool),
-                    np.array([states["base_height_m"]]), np.full((1, steps), commanded[0]), np.array([states["vx"]]),
-                    np.full((1, steps), float(np.linalg.norm(commanded[:2]))))
-    return {"steps": steps, "policy_dt_s": player.policy_dt, "physics_steps_per_policy_step": player.decimation,
-            "command": player._command(command)[0].tolist(), "falls": len(falls), "fall_times_s": falls,
-            "wall_s": wall, "real_time_factor": steps * player.policy_dt / wall if wall > 0 else float("nan"),
-            "states": states, "walking": walking.to_dict() | {"line": walking.line()}, "qpos": qpos}
+    walking = judge(
+        np.array([states["feet_on_ground"]], bool),
+        ~np.cumsum(states["fell"])[None].astype(bool),
+        np.array([states["base_height_m"]]),
+        np.full((1, steps), commanded[0]),
+        np.array([states["vx"]]),
+        np.full((1, steps), float(np.linalg.norm(commanded[:2]))),
+    )
+    return {
+        "steps": steps,
+        "policy_dt_s": player.policy_dt,
+        "physics_steps_per_policy_step": player.decimation,
+        "command": player._command(command)[0].tolist(),
+        "falls": len(falls),
+        "fall_times_s": falls,
+        "wall_s": wall,
+        "real_time_factor": steps * player.policy_dt / wall if wall > 0 else float("nan"),
+        "states": states,
+        "walking": walking.to_dict() | {"line": walking.line()},
+        "qpos": qpos,
+    }
 
 
 # The viewer's keys (GLFW key codes, as mujoco.viewer's key_callback receives them): (code, key name,
@@ -346,12 +420,14 @@ def play_interactive(player: Player, *, print_fn: Callable[[str], None] = print)
     import mujoco.viewer
 
     player.warm_up()  # before the window opens
-    keys = collections.deque()  # key_callback runs on the viewer's thread: hand the keys over
+    keys: collections.deque[int] = collections.deque()  # key_callback runs on the viewer's thread: hand the keys over
     try:
         viewer = mujoco.viewer.launch_passive(player.model, player.data, key_callback=keys.append)
     except Exception as e:  # GLFW without a display, mjpython on macOS...
-        raise InputError(f"MuJoCo's viewer cannot open: {e}",
-                         fix="run on a machine with a display, or use --headless --video FILE.gif") from None
+        raise InputError(
+            f"MuJoCo's viewer cannot open: {e}",
+            fix="run on a machine with a display, or use --headless --video FILE.gif",
+        ) from None
     command = np.zeros(3)
     with viewer:
         with viewer.lock():
@@ -365,7 +441,9 @@ def play_interactive(player: Player, *, print_fn: Callable[[str], None] = print)
                 command, home = apply_key(command, keys.popleft())
                 command = np.clip(command, player.command_low, player.command_high)
                 reset |= home
-                print_fn(f"command: vx {command[0]:+.1f} m/s, vy {command[1]:+.1f} m/s, yaw rate {command[2]:+.1f} rad/s")
+                print_fn(
+                    f"command: vx {command[0]:+.1f} m/s, vy {command[1]:+.1f} m/s, yaw rate {command[2]:+.1f} rad/s"
+                )
             with viewer.lock():
                 if reset:
                     player.reset(command)

@@ -45,25 +45,40 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
     if recipe:
         progress = progress | {"recipe": recipe}
     name = policy_dir.resolve().parent.name if policy_dir.resolve().name == "policy" else policy_dir.name
-    lines = [f"# Policy card: {name}", "",
-             f"`{policy_dir}`: {env['task']} task, {env['feet']} feet, policy type {env['policy']}", ""]
+    lines = [
+        f"# Policy card: {name}",
+        "",
+        f"`{policy_dir}`: {env['task']} task, {env['feet']} feet, policy type {env['policy']}",
+        "",
+    ]
     lines += ["## Training", ""] + markdown_table(["", ""], [(k, str(v)) for k, v in _training_rows(meta, progress)])
     lines += ["", "## Evaluation", ""]
     for _, r in evaluations:
-        lines.append(f"- on {r['feet']} feet{' (zero-shot)' if r['feet'] != r['trained_on'] else ''}: "
-                     f"{r['num_envs']} robots, {r['seconds']:g} s, seed {r['seed']}, "
-                     f"physics {r.get('physics', 'mjx')}, {r['falls']} fell"
-                     + (f"; {r['walking']['line']}" if "walking" in r else ""))
-    rows = [[f"{index} ({INDEX_UNITS[index]})"] + [f"{r['indices'][index]['mean']:.4g} ± {r['indices'][index]['std']:.4g}"
-                                                   for _, r in evaluations] for index in INDICES]
+        lines.append(
+            f"- on {r['feet']} feet{' (zero-shot)' if r['feet'] != r['trained_on'] else ''}: "
+            f"{r['num_envs']} robots, {r['seconds']:g} s, seed {r['seed']}, "
+            f"physics {r.get('physics', 'mjx')}, {r['falls']} fell"
+            + (f"; {r['walking']['line']}" if "walking" in r else "")
+        )
+    rows = [
+        [f"{index} ({INDEX_UNITS[index]})"]
+        + [f"{r['indices'][index]['mean']:.4g} ± {r['indices'][index]['std']:.4g}" for _, r in evaluations]
+        for index in INDICES
+    ]
     rows.append(["slippage (-)"] + [f"{r['slippage']:.4g}" for _, r in evaluations])
     rows.append(["falls"] + [falls_cell(r) for _, r in evaluations])
     rows.append(["verdict"] + [r["walking"]["line"] if "walking" in r else "not judged" for _, r in evaluations])
     lines += [""] + markdown_table(["index"] + [f"on {r['feet']}" for _, r in evaluations], rows)
-    lines += ["", "Mean ± standard deviation over every policy step of every robot still standing "
-              "(footforge/rl/evaluate.py defines the indices). The verdict (walks, stands or falls) comes "
-              "from the forward error, the time up, the base height and each foot's share of the ground "
-              "(footforge/rl/verdict.py).", "", "## Plots", ""]
+    lines += [
+        "",
+        "Mean ± standard deviation over every policy step of every robot still standing "
+        "(footforge/rl/evaluate.py defines the indices). The verdict (walks, stands or falls) comes "
+        "from the forward error, the time up, the base height and each foot's share of the ground "
+        "(footforge/rl/verdict.py).",
+        "",
+        "## Plots",
+        "",
+    ]
     lines += [f"- {text}: [{f}]({f})" for text, f in _plots(evaluations, files)]
     return "\n".join(lines) + "\n"
 
@@ -71,54 +86,93 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
 def _training_rows(meta: dict, progress: dict) -> list[tuple[str, str]]:
     env, ppo = meta["env"], meta["ppo"]
     step = int(meta.get("global_step", 0))
-    rows = [("steps trained", f"{step:,} of {int(ppo['num_timesteps']):,}"
-             + (" (freshly initialised, untrained)" if step == 0 else ""))]
+    rows = [
+        (
+            "steps trained",
+            f"{step:,} of {int(ppo['num_timesteps']):,}" + (" (freshly initialised, untrained)" if step == 0 else ""),
+        )
+    ]
     recipe = progress.get("recipe")
     if recipe:  # rl.presets: the preset and the overrides that give this configuration
         from footforge.rl.presets import command_line
 
         overrides = recipe.get("overrides", [])
-        rows.append(("recipe", f"preset `{recipe['preset']}`, "
-                               + (f"overrides {', '.join(f'`{o}`' for o in overrides)}" if overrides else "no overrides")
-                               + f": `{command_line(env, (recipe['preset'], overrides))}`"))
+        rows.append(
+            (
+                "recipe",
+                f"preset `{recipe['preset']}`, "
+                + (f"overrides {', '.join(f'`{o}`' for o in overrides)}" if overrides else "no overrides")
+                + f": `{command_line(env, (recipe['preset'], overrides))}`",
+            )
+        )
     else:
         rows.append(("recipe", "not recorded (a run from before footforge train's presets)"))
     origin = progress.get("initialised_from")
     if origin:  # fine-tuned: train --init-from
-        rows.append(("started from", f"step {int(origin['step']):,} of {origin['run']} (--init-from): "
-                                     f"{int(origin['step']) + step:,} steps in all"))
+        rows.append(
+            (
+                "started from",
+                f"step {int(origin['step']):,} of {origin['run']} (--init-from): "
+                f"{int(origin['step']) + step:,} steps in all",
+            )
+        )
     wall_s = meta.get("wall_s") or progress.get("wall_s_total")
     resumes = progress.get("resumes", 0)
-    rows.append(("wall time", (_duration(wall_s) if wall_s else "not recorded")
-                 + (f", over {resumes + 1} calls (--resume)" if resumes else "")))
+    rows.append(
+        (
+            "wall time",
+            (_duration(wall_s) if wall_s else "not recorded")
+            + (f", over {resumes + 1} calls (--resume)" if resumes else ""),
+        )
+    )
     rows.append(("machine", _machine(meta.get("machine") or progress.get("machine"))))
     if progress.get("stopped"):
         rows.append(("stopped", progress["stopped"]))
     metrics = progress.get("metrics", {})
     if "eval/episode_reward" in metrics:
-        rows.append(("last training evaluation", f"return {metrics['eval/episode_reward']:.3f}, episode length "
-                                                  f"{metrics.get('eval/avg_episode_length', float('nan')):.0f} steps"))
-    rows.append(("PPO", f"{ppo['num_envs']} robots x {ppo['unroll_length']} steps per iteration, "
-                        f"{ppo['num_minibatches']} minibatches of {ppo['batch_size']}, {ppo['num_updates_per_batch']} "
-                        f"epochs, learning rate {ppo['learning_rate']:g}"
-                        + (f" (adaptive KL {ppo['adaptive_kl']:g})" if ppo['adaptive_kl'] else "")
-                        + f", entropy {ppo['entropy_cost']:g}, discount {ppo['discounting']:g}, "
-                          f"GAE lambda {ppo['gae_lambda']:g}, clip {ppo['clipping_epsilon']:g}, seed {ppo['seed']}"))
-    rows.append(("networks", f"policy {'-'.join(map(str, ppo['policy_hidden_layers']))}, value "
-                             f"{'-'.join(map(str, ppo['value_hidden_layers']))} (ELU), observations "
-                             + ("normalised" if ppo["normalize_observations"] else "raw")
-                             + (", privileged critic" if env.get("privileged_critic") else "")))
+        rows.append(
+            (
+                "last training evaluation",
+                f"return {metrics['eval/episode_reward']:.3f}, episode length "
+                f"{metrics.get('eval/avg_episode_length', float('nan')):.0f} steps",
+            )
+        )
+    rows.append(
+        (
+            "PPO",
+            f"{ppo['num_envs']} robots x {ppo['unroll_length']} steps per iteration, "
+            f"{ppo['num_minibatches']} minibatches of {ppo['batch_size']}, {ppo['num_updates_per_batch']} "
+            f"epochs, learning rate {ppo['learning_rate']:g}"
+            + (f" (adaptive KL {ppo['adaptive_kl']:g})" if ppo["adaptive_kl"] else "")
+            + f", entropy {ppo['entropy_cost']:g}, discount {ppo['discounting']:g}, "
+            f"GAE lambda {ppo['gae_lambda']:g}, clip {ppo['clipping_epsilon']:g}, seed {ppo['seed']}",
+        )
+    )
+    rows.append(
+        (
+            "networks",
+            f"policy {'-'.join(map(str, ppo['policy_hidden_layers']))}, value "
+            f"{'-'.join(map(str, ppo['value_hidden_layers']))} (ELU), observations "
+            + ("normalised" if ppo["normalize_observations"] else "raw")
+            + (", privileged critic" if env.get("privileged_critic") else ""),
+        )
+    )
     unit = "rad/s" if env["action"] == "velocity" else "rad"
     control_hz = 1.0 / (env["sim_dt"] * env["decimation"])
     randomised = [k.removesuffix("_range") for k, v in env["randomization"].items() if v is not None]
-    rows.append(("environment", f"{env['action']} actions x {env['action_scale']:g} {unit}, clipped to "
-                                f"+-{env['action_clip']:g}; {control_hz:g} Hz control ({env['sim_dt'] * 1e3:g} ms x "
-                                f"{env['decimation']}); {env['episode_length_s']:g} s episodes; pushes "
-                                + (f"every {env['pushes']['interval_s']:g} s" if env["pushes"]["enabled"] else "off")
-                                + f"; randomised: {', '.join(randomised) or 'nothing'}; observation noise "
-                                + ("on" if env["observations"]["noise"] else "off")
-                                + f"; {env['contact_model']} contact model; trained on "
-                                + engine.describe(env.get("physics", "mjx"))))
+    rows.append(
+        (
+            "environment",
+            f"{env['action']} actions x {env['action_scale']:g} {unit}, clipped to "
+            f"+-{env['action_clip']:g}; {control_hz:g} Hz control ({env['sim_dt'] * 1e3:g} ms x "
+            f"{env['decimation']}); {env['episode_length_s']:g} s episodes; pushes "
+            + (f"every {env['pushes']['interval_s']:g} s" if env["pushes"]["enabled"] else "off")
+            + f"; randomised: {', '.join(randomised) or 'nothing'}; observation noise "
+            + ("on" if env["observations"]["noise"] else "off")
+            + f"; {env['contact_model']} contact model; trained on "
+            + engine.describe(env.get("physics", "mjx")),
+        )
+    )
     return rows
 
 
@@ -133,9 +187,11 @@ def _duration(seconds: float) -> str:
 def _machine(machine: dict | None) -> str:
     if not machine:
         return "not recorded"
-    return (f"{machine['devices']} x {machine['device_kind']} ({machine['backend']}, {machine['processes']} "
-            f"process{'es' if machine['processes'] != 1 else ''}), {machine['cpu_cores']} CPU cores, "
-            f"{machine['platform']}, jax {machine['jax']}")
+    return (
+        f"{machine['devices']} x {machine['device_kind']} ({machine['backend']}, {machine['processes']} "
+        f"process{'es' if machine['processes'] != 1 else ''}), {machine['cpu_cores']} CPU cores, "
+        f"{machine['platform']}, jax {machine['jax']}"
+    )
 
 
 def _plots(evaluations: list[tuple[int, dict]], files: list[str]) -> list[tuple[str, str]]:
@@ -150,5 +206,7 @@ def _plots(evaluations: list[tuple[int, dict]], files: list[str]) -> list[tuple[
                 out.append((f"push response on {r['feet']}", f))
             elif stem.startswith((f"video_{i}", f"strip_{i}")) and stem.split("_")[1] == str(i):
                 kind = stem.split("_", 2)[2] if stem.count("_") > 1 else "walking"
-                out.append((f"{'video' if stem.startswith('video') else 'frames'} on {r['feet']}, {kind.replace('_', ' ')}", f))
+                out.append(
+                    (f"{'video' if stem.startswith('video') else 'frames'} on {r['feet']}, {kind.replace('_', ' ')}", f)
+                )
     return out

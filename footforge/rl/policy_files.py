@@ -19,8 +19,13 @@ from pathlib import Path
 from footforge.atomic import atomic_directory, write_json
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
-from footforge.rl.checkpoints import CHECKPOINT_MANIFEST, checkpoint_problem, latest_intact_checkpoint, legacy_run, \
-    write_checkpoint_manifest
+from footforge.rl.checkpoints import (
+    CHECKPOINT_MANIFEST,
+    checkpoint_problem,
+    latest_intact_checkpoint,
+    legacy_run,
+    write_checkpoint_manifest,
+)
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict, to_dict
 from footforge.rl.networks import network_factory
 from footforge.rl.run_folder import is_run_folder
@@ -36,9 +41,16 @@ def write_policy(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, this_mach
     with atomic_directory(run_dir / "policy") as tmp:
         shutil.copytree(final[1], tmp, dirs_exist_ok=True)
         recorded = json.loads(state_file.read_text()) if state_file.exists() else {}
-        write_json(tmp / "footforge.json", {"env": to_dict(env_config), "ppo": to_dict(ppo),
-                                             "global_step": final[0], "wall_s": recorded.get("wall_s_total"),
-                                             "machine": this_machine})
+        write_json(
+            tmp / "footforge.json",
+            {
+                "env": to_dict(env_config),
+                "ppo": to_dict(ppo),
+                "global_step": final[0],
+                "wall_s": recorded.get("wall_s_total"),
+                "machine": this_machine,
+            },
+        )
     return final[0]
 
 
@@ -64,8 +76,9 @@ def policy_problem(run_dir: Path) -> str | None:
     return None
 
 
-def initial_policy(env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observation_size,
-                   action_size: int = 12) -> Path:
+def initial_policy(
+    env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observation_size, action_size: int = 12
+) -> Path:
     """Writes a policy folder (as train() does) holding freshly initialised networks (seed ppo.seed).
 
     For checking pipelines end to end without training: evaluation of such a policy exercises
@@ -78,17 +91,27 @@ def initial_policy(env_config: EnvConfig, ppo: PPOConfig, out_dir: Path, observa
     from brax.training.agents.ppo import checkpoint as brax_checkpoint
 
     factory = network_factory(ppo, env_config.privileged_critic)
-    networks = factory(observation_size=observation_size, action_size=action_size,
-                       preprocess_observations_fn=running_statistics.normalize)
+    networks = factory(
+        observation_size=observation_size,
+        action_size=action_size,
+        preprocess_observations_fn=running_statistics.normalize,
+    )
     k_policy, k_value = jax.random.split(jax.random.PRNGKey(ppo.seed))
-    spec = ({key: specs.Array(shape, jp.dtype("float32")) for key, shape in observation_size.items()}
-            if isinstance(observation_size, dict) else specs.Array((observation_size,), jp.dtype("float32")))
+    spec = (
+        {key: specs.Array(shape, jp.dtype("float32")) for key, shape in observation_size.items()}
+        if isinstance(observation_size, dict)
+        else specs.Array((observation_size,), jp.dtype("float32"))
+    )
     normalizer = running_statistics.init_state(spec)
     params = (normalizer, networks.policy_network.init(k_policy), networks.value_network.init(k_value))
     out_dir = Path(out_dir)
     with atomic_directory(out_dir) as tmp:
-        brax_checkpoint.save(str(tmp), 0, params, brax_checkpoint.network_config(
-            observation_size, action_size, ppo.normalize_observations, factory))
+        brax_checkpoint.save(
+            str(tmp),
+            0,
+            params,
+            brax_checkpoint.network_config(observation_size, action_size, ppo.normalize_observations, factory),
+        )
         for item in (tmp / f"{0:012d}").iterdir():
             item.rename(tmp / item.name)
         (tmp / f"{0:012d}").rmdir()
@@ -161,9 +184,13 @@ def _policy_meta(policy_dir: Path) -> dict:
         problem = checkpoint_problem(policy_dir, read=False, legacy=legacy_run(run))
         if problem:
             final = latest_intact_checkpoint(run)
-            raise InputError(f"the checkpoint is damaged or incomplete: {problem}", file=str(policy_dir),
-                             fix=f"pass the run's newest intact checkpoint, {final[1]}" if final else
-                                 "the run has no intact checkpoint: train it again")
+            raise InputError(
+                f"the checkpoint is damaged or incomplete: {problem}",
+                file=str(policy_dir),
+                fix=f"pass the run's newest intact checkpoint, {final[1]}"
+                if final
+                else "the run has no intact checkpoint: train it again",
+            )
         saved = json.loads((run / "config.json").read_text())
         progress = run / "progress.json"
         recorded = json.loads(progress.read_text()) if progress.is_file() else {}
@@ -172,20 +199,31 @@ def _policy_meta(policy_dir: Path) -> dict:
             meta |= {"wall_s": recorded.get("wall_s_total"), "machine": recorded.get("machine")}
         return meta
     if not policy_dir.exists():
-        raise InputError(f"{policy_dir} does not exist", file=str(policy_dir),
-                         fix="pass a training run's folder, or its policy/ folder (a run writes it when it ends, or "
-                             "stops at its time budget)")
+        raise InputError(
+            f"{policy_dir} does not exist",
+            file=str(policy_dir),
+            fix="pass a training run's folder, or its policy/ folder (a run writes it when it ends, or "
+            "stops at its time budget)",
+        )
     if not policy_dir.is_dir():
-        raise InputError(f"{policy_dir} is a file, not a policy folder", file=str(policy_dir),
-                         fix="pass a training run's folder (footforge train), or its policy/ folder")
+        raise InputError(
+            f"{policy_dir} is a file, not a policy folder",
+            file=str(policy_dir),
+            fix="pass a training run's folder (footforge train), or its policy/ folder",
+        )
     if not meta_file.is_file() and is_run_folder(policy_dir):
-        raise InputError(f"{policy_dir} is a training run without a policy or an intact checkpoint yet",
-                         file=str(policy_dir),
-                         fix="train it until its first checkpoint: footforge train ... --out "
-                             f"{policy_dir} --resume (or the same command that started it)")
+        raise InputError(
+            f"{policy_dir} is a training run without a policy or an intact checkpoint yet",
+            file=str(policy_dir),
+            fix="train it until its first checkpoint: footforge train ... --out "
+            f"{policy_dir} --resume (or the same command that started it)",
+        )
     if not meta_file.is_file():
-        raise InputError(f"{policy_dir} is not a footforge policy (no footforge.json)", file=str(policy_dir),
-                         fix="pass a training run's folder (footforge train), or its policy/ folder")
+        raise InputError(
+            f"{policy_dir} is not a footforge policy (no footforge.json)",
+            file=str(policy_dir),
+            fix="pass a training run's folder (footforge train), or its policy/ folder",
+        )
     return json.loads(meta_file.read_text())
 
 
@@ -194,8 +232,10 @@ def _observation_size(saved):
     int, an array spec ({"shape": [n], ...}), or for dict observations a mapping of each key to one
     of these (made a shape tuple)."""
     if isinstance(saved, dict) and "shape" not in saved:
-        return {key: tuple(v["shape"]) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else (int(v),)
-                for key, v in saved.items()}
+        return {
+            key: tuple(v["shape"]) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else (int(v),)
+            for key, v in saved.items()
+        }
     return int(saved["shape"][0]) if isinstance(saved, dict) else int(saved)
 
 
@@ -232,8 +272,12 @@ def load_policy_parameters(policy_dir: Path) -> SavedPolicy:
         if policy_dir.name == "policy" and is_run_folder(run):
             final = latest_intact_checkpoint(run)
             task = meta["env"].get("task", "flat")
-            fix = (f"pass the run folder {run} (or its checkpoint {final[1]}) instead, or rewrite the policy with "
-                   f"footforge train {task} --out {run} --resume" if final else fix)
+            fix = (
+                f"pass the run folder {run} (or its checkpoint {final[1]}) instead, or rewrite the policy with "
+                f"footforge train {task} --out {run} --resume"
+                if final
+                else fix
+            )
         raise InputError(f"the policy is damaged: {problem}", file=str(policy_dir), fix=fix)
     config_file = policy_dir / "ppo_network_config.json"
     try:
@@ -241,8 +285,11 @@ def load_policy_parameters(policy_dir: Path) -> SavedPolicy:
         params = brax_checkpoint.load(str(policy_dir))
     except (OSError, ValueError, KeyError) as e:  # orbax's errors for a missing or damaged checkpoint
         reason = (str(e).splitlines() or [type(e).__name__])[0]
-        raise InputError(f"the policy's checkpoint cannot be read: {reason}", file=str(policy_dir),
-                         fix="pass a complete policy/ folder written by training") from None
+        raise InputError(
+            f"the policy's checkpoint cannot be read: {reason}",
+            file=str(policy_dir),
+            fix="pass a complete policy/ folder written by training",
+        ) from None
     return SavedPolicy(tuple(params), env_config, ppo, cfg, int(meta.get("global_step", 0)))
 
 
@@ -255,7 +302,9 @@ def load_policy(policy_dir: Path, *, deterministic: bool = True):
     saved = load_policy_parameters(policy_dir)
     env_config, ppo, cfg = saved.env, saved.ppo, saved.network_config
     networks = network_factory(ppo, env_config.privileged_critic)(
-        observation_size=_observation_size(cfg["observation_size"]), action_size=cfg["action_size"],
-        preprocess_observations_fn=running_statistics.normalize if ppo.normalize_observations else (lambda x, y: x))
+        observation_size=_observation_size(cfg["observation_size"]),
+        action_size=cfg["action_size"],
+        preprocess_observations_fn=running_statistics.normalize if ppo.normalize_observations else (lambda x, y: x),
+    )
     make = ppo_networks.make_inference_fn(networks)
     return jax.jit(make(saved.params, deterministic=deterministic)), env_config, ppo

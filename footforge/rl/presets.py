@@ -33,8 +33,14 @@ from dataclasses import dataclass, fields, is_dataclass, replace
 
 from footforge.errors import InputError
 
-CPU_SIZE = ("ppo.num_envs=128", "ppo.unroll_length=24", "ppo.batch_size=64", "ppo.num_minibatches=4",
-            "ppo.num_eval_envs=64", "ppo.checkpoint_every_steps=258048")
+CPU_SIZE = (
+    "ppo.num_envs=128",
+    "ppo.unroll_length=24",
+    "ppo.batch_size=64",
+    "ppo.num_minibatches=4",
+    "ppo.num_eval_envs=64",
+    "ppo.checkpoint_every_steps=258048",
+)
 """A 2-core CPU's batch: 128 robots x 24-step unrolls, 4 minibatches of 64 trajectories (6,144 steps per
 iteration, 2-3 s under MuJoCo's C engine), a checkpoint every 42 iterations (258,048 steps, about
 2 minutes). The paper's 2048 x 48 is 16x the robots: one iteration there is a minute on this CPU."""
@@ -58,49 +64,96 @@ class Preset:
 
 
 FLAT_PRESETS = (
-    Preset("default", "the flat task's defaults: the paper's 2048 robots x 48 steps and 100 M steps, the `stance` "
-                      "contact, commands +-2 / +-1 m/s every 5 s (a GPU's run)"),
-    Preset("cpu", "sized for a 2-core CPU under MuJoCo's C engine: 128 robots x 24 steps, 10 M steps, the `fast` "
-                  "contact, commands +-1 / +-0.5 m/s, no feet-air-time term, PPO entropy 0.001",
-           ("env.contact_model=fast",) + CPU_SIZE + CPU_FLAT_COMMANDS
-           + ("env.rewards.feet_air_time.scale=0", "ppo.entropy_cost=0.001", "ppo.num_timesteps=10000000")),
-    Preset("paper", "the paper's settings as far as it publishes them (2048 robots x 48 steps, joint-velocity "
-                    "actions scaled 13.5, its rewards' scales, its PPO baseline's rates), the rest its baseline's "
-                    "(OmniIsaacGymEnvs' Anymal, legged_gym): commands every 10 s, no feet-air-time term",
-           ("env.action=velocity", "env.action_scale=13.5", "env.observations.pd_targets=true",
-            "env.rewards.lin_vel_xy.scale=1.0", "env.rewards.yaw_rate.scale=0.5", "env.rewards.base_height.scale=-10.0",
-            "env.rewards.feet_air_time.scale=0", "env.commands.resample_s=10",
-            "ppo.learning_rate=0.0003", "ppo.adaptive_kl=0.008", "ppo.entropy_cost=0.001",
-            "ppo.policy_output_init_scale=1.0")),
-    Preset("forward", "one command, 0.6 m/s straight ahead, no pushes, the `fast` contact, the CPU's batch and 3 M "
-                      "steps, the task's rewards and PPO otherwise: the quickest check that PPO learns to walk (ball "
-                      "feet walk after 3 M steps)",
-           ("env.contact_model=fast",) + CPU_SIZE
-           + ("env.commands.lin_vel_x_range=0.6,0.6", "env.commands.lin_vel_y_range=0,0", "env.commands.heading_range=0,0",
-              "env.pushes.enabled=false", "ppo.num_timesteps=3000000")),
+    Preset(
+        "default",
+        "the flat task's defaults: the paper's 2048 robots x 48 steps and 100 M steps, the `stance` "
+        "contact, commands +-2 / +-1 m/s every 5 s (a GPU's run)",
+    ),
+    Preset(
+        "cpu",
+        "sized for a 2-core CPU under MuJoCo's C engine: 128 robots x 24 steps, 10 M steps, the `fast` "
+        "contact, commands +-1 / +-0.5 m/s, no feet-air-time term, PPO entropy 0.001",
+        ("env.contact_model=fast",)
+        + CPU_SIZE
+        + CPU_FLAT_COMMANDS
+        + ("env.rewards.feet_air_time.scale=0", "ppo.entropy_cost=0.001", "ppo.num_timesteps=10000000"),
+    ),
+    Preset(
+        "paper",
+        "the paper's settings as far as it publishes them (2048 robots x 48 steps, joint-velocity "
+        "actions scaled 13.5, its rewards' scales, its PPO baseline's rates), the rest its baseline's "
+        "(OmniIsaacGymEnvs' Anymal, legged_gym): commands every 10 s, no feet-air-time term",
+        (
+            "env.action=velocity",
+            "env.action_scale=13.5",
+            "env.observations.pd_targets=true",
+            "env.rewards.lin_vel_xy.scale=1.0",
+            "env.rewards.yaw_rate.scale=0.5",
+            "env.rewards.base_height.scale=-10.0",
+            "env.rewards.feet_air_time.scale=0",
+            "env.commands.resample_s=10",
+            "ppo.learning_rate=0.0003",
+            "ppo.adaptive_kl=0.008",
+            "ppo.entropy_cost=0.001",
+            "ppo.policy_output_init_scale=1.0",
+        ),
+    ),
+    Preset(
+        "forward",
+        "one command, 0.6 m/s straight ahead, no pushes, the `fast` contact, the CPU's batch and 3 M "
+        "steps, the task's rewards and PPO otherwise: the quickest check that PPO learns to walk (ball "
+        "feet walk after 3 M steps)",
+        ("env.contact_model=fast",)
+        + CPU_SIZE
+        + (
+            "env.commands.lin_vel_x_range=0.6,0.6",
+            "env.commands.lin_vel_y_range=0,0",
+            "env.commands.heading_range=0,0",
+            "env.pushes.enabled=false",
+            "ppo.num_timesteps=3000000",
+        ),
+    ),
 )
 
 ROUGH_PRESETS = (
-    Preset("default", "the rough task's defaults: the paper's 2048 robots x 48 steps, 512-256-128 networks, 200 M "
-                      "steps, the terrain curriculum (a GPU's run)"),
-    Preset("cpu", "the rough task sized for a 2-core CPU under MuJoCo's C engine: 128 robots x 24 steps, 30 M steps "
-                  "(the rough issue's target for terrain level 5)",
-           CPU_SIZE + ("ppo.num_timesteps=30000000",)),
+    Preset(
+        "default",
+        "the rough task's defaults: the paper's 2048 robots x 48 steps, 512-256-128 networks, 200 M "
+        "steps, the terrain curriculum (a GPU's run)",
+    ),
+    Preset(
+        "cpu",
+        "the rough task sized for a 2-core CPU under MuJoCo's C engine: 128 robots x 24 steps, 30 M steps "
+        "(the rough issue's target for terrain level 5)",
+        CPU_SIZE + ("ppo.num_timesteps=30000000",),
+    ),
 )
 
-PRESETS: dict[str, dict[str, Preset]] = {"flat": {p.name: p for p in FLAT_PRESETS},
-                                         "rough": {p.name: p for p in ROUGH_PRESETS}}
+PRESETS: dict[str, dict[str, Preset]] = {
+    "flat": {p.name: p for p in FLAT_PRESETS},
+    "rough": {p.name: p for p in ROUGH_PRESETS},
+}
 """Each task's presets by name; "default" first."""
 
 DEFAULT_PRESET = "default"
 
-ROUGH_ONLY = ("terrain", "curriculum", "height_scan", "heightfield_soles", "heightfield_sole_grid",
-              "heightfield_sole_radius_m")
+ROUGH_ONLY = (
+    "terrain",
+    "curriculum",
+    "height_scan",
+    "heightfield_soles",
+    "heightfield_sole_grid",
+    "heightfield_sole_radius_m",
+)
 """EnvConfig fields only the rough task reads: refused as overrides of the flat task (they would do nothing)."""
 
-RUN_TIME_FIELDS = {"task": "the task is the command's: footforge train flat|rough",
-                   "feet": "--feet", "policy": "--policy", "physics": "--physics",
-                   "build_dir": "--build-root"}
+RUN_TIME_FIELDS = {
+    "task": "the task is the command's: footforge train flat|rough",
+    "feet": "--feet",
+    "policy": "--policy",
+    "physics": "--physics",
+    "build_dir": "--build-root",
+}
 """EnvConfig fields that no override sets, and the flag that does."""
 
 
@@ -113,12 +166,14 @@ def preset(task: str, name: str) -> Preset:
     try:
         return PRESETS[task][name]
     except KeyError:
-        raise InputError(f"--preset {name}: no such preset for the {task} task",
-                         fix=f"use one of {', '.join(PRESETS.get(task, {}))}") from None
+        raise InputError(
+            f"--preset {name}: no such preset for the {task} task", fix=f"use one of {', '.join(PRESETS.get(task, {}))}"
+        ) from None
 
 
-def resolve(task: str, feet: str, policy: str, preset_name: str = DEFAULT_PRESET, overrides=(), *,
-            source: str = "--set"):
+def resolve(
+    task: str, feet: str, policy: str, preset_name: str = DEFAULT_PRESET, overrides=(), *, source: str = "--set"
+):
     """(EnvConfig, PPOConfig) of the task's defaults for `feet` and `policy`, with the preset's
     overrides and then `overrides` applied (errors name `source`, the flag that gave them).
 
@@ -149,8 +204,10 @@ def apply_overrides(env, ppo, overrides, *, source: str = "--set"):
         if len(path) == 2 and path[1] in RUN_TIME_FIELDS:
             raise InputError(f"{source} {text}: env.{path[1]} is not an override", fix=RUN_TIME_FIELDS[path[1]])
         if env.task != "rough" and path[1] in ROUGH_ONLY:
-            raise InputError(f"{source} {text}: env.{path[1]} is the rough task's; the {env.task} task has no "
-                             "terrain", fix="leave it out, or train the rough task")
+            raise InputError(
+                f"{source} {text}: env.{path[1]} is the rough task's; the {env.task} task has no terrain",
+                fix="leave it out, or train the rough task",
+            )
         if path[1:] == ("contact_model",):  # the contact model with the physics it needs (--contact-model)
             model = _parsed(value_text, env.contact_model, _hint(type(env), "contact_model"), text, source)
             env = envs.with_contact_model(replace(env, **envs.physics(env.feet, model)), model)
@@ -162,8 +219,10 @@ def apply_overrides(env, ppo, overrides, *, source: str = "--set"):
     if env.task == "rough":
         env.terrain.check()
     if env_config_from_dict(to_dict(env)) != env or from_dict(PPOConfig, to_dict(ppo)) != ppo:
-        raise InputError(f"{source}: the configuration does not survive config.json's form",
-                         fix="report this: an override set a value config.json cannot hold")
+        raise InputError(
+            f"{source}: the configuration does not survive config.json's form",
+            fix="report this: an override set a value config.json cannot hold",
+        )
     return env, ppo
 
 
@@ -172,9 +231,11 @@ def parse(text: str, source: str = "--set") -> tuple[tuple[str, ...], str]:
     name, sep, value = text.partition("=")
     path = tuple(name.strip().split("."))
     if not sep or len(path) < 2 or path[0] not in ("env", "ppo") or not all(path):
-        raise InputError(f"{source} {text}: expected SECTION.FIELD=VALUE with SECTION env or ppo",
-                         fix="e.g. --set ppo.entropy_cost=0.001 or --set env.commands.resample_s=10 "
-                             "(the fields: a run's config.json)")
+        raise InputError(
+            f"{source} {text}: expected SECTION.FIELD=VALUE with SECTION env or ppo",
+            fix="e.g. --set ppo.entropy_cost=0.001 or --set env.commands.resample_s=10 "
+            "(the fields: a run's config.json)",
+        )
     return path, value.strip()
 
 
@@ -184,8 +245,10 @@ def _assign(config, path: tuple[str, ...], value_text: str, text: str, source: s
     name = path[0]
     if name not in saved:
         close = difflib.get_close_matches(name, saved, n=3)
-        raise InputError(f"{source} {text}: {type(config).__name__} has no field '{name}'",
-                         fix=f"did you mean {' or '.join(close)}?" if close else f"its fields: {', '.join(saved)}")
+        raise InputError(
+            f"{source} {text}: {type(config).__name__} has no field '{name}'",
+            fix=f"did you mean {' or '.join(close)}?" if close else f"its fields: {', '.join(saved)}",
+        )
     current = getattr(config, name)
     if len(path) > 1:
         if not is_dataclass(current):
@@ -193,8 +256,9 @@ def _assign(config, path: tuple[str, ...], value_text: str, text: str, source: s
         return replace(config, **{name: _assign(current, path[1:], value_text, text, source)})
     if is_dataclass(current):
         leaves = [f.name for f in fields(current) if f.metadata.get("saved", True)]
-        raise InputError(f"{source} {text}: '{name}' is a section", fix=f"set one of its fields: {name}."
-                         + f", {name}.".join(leaves))
+        raise InputError(
+            f"{source} {text}: '{name}' is a section", fix=f"set one of its fields: {name}." + f", {name}.".join(leaves)
+        )
     return replace(config, **{name: _parsed(value_text, current, _hint(type(config), name, current), text, source)})
 
 
@@ -234,11 +298,13 @@ def _parsed(value_text: str, current, hint, text: str, source: str):
         return _converted(value_text, kind)
     except _NotA as e:
         example = ",".join(map(str, current)) if isinstance(current, tuple) else current
-        raise InputError(f"{source} {text}: '{value_text}' is not {e}",
-                         fix=f"e.g. {text.partition('=')[0]}={example}") from None
+        raise InputError(
+            f"{source} {text}: '{value_text}' is not {e}", fix=f"e.g. {text.partition('=')[0]}={example}"
+        ) from None
     except TypeError:
-        raise InputError(f"{source} {text}: this field ({hint}) cannot be set from the command line",
-                         fix="leave it at its default") from None
+        raise InputError(
+            f"{source} {text}: this field ({hint}) cannot be set from the command line", fix="leave it at its default"
+        ) from None
 
 
 class _NotA(ValueError):
@@ -251,6 +317,7 @@ _WORDS = {"true": True, "1": True, "yes": True, "on": True, "false": False, "0":
 def _converted(value_text: str, kind):
     """`value_text` as `kind` (a field's type); _NotA names what it should be, TypeError a type no
     override sets."""
+
     def number(text: str, as_int: bool):
         if as_int:
             try:
@@ -311,7 +378,7 @@ def overrides_between(env, ppo, preset_name: str) -> list[str]:
     from footforge.rl.config import config_differences, to_dict
 
     def leaves(tree: dict, prefix: str = "") -> dict[str, object]:
-        out = {}
+        out: dict[str, object] = {}
         for key, value in tree.items():
             out |= leaves(value, f"{prefix}{key}.") if isinstance(value, dict) else {f"{prefix}{key}": value}
         return out
@@ -319,13 +386,18 @@ def overrides_between(env, ppo, preset_name: str) -> list[str]:
     def text(value) -> str:
         if isinstance(value, (list, tuple)):
             return ",".join(map(repr, value))
-        return "none" if value is None else str(value).lower() if isinstance(value, bool) else repr(value) \
-            if isinstance(value, float) else str(value)
+        return (
+            "none"
+            if value is None
+            else str(value).lower()
+            if isinstance(value, bool)
+            else repr(value)
+            if isinstance(value, float)
+            else str(value)
+        )
 
-    target = {"env": leaves(to_dict(replace(env, physics="mjx", build_dir=None)), "env."),
-              "ppo": leaves(to_dict(ppo), "ppo.")}
-    target = target["env"] | target["ppo"]
-    overrides = []
+    target = leaves(to_dict(replace(env, physics="mjx", build_dir=None)), "env.") | leaves(to_dict(ppo), "ppo.")
+    overrides: list[str] = []
     for name in ("env.contact_model", "env.float64_physics"):
         base_env, base_ppo = resolve(env.task, env.feet, env.policy, preset_name, overrides)
         base = leaves(to_dict(replace(base_env, physics="mjx", build_dir=None)), "env.")
@@ -335,8 +407,10 @@ def overrides_between(env, ppo, preset_name: str) -> list[str]:
     base = leaves(to_dict(replace(base_env, physics="mjx", build_dir=None)), "env.") | leaves(to_dict(base_ppo), "ppo.")
     overrides += [f"{key}={text(value)}" for key, value in target.items() if base.get(key) != value]
     got_env, got_ppo = resolve(env.task, env.feet, env.policy, preset_name, overrides)
-    left = config_differences({"env": to_dict(replace(got_env, physics=env.physics, build_dir=env.build_dir)),
-                               "ppo": to_dict(got_ppo)}, {"env": to_dict(env), "ppo": to_dict(ppo)})
+    left = config_differences(
+        {"env": to_dict(replace(got_env, physics=env.physics, build_dir=env.build_dir)), "ppo": to_dict(got_ppo)},
+        {"env": to_dict(env), "ppo": to_dict(ppo)},
+    )
     if left:
         raise InputError(f"no overrides of preset '{preset_name}' give this configuration: {'; '.join(left)}")
     return overrides
@@ -359,8 +433,11 @@ def closest_recipe(env, ppo) -> tuple[str, list[str]]:
 def command_line(env, recipe: tuple[str, tuple[str, ...] | list[str]]) -> str:
     """The `footforge train` command that trains this recipe from scratch."""
     preset_name, overrides = recipe
-    return (f"footforge train {env['task']} --feet {env['feet']} --policy {env['policy']} --preset {preset_name}"
-            + "".join(f" --set {o}" for o in overrides) + " --out RUN")
+    return (
+        f"footforge train {env['task']} --feet {env['feet']} --policy {env['policy']} --preset {preset_name}"
+        + "".join(f" --set {o}" for o in overrides)
+        + " --out RUN"
+    )
 
 
 def describe(task: str) -> str:

@@ -25,8 +25,9 @@ import footforge
 from footforge.atomic import atomic_file
 from footforge.errors import InputError
 
-RENDER_FIX = ("install an OpenGL backend (e.g. apt install libosmesa6) and set MUJOCO_GL=osmesa "
-              "(or egl) before starting Python")
+RENDER_FIX = (
+    "install an OpenGL backend (e.g. apt install libosmesa6) and set MUJOCO_GL=osmesa (or egl) before starting Python"
+)
 
 
 def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
@@ -40,9 +41,12 @@ def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
     if footforge.GL_SET_BY_FOOTFORGE and os.environ.get("MUJOCO_GL") == "disable":
-        raise InputError("rendering needs an OpenGL backend named in MUJOCO_GL, and none is set (footforge's "
-                         "commands then render nothing)", fix="run the command as MUJOCO_GL=egl footforge ... "
-                         "(a GPU or Mesa's EGL) or MUJOCO_GL=osmesa footforge ... (software: apt install libosmesa6)")
+        raise InputError(
+            "rendering needs an OpenGL backend named in MUJOCO_GL, and none is set (footforge's "
+            "commands then render nothing)",
+            fix="run the command as MUJOCO_GL=egl footforge ... "
+            "(a GPU or Mesa's EGL) or MUJOCO_GL=osmesa footforge ... (software: apt install libosmesa6)",
+        )
     if footforge.GL_UNAVAILABLE is not None:
         backend, reason = footforge.GL_UNAVAILABLE
         raise InputError(f"MuJoCo cannot render offscreen with MUJOCO_GL={backend}: {reason}", fix=RENDER_FIX)
@@ -69,9 +73,17 @@ def check_renderer() -> None:
     _renderer(mujoco.MjModel.from_xml_string("<mujoco/>"), 16, 16).close()
 
 
-def render_frames(model: mujoco.MjModel, qpos: np.ndarray, *, width: int = 640, height: int = 360, every: int = 1,
-                  distance_m: float = 2.0, elevation_deg: float = -20.0, azimuth_deg: float = 120.0
-                  ) -> list[np.ndarray]:
+def render_frames(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    *,
+    width: int = 640,
+    height: int = 360,
+    every: int = 1,
+    distance_m: float = 2.0,
+    elevation_deg: float = -20.0,
+    azimuth_deg: float = 120.0,
+) -> list[np.ndarray]:
     """Renders every `every`-th row of `qpos` (T, model.nq), the camera looking at the base.
 
     Azimuth and elevation are MuJoCo's: the camera looks along (cos az cos el, sin az cos el,
@@ -109,8 +121,9 @@ def write_gif(frames: Sequence[np.ndarray], path: Path, fps: float, comment: str
     images = [Image.fromarray(f) for f in frames]
     extra = {"comment": comment} if comment else {}
     with atomic_file(path) as tmp:
-        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0,
-                       **extra)
+        images[0].save(
+            tmp, format="GIF", save_all=True, append_images=images[1:], duration=round(1000 / fps), loop=0, **extra
+        )
 
 
 def write_strip(frames: Sequence[np.ndarray], path: Path, count: int = 6) -> None:
@@ -130,15 +143,17 @@ GIF_MAX_BYTES = 300_000
 """A committed GIF's budget (the repository's size rule): 300 KB."""
 
 
-def shrink_gif(path: Path, max_bytes: int = GIF_MAX_BYTES, max_seconds: float = 3.0, max_fps: float = 12.5
-               ) -> tuple[int, int, int]:
+def shrink_gif(
+    path: Path, max_bytes: int = GIF_MAX_BYTES, max_seconds: float = 3.0, max_fps: float = 12.5
+) -> tuple[int, int, int]:
     """Rewrites the GIF at `path` in place to fit `max_bytes`: its first `max_seconds` at most
     `max_fps` (every other frame of footforge's 25-fps videos; a GIF already that slow keeps every
-    frame, so shrinking twice does not halve it twice), then the largest width (320 px down to 160 px) and palette (32 or
-    16 colours, one for the whole clip, no dithering; Pillow's maximum-coverage quantiser, which
-    keeps a small object's own colour where median cut merges it into the floor) whose file fits. A camera that follows the
-    robot moves the checkered floor in every frame, so a GIF's size grows with its frames and pixels
-    and little else helps. Keeps the GIF's comment. Returns (width px, colours, bytes).
+    frame, so shrinking twice does not halve it twice), then the largest width (320 px down to
+    160 px) and palette (32 or 16 colours, one for the whole clip, no dithering; Pillow's
+    maximum-coverage quantiser, which keeps a small object's own colour where median cut merges it
+    into the floor) whose file fits. A camera that follows the robot moves the checkered floor in
+    every frame, so a GIF's size grows with its frames and pixels and little else helps. Keeps the
+    GIF's comment. Returns (width px, colours, bytes).
 
     Raises:
       ValueError: not even 160 px and 16 colours fit `max_bytes`.
@@ -158,12 +173,20 @@ def shrink_gif(path: Path, max_bytes: int = GIF_MAX_BYTES, max_seconds: float = 
         for colours in (32, 16):
             if width > frames[0].width:
                 continue
-            sized = [f.resize((width, round(width * f.height / f.width)), Image.LANCZOS) for f in frames]
+            sized = [f.resize((width, round(width * f.height / f.width)), Image.Resampling.LANCZOS) for f in frames]
             palette = sized[len(sized) // 2].quantize(colors=colours, method=Image.Quantize.MAXCOVERAGE)
             images = [f.quantize(palette=palette, dither=Image.Dither.NONE) for f in sized]
             buffer = io.BytesIO()
-            images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:], duration=frame_ms * every,
-                           loop=0, optimize=True, **extra)
+            images[0].save(
+                buffer,
+                format="GIF",
+                save_all=True,
+                append_images=images[1:],
+                duration=frame_ms * every,
+                loop=0,
+                optimize=True,
+                **extra,
+            )
             if buffer.tell() <= max_bytes:
                 with atomic_file(path) as tmp:
                     Path(tmp).write_bytes(buffer.getvalue())

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
@@ -20,9 +20,17 @@ from footforge.outputs import MARKER, TRAINING_RUN, check_output_folder, marker_
 from footforge.rl.checkpoints import latest_checkpoint
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict
 
-
-RUN_ENTRIES = ("config.json", "progress.json", "metrics.jsonl", "metrics.set_aside.jsonl", "tensorboard",
-               "checkpoints", "policy", "terrain.png", MARKER)
+RUN_ENTRIES = (
+    "config.json",
+    "progress.json",
+    "metrics.jsonl",
+    "metrics.set_aside.jsonl",
+    "tensorboard",
+    "checkpoints",
+    "policy",
+    "terrain.png",
+    MARKER,
+)
 """What footforge writes in a run folder: all that `force` removes (with these names' temporaries)."""
 
 
@@ -54,8 +62,14 @@ def _remove_run_files(run_dir: Path) -> list[str]:
     return removed
 
 
-def prepare_run_dir(run_dir: Path, *, resume: bool = False, force: bool = False, write: bool = True,
-                    notice: Callable[[str], None] | None = None) -> Path:
+def prepare_run_dir(
+    run_dir: Path,
+    *,
+    resume: bool = False,
+    force: bool = False,
+    write: bool = True,
+    notice: Callable[[str], None] | None = None,
+) -> Path:
     """Checks (and for a new run makes and marks) the run folder; returns its absolute path.
 
     Fresh runs go into a new or empty folder; a folder holding a run needs `resume` or `force`
@@ -69,12 +83,17 @@ def prepare_run_dir(run_dir: Path, *, resume: bool = False, force: bool = False,
     given = run_dir
     run_dir = check_output_folder(run_dir, force=True)  # the checks that always apply (a file, the cwd, ...)
     if resume and force:
-        raise InputError("--resume and --force exclude each other: --resume continues the run, --force starts it over",
-                         fix="pass one of them")
+        raise InputError(
+            "--resume and --force exclude each other: --resume continues the run, --force starts it over",
+            fix="pass one of them",
+        )
     if resume:
         if not (run_dir / "config.json").is_file():
-            raise InputError(f"--out {given}: nothing to resume (no config.json: not a training run)",
-                             file=str(run_dir), fix="start without --resume, or give the folder of an earlier run")
+            raise InputError(
+                f"--out {given}: nothing to resume (no config.json: not a training run)",
+                file=str(run_dir),
+                fix="start without --resume, or give the folder of an earlier run",
+            )
         return run_dir
     if run_dir.is_dir() and any(run_dir.iterdir()):
         if is_run_folder(run_dir):
@@ -83,10 +102,13 @@ def prepare_run_dir(run_dir: Path, *, resume: bool = False, force: bool = False,
             # has nothing to continue: the same command starts it again.
             unfinished = last is None and not (run_dir / "policy").exists()
             if not force and not unfinished:
-                raise InputError(f"--out {given}: holds a training run (its last checkpoint at step {last[0]:,})"
-                                 if last else f"--out {given}: holds a finished training run",
-                                 fix="pass --resume to continue it, --force to start it over (removes only the "
-                                     "files footforge wrote there), or give another --out")
+                raise InputError(
+                    f"--out {given}: holds a training run (its last checkpoint at step {last[0]:,})"
+                    if last
+                    else f"--out {given}: holds a finished training run",
+                    fix="pass --resume to continue it, --force to start it over (removes only the "
+                    "files footforge wrote there), or give another --out",
+                )
             if write:
                 removed = _remove_run_files(run_dir)
                 if notice and removed:
@@ -94,20 +116,23 @@ def prepare_run_dir(run_dir: Path, *, resume: bool = False, force: bool = False,
                     notice(f"{why}: removed its {', '.join(removed)} from {run_dir}")
         else:
             if not force:
-                raise InputError(f"--out {given}: the folder holds files footforge did not write (no {MARKER})",
-                                 fix="give another --out, or pass --force to train into it beside those files "
-                                     "(they are kept)")
+                raise InputError(
+                    f"--out {given}: the folder holds files footforge did not write (no {MARKER})",
+                    fix="give another --out, or pass --force to train into it beside those files (they are kept)",
+                )
             clash = [name for name in RUN_ENTRIES if (run_dir / name).exists() or (run_dir / name).is_symlink()]
             if clash:
-                raise InputError(f"--out {given}: holds {', '.join(clash)}, which footforge did not write and a run "
-                                 f"would overwrite", fix="move them away or give another --out")
+                raise InputError(
+                    f"--out {given}: holds {', '.join(clash)}, which footforge did not write and a run would overwrite",
+                    fix="move them away or give another --out",
+                )
     if write:
         run_dir.mkdir(parents=True, exist_ok=True)
         write_marker(run_dir, kind=TRAINING_RUN)
     return run_dir
 
 
-def load_run_config(run_dir: Path) -> tuple[EnvConfig, "PPOConfig"]:
+def load_run_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
     """The environment and PPO configs a run was started with (its config.json).
 
     Raises:
@@ -120,8 +145,14 @@ def load_run_config(run_dir: Path) -> tuple[EnvConfig, "PPOConfig"]:
         saved = json.loads(path.read_text())
         return env_config_from_dict(saved["env"]), from_dict(PPOConfig, saved["ppo"])
     except FileNotFoundError:
-        raise InputError("not a training run (no config.json)", file=str(run_dir),
-                         fix="give the folder of an earlier run, or start without --resume") from None
+        raise InputError(
+            "not a training run (no config.json)",
+            file=str(run_dir),
+            fix="give the folder of an earlier run, or start without --resume",
+        ) from None
     except (OSError, ValueError, KeyError, TypeError) as e:
-        raise InputError(f"unreadable ({type(e).__name__}: {e})", file=str(path),
-                         fix="start the run over with --force, or give another run") from None
+        raise InputError(
+            f"unreadable ({type(e).__name__}: {e})",
+            file=str(path),
+            fix="start the run over with --force, or give another run",
+        ) from None

@@ -38,24 +38,46 @@ import json
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from footforge.atomic import atomic_file, write_json
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 from footforge.rl.checkpoints import (  # noqa: F401 (re-exported)
-    CHECKPOINT_MANIFEST, checkpoint_problem, checkpoints, latest_checkpoint, latest_intact_checkpoint, resume_point,
-    save_checkpoint, write_checkpoint_manifest)
+    CHECKPOINT_MANIFEST,
+    checkpoint_problem,
+    checkpoints,
+    latest_checkpoint,
+    latest_intact_checkpoint,
+    resume_point,
+    save_checkpoint,
+    write_checkpoint_manifest,
+)
 from footforge.rl.config import (  # noqa: F401 (re-exported)
-    PPOConfig, config_differences, default_ppo, env_config_from_dict, from_dict, planned_steps, steps_per_iteration,
-    to_dict, training_epochs)
+    PPOConfig,
+    config_differences,
+    default_ppo,
+    env_config_from_dict,
+    from_dict,
+    planned_steps,
+    steps_per_iteration,
+    to_dict,
+    training_epochs,
+)
 from footforge.rl.networks import network_factory
 from footforge.rl.policy_files import (  # noqa: F401 (re-exported)
-    SavedPolicy, initial_policy, load_policy, load_policy_config, load_policy_parameters, policy_folder, policy_meta,
-    policy_problem, write_policy)
+    SavedPolicy,
+    initial_policy,
+    load_policy,
+    load_policy_config,
+    load_policy_parameters,
+    policy_folder,
+    policy_meta,
+    policy_problem,
+    write_policy,
+)
 from footforge.rl.run_folder import RUN_ENTRIES, is_run_folder, load_run_config, prepare_run_dir  # noqa: F401
-
 
 CURVE = "metrics.jsonl"
 CURVE_SET_ASIDE = "metrics.set_aside.jsonl"
@@ -137,8 +159,9 @@ class WallTimeBudget:
 
     def out_of_time(self, now_s: float, evaluation_s: float = 0.0) -> bool:
         """At the end of an epoch (now_s, its evaluation's seconds): whether to stop here."""
-        epoch_s = next_epoch_seconds(now_s - self.last_epoch_end_s, self.epochs == 0, self.steps_per_s,
-                                     self.steps_per_epoch, evaluation_s)
+        epoch_s = next_epoch_seconds(
+            now_s - self.last_epoch_end_s, self.epochs == 0, self.steps_per_s, self.steps_per_epoch, evaluation_s
+        )
         self.last_epoch_end_s = now_s
         self.epochs += 1
         return self.max_wall_s is not None and now_s + epoch_s > self.start_s + self.max_wall_s
@@ -153,12 +176,16 @@ def _check_run_settings(ppo: PPOConfig, max_wall_s: float | None) -> None:
     if max_wall_s is not None and max_wall_s <= 0:
         raise InputError(f"max_wall_s must be positive, got {max_wall_s}", fix="give a positive time budget")
     if max_wall_s is not None and jax.process_count() > 1:  # only process 0 would stop; the others would wait
-        raise InputError("a wall-time budget works on one machine only (one JAX process)",
-                         fix="leave out the time budget with --coordinator")
+        raise InputError(
+            "a wall-time budget works on one machine only (one JAX process)",
+            fix="leave out the time budget with --coordinator",
+        )
     if ppo.num_envs % jax.device_count():
-        raise InputError(f"num_envs ({ppo.num_envs}) must be a multiple of the number of JAX devices "
-                         f"({jax.device_count()}): Brax splits the robots evenly over them",
-                         fix=f"e.g. --num-envs {ppo.num_envs - ppo.num_envs % jax.device_count() or jax.device_count()}")
+        raise InputError(
+            f"num_envs ({ppo.num_envs}) must be a multiple of the number of JAX devices "
+            f"({jax.device_count()}): Brax splits the robots evenly over them",
+            fix=f"e.g. --num-envs {ppo.num_envs - ppo.num_envs % jax.device_count() or jax.device_count()}",
+        )
 
 
 def _initialisation(source: Path, env_config: EnvConfig, ppo: PPOConfig, notice):
@@ -170,21 +197,27 @@ def _initialisation(source: Path, env_config: EnvConfig, ppo: PPOConfig, notice)
     source_env, source_ppo = load_run_config(source)
     problems = []
     if (source_env.haptic or env_config.haptic) and source_env.feet != env_config.feet:
-        problems.append(f"a haptic policy reads its feet's joints: feet {source_env.feet} there, {env_config.feet} here")
+        problems.append(
+            f"a haptic policy reads its feet's joints: feet {source_env.feet} there, {env_config.feet} here"
+        )
     else:
         widths = observation_layout.size(source_env, 16), observation_layout.size(env_config, 16)
         if widths[0] != widths[1]:
-            problems.append(f"observation width {widths[0]} there, {widths[1]} here (policy {source_env.policy} / "
-                            f"{env_config.policy})")
+            problems.append(
+                f"observation width {widths[0]} there, {widths[1]} here (policy {source_env.policy} / "
+                f"{env_config.policy})"
+            )
     for name in ("policy_hidden_layers", "value_hidden_layers", "normalize_observations"):
         if getattr(source_ppo, name) != getattr(ppo, name):
             problems.append(f"{name} {getattr(source_ppo, name)} there, {getattr(ppo, name)} here")
     if source_env.privileged_critic != env_config.privileged_critic:
         problems.append(f"privileged_critic {source_env.privileged_critic} there, {env_config.privileged_critic} here")
     if problems:
-        raise InputError(f"--init-from {source}: its networks do not fit this run: {'; '.join(problems)}",
-                         file=str(source / "config.json"), fix="start from a run with the same networks, or without "
-                                                                "--init-from")
+        raise InputError(
+            f"--init-from {source}: its networks do not fit this run: {'; '.join(problems)}",
+            file=str(source / "config.json"),
+            fix="start from a run with the same networks, or without --init-from",
+        )
     step, params = resume_point(source, notice, set_aside=False)
     notice(f"starting from the parameters of {source} at step {step:,}")
     return step, params
@@ -196,16 +229,20 @@ def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, 
     saved_env, saved_ppo = load_run_config(run_dir)
     # The engine (EnvConfig.physics) may change between calls: both step the same model, so a run
     # started on a GPU (mjx) resumes on a CPU (mujoco) and back.
-    saved = json.loads(json.dumps({"env": to_dict(saved_env) | {"physics": None},
-                                   "ppo": to_dict(saved_ppo) | {"num_timesteps": 0}}))
-    now = json.loads(json.dumps({"env": to_dict(env_config) | {"physics": None},
-                                 "ppo": to_dict(ppo) | {"num_timesteps": 0}}))
+    saved = json.loads(
+        json.dumps({"env": to_dict(saved_env) | {"physics": None}, "ppo": to_dict(saved_ppo) | {"num_timesteps": 0}})
+    )
+    now = json.loads(
+        json.dumps({"env": to_dict(env_config) | {"physics": None}, "ppo": to_dict(ppo) | {"num_timesteps": 0}})
+    )
     differences = config_differences(saved, now)  # tuples as lists: compared as JSON
     if differences:
-        raise InputError(f"the run was started with other settings: {'; '.join(differences)}",
-                         file=str(run_dir / "config.json"),
-                         fix="resume with the run's own settings (the pipelines read them from config.json), "
-                             "or start a new run with another --out")
+        raise InputError(
+            f"the run was started with other settings: {'; '.join(differences)}",
+            file=str(run_dir / "config.json"),
+            fix="resume with the run's own settings (the pipelines read them from config.json), "
+            "or start a new run with another --out",
+        )
     offset, restore = resume_point(run_dir, notice, set_aside=primary)
     state_file = run_dir / "progress.json"
     previous = json.loads(state_file.read_text()) if state_file.exists() else {}
@@ -214,10 +251,20 @@ def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, 
     return offset, restore, previous.get("resumes", 0) + 1, previous.get("wall_s_total", previous.get("wall_s", 0.0))
 
 
-def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool = False, force: bool = False,
-          progress: Callable[[int, int, dict, bool], None] | None = None, max_wall_s: float | None = None,
-          notice: Callable[[str], None] | None = None, evaluate: bool = True, init_from: Path | None = None,
-          recipe: dict | None = None) -> dict:
+def train(
+    env_config: EnvConfig,
+    ppo: PPOConfig,
+    run_dir: Path,
+    *,
+    resume: bool = False,
+    force: bool = False,
+    progress: Callable[[int, int, dict, bool], None] | None = None,
+    max_wall_s: float | None = None,
+    notice: Callable[[str], None] | None = None,
+    evaluate: bool = True,
+    init_from: Path | None = None,
+    recipe: dict | None = None,
+) -> dict:
     """Trains a policy; writes checkpoints, TensorBoard logs and the final policy into run_dir.
 
     Returns the final metrics. `progress(global_step, total_steps, metrics, evaluation)` is called
@@ -246,20 +293,20 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         without an intact checkpoint or with other configs; `init_from` with `resume`, or a source
         whose networks do not fit this run.
     """
+    import jax
     from brax.training.agents.ppo import train as ppo_train
     from tensorboardX import SummaryWriter
 
     from footforge.envs import enable_float64_physics, from_config
     from footforge.envs.randomization import randomizer
     from footforge.envs.wrappers import wrap_for_training
-
-    import jax
-
     from footforge.rl import jax_compat
 
     if notice is None:
+
         def notice(text: str) -> None:
             print(text, file=sys.stderr, flush=True)
+
     jax_compat.install()  # Brax 0.14.2's PPO on JAX >= 0.10
     enable_float64_physics(env_config)  # EnvConfig.float64_physics: before the environment's first array
     _check_run_settings(ppo, max_wall_s)
@@ -270,12 +317,17 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     origin = {}
     if init_from is not None:  # before the run folder is touched
         if resume:
-            raise InputError("--init-from starts a new run from another run's parameters; --resume continues "
-                             "this one", fix="give one of them")
+            raise InputError(
+                "--init-from starts a new run from another run's parameters; --resume continues this one",
+                fix="give one of them",
+            )
         step, restore = _initialisation(Path(init_from), env_config, ppo, notice)
         origin = {"initialised_from": {"run": os.path.abspath(init_from), "step": step}}
-    run_dir = prepare_run_dir(run_dir, resume=resume, force=force, notice=notice) if primary else \
-        Path(os.path.abspath(run_dir))
+    run_dir = (
+        prepare_run_dir(run_dir, resume=resume, force=force, notice=notice)
+        if primary
+        else Path(os.path.abspath(run_dir))
+    )
     state_file = run_dir / "progress.json"
     if resume:
         offset, restore, resumes, wall_s_before = _resume_state(run_dir, env_config, ppo, notice, primary)
@@ -289,8 +341,9 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     elif recipe is not None:
         origin["recipe"] = recipe
     if primary:
-        write_json(run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo), "evaluations": evaluate}
-                    | origin)
+        write_json(
+            run_dir / "config.json", {"env": to_dict(env_config), "ppo": to_dict(ppo), "evaluations": evaluate} | origin
+        )
     remaining = ppo.num_timesteps - offset
     if remaining <= 0:
         if primary:
@@ -308,8 +361,7 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         with atomic_file(run_dir / "terrain.png") as tmp:
             preview(env.terrain, tmp)
     # On a resume, TensorBoard hides what the killed call logged after the checkpoint (purge_step).
-    writer = SummaryWriter(str(run_dir / "tensorboard"), purge_step=offset + 1 if resume else None) \
-        if primary else None
+    writer = SummaryWriter(str(run_dir / "tensorboard"), purge_step=offset + 1 if resume else None) if primary else None
     epochs = training_epochs(ppo, offset)
     total = planned_steps(ppo, offset)  # what Brax will run: whole iterations
     last: dict = {}
@@ -321,12 +373,22 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         global_step = offset + step
         if step == 0:
             return
-        save_checkpoint(run_dir, global_step, params, env.observation_size, env.action_size, ppo,
-                        env_config.privileged_critic)
-        write_json(state_file, {"global_step": global_step, "resumes": resumes, "metrics": last,
-                                 "wall_s": time.time() - t0, "wall_s_total": wall_s_before + time.time() - t0,
-                                 "num_timesteps": ppo.num_timesteps, "machine": this_machine,
-                                 "physics": env_config.physics})
+        save_checkpoint(
+            run_dir, global_step, params, env.observation_size, env.action_size, ppo, env_config.privileged_critic
+        )
+        write_json(
+            state_file,
+            {
+                "global_step": global_step,
+                "resumes": resumes,
+                "metrics": last,
+                "wall_s": time.time() - t0,
+                "wall_s_total": wall_s_before + time.time() - t0,
+                "num_timesteps": ppo.num_timesteps,
+                "machine": this_machine,
+                "physics": env_config.physics,
+            },
+        )
 
     def log(step: int, metrics: dict) -> None:
         if not primary:
@@ -338,11 +400,12 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
         # holds already unless the killed call died before evaluating them.
         if not (step == 0 and evaluated_at_offset):
             for key, value in now.items():
-                writer.add_scalar(key, value, global_step)
-            writer.flush()
+                writer.add_scalar(key, value, global_step)  # type: ignore[union-attr]  # primary: a writer
+            writer.flush()  # type: ignore[union-attr]
             with open(run_dir / CURVE, "a") as f:  # one line per evaluation or training-episodes log
-                f.write(json.dumps({"global_step": global_step, "wall_s": wall_s_before + time.time() - t0} | now)
-                        + "\n")
+                f.write(
+                    json.dumps({"global_step": global_step, "wall_s": wall_s_before + time.time() - t0} | now) + "\n"
+                )
         # The end of an epoch (its checkpoint written, its evaluation run if any) is the call that
         # carries Brax's training/sps; the initial evaluation and the training-episode logs do not.
         epoch_end = "training/sps" in metrics
@@ -356,8 +419,21 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
                 raise _OutOfTime()
 
     try:
-        _run_ppo(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save,
-                 wrap_for_training, randomizer, evaluate)
+        _run_ppo(
+            ppo_train,
+            env,
+            env_config,
+            ppo,
+            remaining,
+            epochs,
+            restore,
+            resumes,
+            log,
+            save,
+            wrap_for_training,
+            randomizer,
+            evaluate,
+        )
     except _OutOfTime:
         budget.stopped = True
     if writer:
@@ -367,12 +443,15 @@ def train(env_config: EnvConfig, ppo: PPOConfig, run_dir: Path, *, resume: bool 
     if budget.stopped:
         last["stopped_for_time"] = 1.0
         if primary and state_file.exists():
-            write_json(state_file, json.loads(state_file.read_text()) | {"metrics": last, "stopped": "wall-time budget"})
+            write_json(
+                state_file, json.loads(state_file.read_text()) | {"metrics": last, "stopped": "wall-time budget"}
+            )
     return last
 
 
-def next_epoch_seconds(last_epoch_s: float, first: bool, steps_per_s: float | None, steps_per_epoch: int,
-                       evaluation_s: float = 0.0) -> float:
+def next_epoch_seconds(
+    last_epoch_s: float, first: bool, steps_per_s: float | None, steps_per_epoch: int, evaluation_s: float = 0.0
+) -> float:
     """The wall time the next epoch will take (for the max_wall_s stop): the last epoch's, except
     after the first epoch, whose time holds the compilation; that one is estimated as its steps at
     the measured training throughput plus an evaluation, when a throughput was measured, and never
@@ -390,33 +469,70 @@ def machine() -> dict:
     import jax
 
     devices = jax.devices()
-    return {"backend": jax.default_backend(), "devices": len(devices), "device_kind": devices[0].device_kind,
-            "processes": jax.process_count(), "cpu_cores": os.cpu_count(), "platform": platform.platform(),
-            "jax": jax.__version__}
+    return {
+        "backend": jax.default_backend(),
+        "devices": len(devices),
+        "device_kind": devices[0].device_kind,
+        "processes": jax.process_count(),
+        "cpu_cores": os.cpu_count(),
+        "platform": platform.platform(),
+        "jax": jax.__version__,
+    }
 
 
-def _run_ppo(ppo_train, env, env_config: EnvConfig, ppo: PPOConfig, remaining: int, epochs: int, restore,
-             resumes: int, log, save, wrap_for_training, randomizer, evaluate: bool = True) -> None:
+def _run_ppo(
+    ppo_train,
+    env,
+    env_config: EnvConfig,
+    ppo: PPOConfig,
+    remaining: int,
+    epochs: int,
+    restore,
+    resumes: int,
+    log,
+    save,
+    wrap_for_training,
+    randomizer,
+    evaluate: bool = True,
+) -> None:
     from footforge.rl import jax_compat
 
     with jax_compat.brax_compiles_once():  # its training epoch and evaluation compiled once each, not twice
         ppo_train.train(
-            environment=env, num_timesteps=remaining, episode_length=env_config.episode_steps,
-            num_envs=ppo.num_envs, unroll_length=ppo.unroll_length, batch_size=ppo.batch_size,
-            num_minibatches=ppo.num_minibatches, num_updates_per_batch=ppo.num_updates_per_batch,
-            learning_rate=ppo.learning_rate, entropy_cost=ppo.entropy_cost, discounting=ppo.discounting,
-            gae_lambda=ppo.gae_lambda, clipping_epsilon=ppo.clipping_epsilon,
+            environment=env,
+            num_timesteps=remaining,
+            episode_length=env_config.episode_steps,
+            num_envs=ppo.num_envs,
+            unroll_length=ppo.unroll_length,
+            batch_size=ppo.batch_size,
+            num_minibatches=ppo.num_minibatches,
+            num_updates_per_batch=ppo.num_updates_per_batch,
+            learning_rate=ppo.learning_rate,
+            entropy_cost=ppo.entropy_cost,
+            discounting=ppo.discounting,
+            gae_lambda=ppo.gae_lambda,
+            clipping_epsilon=ppo.clipping_epsilon,
             vf_loss_coefficient=ppo.vf_loss_coefficient,
-            max_grad_norm=ppo.max_grad_norm, reward_scaling=ppo.reward_scaling,
-            normalize_observations=ppo.normalize_observations, bootstrap_on_timeout=True,
-            learning_rate_schedule="ADAPTIVE_KL" if ppo.adaptive_kl else None, desired_kl=ppo.adaptive_kl or 0.01,
-            network_factory=network_factory(ppo, env_config.privileged_critic), seed=ppo.seed + 1000 * resumes,
-            num_evals=epochs + 1, run_evals=evaluate,
-            num_eval_envs=ppo.num_eval_envs, progress_fn=log, policy_params_fn=save,
-            restore_params=tuple(restore) if restore is not None else None, wrap_env_fn=wrap_for_training,
+            max_grad_norm=ppo.max_grad_norm,
+            reward_scaling=ppo.reward_scaling,
+            normalize_observations=ppo.normalize_observations,
+            bootstrap_on_timeout=True,
+            learning_rate_schedule="ADAPTIVE_KL" if ppo.adaptive_kl else None,
+            desired_kl=ppo.adaptive_kl or 0.01,
+            network_factory=network_factory(ppo, env_config.privileged_critic),
+            seed=ppo.seed + 1000 * resumes,
+            num_evals=epochs + 1,
+            run_evals=evaluate,
+            num_eval_envs=ppo.num_eval_envs,
+            progress_fn=log,
+            policy_params_fn=save,
+            restore_params=tuple(restore) if restore is not None else None,
+            wrap_env_fn=wrap_for_training,
             randomization_fn=randomizer(env),  # EnvConfig.randomization: one draw per robot for the run
             # Evaluations (the learning curve) run the policy's mean, as a deployed policy runs.
             deterministic_eval=True,
             # Training episodes' metrics (episode/...: the terrain levels the curriculum reached, reward
             # terms, tracking errors), logged between evaluations.
-            log_training_metrics=True, training_metrics_steps=max(ppo.checkpoint_every_steps // 4, 1))
+            log_training_metrics=True,
+            training_metrics_steps=max(ppo.checkpoint_every_steps // 4, 1),
+        )

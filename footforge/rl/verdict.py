@@ -40,8 +40,11 @@ MOVING_COMMAND_MPS = 0.3
 PAIR_LOCKED = 0.75
 """Two feet whose contact states agree on at least this share of the moving steps move together."""
 
-PAIRS = {"diagonal": (("LF", "RH"), ("RF", "LH")), "lateral": (("LF", "RF"), ("LH", "RH")),
-         "same_side": (("LF", "LH"), ("RF", "RH"))}
+PAIRS = {
+    "diagonal": (("LF", "RH"), ("RF", "LH")),
+    "lateral": (("LF", "RF"), ("LH", "RH")),
+    "same_side": (("LF", "LH"), ("RF", "RH")),
+}
 
 
 @dataclass(frozen=True)
@@ -90,8 +93,9 @@ def judge(contacts, up, base_height_m, command_vx, vx, command_xy_speed) -> Walk
     """
     contacts = np.asarray(contacts, bool)
     up = np.asarray(up, bool)
-    base_height_m, command_vx, vx, speed = (np.asarray(a, float) for a in (base_height_m, command_vx, vx,
-                                                                             command_xy_speed))
+    base_height_m, command_vx, vx, speed = (
+        np.asarray(a, float) for a in (base_height_m, command_vx, vx, command_xy_speed)
+    )
     uptime = float(up.mean())
     forward_error = _mean(np.abs(command_vx - vx), up)
     height = _mean(base_height_m, up)
@@ -117,8 +121,10 @@ def judge(contacts, up, base_height_m, command_vx, vx, command_xy_speed) -> Walk
         if low:
             verdict, reason = "stands", "hobbles: " + ", ".join(f"{leg} on the ground {stance[leg]:.0%}" for leg in low)
         elif high:
-            verdict, reason = "stands", "shuffles: " + ", ".join(f"{leg} never lifts ({stance[leg]:.0%} on the ground)"
-                                                               for leg in high)
+            verdict, reason = (
+                "stands",
+                "shuffles: " + ", ".join(f"{leg} never lifts ({stance[leg]:.0%} on the ground)" for leg in high),
+            )
         else:
             verdict, reason = "walks", f"{gait}, every foot steps"
     return WalkingVerdict(verdict, reason, gait, forward_error, uptime, height, stance, agreement, slope)
@@ -131,7 +137,7 @@ def _gait(stance: dict, agreement: dict) -> str:
     if min(values) > MAX_STANCE:
         return "stand"
     names = {"diagonal": "trot", "same_side": "pace", "lateral": "bound"}
-    kind = max(agreement, key=agreement.get)
+    kind = max(agreement, key=lambda k: agreement[k])
     if agreement[kind] >= PAIR_LOCKED and all(MIN_STANCE <= s <= MAX_STANCE for s in values):
         return names[kind]
     return "four-beat"

@@ -53,8 +53,10 @@ def add_bodies(ctx: ExportContext) -> None:
         members = [o for o in range(1, m.nbody) if m.body_weldid[o] == b]
         prim.SetCustomDataByKey("footforge:mjcfName", name)
         if len(members) > 1:
-            prim.SetCustomDataByKey("footforge:weldedBodies", Vt.StringArray(
-                [mj_name(m, mujoco.mjtObj.mjOBJ_BODY, o, "body") for o in members]))
+            prim.SetCustomDataByKey(
+                "footforge:weldedBodies",
+                Vt.StringArray([mj_name(m, mujoco.mjtObj.mjOBJ_BODY, o, "body") for o in members]),
+            )
         UsdPhysics.RigidBodyAPI.Apply(prim)
         _author_mass(ctx, prim, b, len(members))
         ctx.body_paths[b] = xform.GetPath()
@@ -101,4 +103,3 @@ def site_in_body_frame(ctx: ExportContext, site: int) -> Pose:
     m = ctx.model
     b = int(m.site_bodyid[site])
     return mul_pose(body_in_group_frame(ctx, b), (m.site_pos[site], m.site_quat[site]))
-

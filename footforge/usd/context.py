@@ -72,8 +72,9 @@ IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
 def mul_pose(a: Pose, b: Pose) -> Pose:
     """Pose a * pose b (MuJoCo's mju_mulPose)."""
     pos, quat = np.zeros(3), np.zeros(4)
-    mujoco.mju_mulPose(pos, quat, np.asarray(a[0], float), np.asarray(a[1], float),
-                       np.asarray(b[0], float), np.asarray(b[1], float))
+    mujoco.mju_mulPose(
+        pos, quat, np.asarray(a[0], float), np.asarray(a[1], float), np.asarray(b[0], float), np.asarray(b[1], float)
+    )
     return pos, quat
 
 

@@ -86,25 +86,37 @@ def _articulation_roots(ctx: ExportContext, joint_paths: dict[int, Sdf.Path]) ->
         if m.body_weldid[m.body_parentid[b]] == 0:
             UsdPhysics.Joint(ctx.stage.GetPrimAtPath(path)).CreateExcludeFromArticulationAttr(True)
             UsdPhysics.ArticulationRootAPI.Apply(ctx.stage.GetPrimAtPath(ctx.body_paths[b]))
-            ctx.notes.append(f"joint '{path.name}' to the world is excluded from the articulation "
-                             "(PhysX articulations attach to the world only through a fixed joint)")
+            ctx.notes.append(
+                f"joint '{path.name}' to the world is excluded from the articulation "
+                "(PhysX articulations attach to the world only through a fixed joint)"
+            )
 
 
 def _report_model_level(ctx: ExportContext, keyframe: str | None) -> None:
     m = ctx.model
-    ctx.lose("option", f"timestep {m.opt.timestep:g} s, {mujoco.mjtIntegrator(m.opt.integrator).name} integrator, "
-             f"{mujoco.mjtSolver(m.opt.solver).name} solver, {m.opt.iterations} iterations",
-             "dropped: set the Isaac Sim physics scene's own step and solver")
+    ctx.lose(
+        "option",
+        f"timestep {m.opt.timestep:g} s, {mujoco.mjtIntegrator(m.opt.integrator).name} integrator, "
+        f"{mujoco.mjtSolver(m.opt.solver).name} solver, {m.opt.iterations} iterations",
+        "dropped: set the Isaac Sim physics scene's own step and solver",
+    )
     if m.nsensor:
         names = [m.sensor(s).name for s in range(m.nsensor)]
-        ctx.lose(f"sensors ({m.nsensor})", ", ".join(names), "dropped: sites are exported as Xforms to attach sensors to")
+        ctx.lose(
+            f"sensors ({m.nsensor})", ", ".join(names), "dropped: sites are exported as Xforms to attach sensors to"
+        )
     if m.neq and any(int(m.eq_type[e]) == mujoco.mjtEq.mjEQ_CONNECT for e in range(m.neq)):
-        ctx.notes.append("loop closures are exported as hard spherical joints; MuJoCo's are soft "
-                         "(solref/solimp), so tiny closure gaps there are zero here")
+        ctx.notes.append(
+            "loop closures are exported as hard spherical joints; MuJoCo's are soft "
+            "(solref/solimp), so tiny closure gaps there are zero here"
+        )
     keys = [m.key(k).name for k in range(m.nkey) if m.key(k).name != keyframe]
     if keys:
-        ctx.lose("keyframes", ", ".join(keys), "dropped: bodies are authored at the "
-                 + (f"'{keyframe}' keyframe" if keyframe else "reference pose"))
+        ctx.lose(
+            "keyframes",
+            ", ".join(keys),
+            "dropped: bodies are authored at the " + (f"'{keyframe}' keyframe" if keyframe else "reference pose"),
+        )
 
 
 def stage_files(stem: str) -> dict[str, str]:

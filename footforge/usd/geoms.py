@@ -36,8 +36,14 @@ def add_geoms(ctx: ExportContext) -> None:
         if not ctx.stage.GetPrimAtPath(scope):
             UsdGeom.Scope.Define(ctx.stage, scope)
         name = mj_name(m, mujoco.mjtObj.mjOBJ_GEOM, g, "geom")
-        prim = _define_shape(ctx, ctx.child_path(scope, name), g, f"geom '{name}'", mul_pose(
-            body_in_group_frame(ctx, b), (m.geom_pos[g], m.geom_quat[g])), collider)
+        prim = _define_shape(
+            ctx,
+            ctx.child_path(scope, name),
+            g,
+            f"geom '{name}'",
+            mul_pose(body_in_group_frame(ctx, b), (m.geom_pos[g], m.geom_quat[g])),
+            collider,
+        )
         if prim is None:
             continue
         prim.SetCustomDataByKey("footforge:mjcfName", name)
@@ -45,7 +51,8 @@ def add_geoms(ctx: ExportContext) -> None:
             UsdPhysics.CollisionAPI.Apply(prim)
             UsdGeom.Imageable(prim).CreatePurposeAttr(UsdGeom.Tokens.guide)
             UsdShade.MaterialBindingAPI.Apply(prim).Bind(
-                materials[float(m.geom_friction[g][0])], UsdShade.Tokens.weakerThanDescendants, "physics")
+                materials[float(m.geom_friction[g][0])], UsdShade.Tokens.weakerThanDescendants, "physics"
+            )
             if m.body_weldid[b]:
                 colliders[g] = prim.GetPath()
         else:
@@ -86,8 +93,11 @@ def _define_shape(ctx: ExportContext, path: Sdf.Path, g: int, name: str, pose, c
             UsdPhysics.MeshCollisionAPI.Apply(shape.GetPrim()).CreateApproximationAttr(UsdPhysics.Tokens.convexHull)
             count = int(m.mesh_vertnum[m.geom_dataid[g]])
             if count > PHYSX_HULL_VERTEX_LIMIT:
-                ctx.lose(name, f"collision mesh of {count} vertices",
-                         f"approximated: PhysX reduces convex hulls to {PHYSX_HULL_VERTEX_LIMIT} vertices")
+                ctx.lose(
+                    name,
+                    f"collision mesh of {count} vertices",
+                    f"approximated: PhysX reduces convex hulls to {PHYSX_HULL_VERTEX_LIMIT} vertices",
+                )
     else:
         ctx.lose(name, f"geom type {GEOM(kind).name}", "dropped")
         return None
@@ -101,8 +111,8 @@ def _mesh(ctx: ExportContext, path: Sdf.Path, mesh_id: int) -> UsdGeom.Mesh:
     m = ctx.model
     v0, nv = int(m.mesh_vertadr[mesh_id]), int(m.mesh_vertnum[mesh_id])
     f0, nf = int(m.mesh_faceadr[mesh_id]), int(m.mesh_facenum[mesh_id])
-    points = m.mesh_vert[v0:v0 + nv]
-    faces = m.mesh_face[f0:f0 + nf]
+    points = m.mesh_vert[v0 : v0 + nv]
+    faces = m.mesh_face[f0 : f0 + nf]
     mesh = UsdGeom.Mesh.Define(ctx.stage, path)
     mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points.astype(np.float32)))
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * nf))
@@ -127,8 +137,10 @@ def _friction_materials(ctx: ExportContext) -> dict[float, UsdShade.Material]:
             api.CreateDynamicFrictionAttr(mu)
             api.CreateRestitutionAttr(0.0)
             materials[mu] = material
-        ctx.notes.append("friction: MuJoCo combines two geoms' friction by their maximum; PhysX averages "
-                         "by default (set PhysxMaterialAPI frictionCombineMode to max to match)")
+        ctx.notes.append(
+            "friction: MuJoCo combines two geoms' friction by their maximum; PhysX averages "
+            "by default (set PhysxMaterialAPI frictionCombineMode to max to match)"
+        )
     return materials
 
 
@@ -144,8 +156,10 @@ def _self_collision_group(ctx: ExportContext, colliders: dict[int, Sdf.Path]) ->
     pairs = (contype[:, None] & conaffinity[None, :]) != 0
     touching = ((pairs | pairs.T) & (weld[:, None] != weld[None, :])).any()
     if touching:
-        ctx.notes.append("self-collision: some colliders of different bodies may touch (contype/conaffinity); "
-                         "PhysX's articulation self-collision filtering may differ from MuJoCo's parent-child rule")
+        ctx.notes.append(
+            "self-collision: some colliders of different bodies may touch (contype/conaffinity); "
+            "PhysX's articulation self-collision filtering may differ from MuJoCo's parent-child rule"
+        )
         return
     group = UsdPhysics.CollisionGroup.Define(ctx.stage, ctx.child_path(ctx.root, "self_collisions"))
     group.CreateFilteredGroupsRel().SetTargets([group.GetPath()])
@@ -158,8 +172,11 @@ def _report_contact_settings(ctx: ExportContext) -> None:
     colliders = [g for g in range(m.ngeom) if is_collider(m, g)]
     if colliders:
         torsion = sorted({(float(m.geom_friction[g][1]), float(m.geom_friction[g][2])) for g in colliders})
-        ctx.lose(f"geoms ({len(colliders)} colliders)",
-                 "torsional and rolling friction " + ", ".join(f"({a:g}, {b:g})" for a, b in torsion)
-                 + "; contact softness solref/solimp; condim; margins")
+        ctx.lose(
+            f"geoms ({len(colliders)} colliders)",
+            "torsional and rolling friction "
+            + ", ".join(f"({a:g}, {b:g})" for a, b in torsion)
+            + "; contact softness solref/solimp; condim; margins",
+        )
     if m.npair or m.nexclude:
         ctx.lose("contact", f"{m.npair} explicit contact pairs, {m.nexclude} exclusions", "dropped")

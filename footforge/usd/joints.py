@@ -78,8 +78,10 @@ def add_joints(ctx: ExportContext) -> dict[int, Sdf.Path]:
             continue
         j = int(m.body_jntadr[b])
         if count > 1:
-            ctx.lose(f"body '{mj_name(m, mujoco.mjtObj.mjOBJ_BODY, b, 'body')}'",
-                     f"{count} joints on one body; USD needs one joint per body pair (only the first is exported)")
+            ctx.lose(
+                f"body '{mj_name(m, mujoco.mjtObj.mjOBJ_BODY, b, 'body')}'",
+                f"{count} joints on one body; USD needs one joint per body pair (only the first is exported)",
+            )
         if int(m.jnt_type[j]) == JNT.mjJNT_FREE:
             continue  # a floating base: no joint, the articulation root is on the body
         paths[j] = _add_joint(ctx, scope, j, terms.get(j))
@@ -102,8 +104,11 @@ def _add_joint(ctx: ExportContext, scope: Sdf.Path, j: int, terms: DriveTerms | 
     else:
         joint = UsdPhysics.SphericalJoint.Define(ctx.stage, path)
         if m.jnt_limited[j]:
-            ctx.lose(f"joint '{name}'", f"ball joint limit {m.jnt_range[j][1]:g} rad",
-                     "dropped: MuJoCo limits the total rotation angle, USD a cone about the axis")
+            ctx.lose(
+                f"joint '{name}'",
+                f"ball joint limit {m.jnt_range[j][1]:g} rad",
+                "dropped: MuJoCo limits the total rotation angle, USD a cone about the axis",
+            )
     _connect(ctx, joint, parent, b, frame0, frame1)
     joint.CreateAxisAttr(token)
     prim = joint.GetPrim()
@@ -125,14 +130,22 @@ def _add_joint(ctx: ExportContext, scope: Sdf.Path, j: int, terms: DriveTerms | 
                 drive.CreateMaxForceAttr(float(terms.max_force))
             prim.SetCustomDataByKey("footforge:role", terms.role)
         dof = int(m.jnt_dofadr[j])
-        lost = [(key, label, float(value), unit) for key, label, value, unit in (
-            ("frictionloss", "dry friction", m.dof_frictionloss[dof], "N m" if revolute else "N"),
-            ("armature", "armature", m.dof_armature[dof], "kg m^2" if revolute else "kg")) if value]
+        lost = [
+            (key, label, float(value), unit)
+            for key, label, value, unit in (
+                ("frictionloss", "dry friction", m.dof_frictionloss[dof], "N m" if revolute else "N"),
+                ("armature", "armature", m.dof_armature[dof], "kg m^2" if revolute else "kg"),
+            )
+            if value
+        ]
         for key, _, value, _ in lost:
             prim.SetCustomDataByKey(f"footforge:{key}", value)
         if lost:
-            ctx.lose(f"joint '{name}'", ", ".join(f"{label} {v:g} {u}" for _, label, v, u in lost),
-                     "recorded in customData only (PhysX: PhysxJointAPI jointFriction and armature)")
+            ctx.lose(
+                f"joint '{name}'",
+                ", ".join(f"{label} {v:g} {u}" for _, label, v, u in lost),
+                "recorded in customData only (PhysX: PhysxJointAPI jointFriction and armature)",
+            )
     return path
 
 
@@ -142,8 +155,10 @@ def _connect(ctx: ExportContext, joint: UsdPhysics.Joint, body0: int, body1: int
     if m.body_weldid[body0] != 0:
         joint.CreateBody0Rel().SetTargets([ctx.body_paths[body0]])
     joint.CreateBody1Rel().SetTargets([ctx.body_paths[body1]])
-    for pos_attr, rot_attr, (pos, quat) in ((joint.CreateLocalPos0Attr, joint.CreateLocalRot0Attr, frame0),
-                                           (joint.CreateLocalPos1Attr, joint.CreateLocalRot1Attr, frame1)):
+    for pos_attr, rot_attr, (pos, quat) in (
+        (joint.CreateLocalPos0Attr, joint.CreateLocalRot0Attr, frame0),
+        (joint.CreateLocalPos1Attr, joint.CreateLocalRot1Attr, frame1),
+    ):
         pos_attr(Gf.Vec3f(*map(float, pos)))
         rot_attr(Gf.Quatf(float(quat[0]), Gf.Vec3f(*map(float, quat[1:]))))
 
@@ -158,13 +173,13 @@ def _drive_terms(ctx: ExportContext) -> dict[int, DriveTerms]:
             t.add_spring(m.jnt_stiffness[j], m.qpos_spring[m.jnt_qposadr[j]])
     for a in range(m.nu):
         name = mj_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a, "actuator")
-        j = servo_joint(m, a)
-        if j is None:
+        joint = servo_joint(m, a)
+        if joint is None:
             ctx.lose(f"actuator '{name}'", "not a unit-gear position servo on a hinge or slide joint", "dropped")
             continue
         # The servo's target at the exported pose: the keyframe's ctrl, else the joint's angle there.
-        target = ctx.data.ctrl[a] if ctx.keyframe is not None else ctx.data.qpos[m.jnt_qposadr[j]]
-        t = terms[j]
+        target = ctx.data.ctrl[a] if ctx.keyframe is not None else ctx.data.qpos[m.jnt_qposadr[joint]]
+        t = terms[joint]
         t.role = "actuated"
         t.add_spring(m.actuator_gainprm[a][0], target)
         t.damping += float(-m.actuator_biasprm[a][2])
@@ -172,8 +187,11 @@ def _drive_terms(ctx: ExportContext) -> dict[int, DriveTerms]:
             lo, hi = m.actuator_forcerange[a]
             t.max_force = float(max(-lo, hi))
             if lo != -hi:
-                ctx.lose(f"actuator '{name}'", f"asymmetric force range [{lo:g}, {hi:g}]",
-                         f"approximated: USD maxForce {t.max_force:g} both ways")
+                ctx.lose(
+                    f"actuator '{name}'",
+                    f"asymmetric force range [{lo:g}, {hi:g}]",
+                    f"approximated: USD maxForce {t.max_force:g} both ways",
+                )
     _tendon_springs(ctx, terms)
     return terms
 
@@ -183,12 +201,15 @@ def servo_joint(model: mujoco.MjModel, actuator: int) -> int | None:
     USD drive can carry: kp (q* - q) - kv qd), else None."""
     m, a = model, actuator
     j = int(m.actuator_trnid[a][0])
-    servo = (int(m.actuator_trntype[a]) == mujoco.mjtTrn.mjTRN_JOINT
-             and int(m.jnt_type[j]) in (JNT.mjJNT_HINGE, JNT.mjJNT_SLIDE)
-             and int(m.actuator_gaintype[a]) == mujoco.mjtGain.mjGAIN_FIXED
-             and int(m.actuator_biastype[a]) == mujoco.mjtBias.mjBIAS_AFFINE
-             and m.actuator_biasprm[a][0] == 0 and m.actuator_biasprm[a][1] == -m.actuator_gainprm[a][0]
-             and m.actuator_gear[a][0] == 1.0)
+    servo = (
+        int(m.actuator_trntype[a]) == mujoco.mjtTrn.mjTRN_JOINT
+        and int(m.jnt_type[j]) in (JNT.mjJNT_HINGE, JNT.mjJNT_SLIDE)
+        and int(m.actuator_gaintype[a]) == mujoco.mjtGain.mjGAIN_FIXED
+        and int(m.actuator_biastype[a]) == mujoco.mjtBias.mjBIAS_AFFINE
+        and m.actuator_biasprm[a][0] == 0
+        and m.actuator_biasprm[a][1] == -m.actuator_gainprm[a][0]
+        and m.actuator_gear[a][0] == 1.0
+    )
     return j if servo else None
 
 
@@ -220,11 +241,13 @@ def _tendon_springs(ctx: ExportContext, terms: dict[int, DriveTerms]) -> None:
         for j, c_i, q_i in zip(joints, c, q):
             terms[j].add_spring(k_joint, q_i - c_i * (length - rest) / float(c @ c))
         names = [mj_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint") for j in joints]
-        ctx.lose(f"tendon '{name}'",
-                 f"fixed-tendon spring k={k:g} on {' + '.join(f'{ci:g}*{n}' for ci, n in zip(c, names))}",
-                 f"approximated: per-joint drives of stiffness {k_joint:g} per rad, exact along the tendon "
-                 "direction through the home pose, spurious for motion orthogonal to it "
-                 "(PhysX fixed tendons would be exact but are not in UsdPhysics)")
+        ctx.lose(
+            f"tendon '{name}'",
+            f"fixed-tendon spring k={k:g} on {' + '.join(f'{ci:g}*{n}' for ci, n in zip(c, names))}",
+            f"approximated: per-joint drives of stiffness {k_joint:g} per rad, exact along the tendon "
+            "direction through the home pose, spurious for motion orthogonal to it "
+            "(PhysX fixed tendons would be exact but are not in UsdPhysics)",
+        )
 
 
 def add_equalities(ctx: ExportContext, joint_paths: dict[int, Sdf.Path]) -> None:
@@ -247,9 +270,12 @@ def add_equalities(ctx: ExportContext, joint_paths: dict[int, Sdf.Path]) -> None
                 prim = ctx.stage.GetPrimAtPath(joint_paths[j1])
                 prim.SetCustomDataByKey("footforge:coupledTo", str(joint_paths.get(j2, n2)))
                 prim.SetCustomDataByKey("footforge:couplingPolycoef", Vt.DoubleArray([float(x) for x in coef]))
-            ctx.lose(f"equality '{name}'", f"joint coupling {relation}",
-                     "recorded in customData only: UsdPhysics has no coupling joint "
-                     "(in Isaac Sim, PhysxMimicJointAPI on the first joint expresses it)")
+            ctx.lose(
+                f"equality '{name}'",
+                f"joint coupling {relation}",
+                "recorded in customData only: UsdPhysics has no coupling joint "
+                "(in Isaac Sim, PhysxMimicJointAPI on the first joint expresses it)",
+            )
         else:
             ctx.lose(f"equality '{name}'", f"{mujoco.mjtEq(kind).name} equality", "dropped")
 

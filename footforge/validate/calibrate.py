@@ -23,12 +23,14 @@ import numpy as np
 from scipy.optimize import minimize
 
 from footforge.errors import InputError
-from footforge.variants import DERIVED
 from footforge.inputs.params import VariantParams, load_params
 from footforge.validate import fidelity
+from footforge.variants import DERIVED
 
-GROUPS = {"aff": (("ankle_pitch",), ("ankle_roll",)),
-          "aof": (("ankle_pitch",), ("ankle_roll",), ("sole_front", "sole_back"))}
+GROUPS = {
+    "aff": (("ankle_pitch",), ("ankle_roll",)),
+    "aof": (("ankle_pitch",), ("ankle_roll",), ("sole_front", "sole_back")),
+}
 LOG_STIFFNESS = (-3.0, 2.3)
 """log10 bounds, N m/rad (1e-3 .. 200)."""
 LOG_DAMPING = (-4.0, 1.3)
@@ -44,8 +46,10 @@ def _vector(params, variant: str) -> np.ndarray:
     x = []
     for group in GROUPS[variant]:
         j = joints[group[0]]
-        x += [math.log10(min(max(j.stiffness, 10 ** LOG_STIFFNESS[0]), 10 ** LOG_STIFFNESS[1])),
-              math.log10(min(max(j.damping, 10 ** LOG_DAMPING[0]), 10 ** LOG_DAMPING[1]))]
+        x += [
+            math.log10(min(max(j.stiffness, 10 ** LOG_STIFFNESS[0]), 10 ** LOG_STIFFNESS[1])),
+            math.log10(min(max(j.damping, 10 ** LOG_DAMPING[0]), 10 ** LOG_DAMPING[1])),
+        ]
     return np.array(x + [params.sole_lift_m[variant] * 100.0])
 
 
@@ -67,8 +71,10 @@ def training_split(scenarios: list) -> tuple[list, list]:
 def variant_params_summary(models, variant: str) -> dict:
     params = models.source.params
     joints = params.joints_for(variant)
-    return {"joints": {n: {"stiffness": j.stiffness, "damping": j.damping} for n, j in joints.items()},
-            "sole_lift_m": params.sole_lift_m[variant]}
+    return {
+        "joints": {n: {"stiffness": j.stiffness, "damping": j.damping} for n, j in joints.items()},
+        "sole_lift_m": params.sole_lift_m[variant],
+    }
 
 
 def mean_series_errors(runs: dict[str, dict], full_runs: dict[str, dict], names) -> dict:
@@ -77,7 +83,8 @@ def mean_series_errors(runs: dict[str, dict], full_runs: dict[str, dict], names)
     if not errs:
         return {}
     return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]} | {
-        "objective": float(np.mean([fidelity.objective(e) for e in errs]))}
+        "objective": float(np.mean([fidelity.objective(e) for e in errs]))
+    }
 
 
 def calibrate(models, pool, scenarios, runs, options, advance) -> dict:
@@ -94,18 +101,30 @@ def calibrate(models, pool, scenarios, runs, options, advance) -> dict:
         best, history = _fit(pool, cases, full, params, variant, models.feet[variant], options, tick)
         joints, lift = _values(best, variant)
         models.reload(variant, write_params(params.source, variant, joints, lift))
-        new_runs = {r["scenario"]: r for r in pool.map(models.cases(variant, scenarios),
-                                                       advance(f"re-running {variant}", len(scenarios)))}
+        new_runs = {
+            r["scenario"]: r
+            for r in pool.map(models.cases(variant, scenarios), advance(f"re-running {variant}", len(scenarios)))
+        }
         out[variant] = {
-            "parameters_before": before, "parameters_after": variant_params_summary(models, variant),
-            "objective_before": history[0], "objective_after": float(min(history)), "evaluations": len(history),
-            "objective_history": history, "written_to": str(params.source),
-            "train": [s.name for s in train], "held_out": [s.name for s in held],
-            "series_errors_before": {"train": mean_series_errors(runs[variant], full, [s.name for s in train]),
-                                     "held_out": mean_series_errors(runs[variant], full, [s.name for s in held])},
-            "series_errors_after": {"train": mean_series_errors(new_runs, full, [s.name for s in train]),
-                                    "held_out": mean_series_errors(new_runs, full, [s.name for s in held])},
-            "runs": new_runs}
+            "parameters_before": before,
+            "parameters_after": variant_params_summary(models, variant),
+            "objective_before": history[0],
+            "objective_after": float(min(history)),
+            "evaluations": len(history),
+            "objective_history": history,
+            "written_to": str(params.source),
+            "train": [s.name for s in train],
+            "held_out": [s.name for s in held],
+            "series_errors_before": {
+                "train": mean_series_errors(runs[variant], full, [s.name for s in train]),
+                "held_out": mean_series_errors(runs[variant], full, [s.name for s in held]),
+            },
+            "series_errors_after": {
+                "train": mean_series_errors(new_runs, full, [s.name for s in train]),
+                "held_out": mean_series_errors(new_runs, full, [s.name for s in held]),
+            },
+            "runs": new_runs,
+        }
     return out
 
 
@@ -118,8 +137,14 @@ def _fit(pool, cases, full: dict, params, variant: str, foot, options, tick) -> 
         joints, lift = _values(x, variant)
         patch = {"joints": joints, "sole_lift_delta_m": lift - params.sole_lift_m[variant]}
         results = pool.map([replace(c, patch=patch) for c in cases])
-        value = float(np.mean([fidelity.objective(fidelity.series_errors(r, full[r["scenario"]]))
-                               if not r["failed"] else 1e6 for r in results]))
+        value = float(
+            np.mean(
+                [
+                    fidelity.objective(fidelity.series_errors(r, full[r["scenario"]])) if not r["failed"] else 1e6
+                    for r in results
+                ]
+            )
+        )
         history.append(value)
         tick()
         return value
@@ -128,15 +153,20 @@ def _fit(pool, cases, full: dict, params, variant: str, foot, options, tick) -> 
     clearance = foot.info["sole_clearance_m"]  # None when only the sole collides (params.FootContact)
     max_lift_cm = np.inf if clearance is None else 100.0 * (params.sole_lift_m[variant] + clearance - 0.0011)
     bounds = [LOG_STIFFNESS, LOG_DAMPING] * len(GROUPS[variant]) + [
-        (LIFT_CM[0], max(LIFT_CM[0], min(LIFT_CM[1], max_lift_cm)))]
+        (LIFT_CM[0], max(LIFT_CM[0], min(LIFT_CM[1], max_lift_cm)))
+    ]
     lower, upper = [b[0] for b in bounds], [b[1] for b in bounds]
     simplex = np.array([x0] + [np.clip(x0 + 0.5 * e, lower, upper) for e in np.eye(len(x0))])
     for i in range(1, len(simplex)):  # a step that hit a bound goes the other way
         if np.allclose(simplex[i], x0):
             simplex[i] = x0 - 0.5 * np.eye(len(x0))[i - 1]
-    result = minimize(objective, x0, method="Nelder-Mead", bounds=bounds,
-                      options={"maxfev": options.calibration_evaluations, "initial_simplex": simplex,
-                               "xatol": 1e-3, "fatol": 1e-5})
+    result = minimize(
+        objective,
+        x0,
+        method="Nelder-Mead",
+        bounds=bounds,
+        options={"maxfev": options.calibration_evaluations, "initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-5},
+    )
     return (result.x if result.fun <= history[0] else x0), history
 
 
@@ -176,8 +206,12 @@ def write_params(path: Path, variant: str, joints: dict[str, dict], lift_m: floa
             lift_done = True
     missing = sorted(set(joints) - seen) + ([] if lift_done else ["sole_lift_m"])
     if missing:
-        raise InputError(f"the parameter file has no {variant}.{', '.join(missing)} to update", file=str(path),
-                         element=variant, fix="start from the project's variant_params.yaml")
+        raise InputError(
+            f"the parameter file has no {variant}.{', '.join(missing)} to update",
+            file=str(path),
+            element=variant,
+            fix="start from the project's variant_params.yaml",
+        )
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         with os.fdopen(fd, "w") as f:
@@ -185,10 +219,19 @@ def write_params(path: Path, variant: str, joints: dict[str, dict], lift_m: floa
         shutil.copymode(path, tmp)
         written = load_params(tmp)
         values = written.joints_for(variant)
-        if not (all(math.isclose(values[n].stiffness, v["stiffness"]) and math.isclose(values[n].damping, v["damping"])
-                    for n, v in joints.items()) and math.isclose(written.sole_lift_m[variant], lift_m)):
-            raise InputError("the rewritten parameter file does not read back as written", file=str(path),
-                             element=variant, fix="check the section's layout: one joint per line, flow mappings")
+        if not (
+            all(
+                math.isclose(values[n].stiffness, v["stiffness"]) and math.isclose(values[n].damping, v["damping"])
+                for n, v in joints.items()
+            )
+            and math.isclose(written.sole_lift_m[variant], lift_m)
+        ):
+            raise InputError(
+                "the rewritten parameter file does not read back as written",
+                file=str(path),
+                element=variant,
+                fix="check the section's layout: one joint per line, flow mappings",
+            )
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -104,11 +105,20 @@ def series_errors(variant: dict, full: dict) -> dict:
 
     def rms(x):
         x = x[np.isfinite(x)]
-        return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
-    return {"force": rms(sv["force_z_n"][:n] - ff) / span,
-            "height_mm": rms(sv["height_m"][after] - sf["height_m"][after]) * 1e3,
-            "orientation_deg": float(np.degrees(np.hypot(rms(sv["pitch_rad"][after] - sf["pitch_rad"][after]),
-                                                         rms(sv["roll_rad"][after] - sf["roll_rad"][after]))))}
+        return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
+
+    return {
+        "force": rms(sv["force_z_n"][:n] - ff) / span,
+        "height_mm": rms(sv["height_m"][after] - sf["height_m"][after]) * 1e3,
+        "orientation_deg": float(
+            np.degrees(
+                np.hypot(
+                    rms(sv["pitch_rad"][after] - sf["pitch_rad"][after]),
+                    rms(sv["roll_rad"][after] - sf["roll_rad"][after]),
+                )
+            )
+        ),
+    }
 
 
 HEIGHT_SCALE_MM = 5.0
@@ -119,19 +129,27 @@ def objective(errors: dict) -> float:
     """The calibration objective of one scenario: (force error)^2 + (height error / 5 mm)^2 +
     (orientation error / 5 deg)^2 (the last left out where the variant has no sole)."""
     orientation = errors["orientation_deg"]
-    return (errors["force"] ** 2 + (errors["height_mm"] / HEIGHT_SCALE_MM) ** 2
-            + (0.0 if math.isnan(orientation) else (orientation / ORIENTATION_SCALE_DEG) ** 2))
+    return (
+        errors["force"] ** 2
+        + (errors["height_mm"] / HEIGHT_SCALE_MM) ** 2
+        + (0.0 if math.isnan(orientation) else (orientation / ORIENTATION_SCALE_DEG) ** 2)
+    )
 
 
 def summarise(per_scenario: dict[str, dict], thresholds: Thresholds) -> dict:
     """Mean and worst of each error over the scenarios, and pass/fail against the thresholds
     (a metric that is undefined for the variant, like the ball's sole orientation, is skipped, and
     so are scenarios whose obstacle the variant or the closed chain missed: `missed_obstacle`)."""
-    out = {"metrics": {}, "passed": True, "failed_runs": sorted(s for s, e in per_scenario.items() if e.get("failed")),
-           "missed_obstacle": sorted(s for s, e in per_scenario.items() if e.get("missed_obstacle"))}
+    out: dict[str, Any] = {
+        "metrics": {},
+        "passed": True,
+        "failed_runs": sorted(s for s, e in per_scenario.items() if e.get("failed")),
+        "missed_obstacle": sorted(s for s, e in per_scenario.items() if e.get("missed_obstacle")),
+    }
     for name, limit in thresholds.as_dict().items():
-        values = np.array([e[name] for e in per_scenario.values()
-                           if not e.get("failed") and not e.get("missed_obstacle")], float)
+        values = np.array(
+            [e[name] for e in per_scenario.values() if not e.get("failed") and not e.get("missed_obstacle")], float
+        )
         values = values[np.isfinite(values)]
         if not values.size:
             out["metrics"][name] = {"mean": None, "max": None, "threshold": limit, "passed": None}

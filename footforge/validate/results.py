@@ -123,13 +123,17 @@ class ValidationReport:
 
     def to_json(self) -> dict:
         """report.json's content: the series left out (series.npz holds them)."""
-        out = {f.name: to_plain(getattr(self, f.name)) for f in fields(self) if f.name not in ("runs", "calibration",
-                                                                                           "passed")}
+        out = {
+            f.name: to_plain(getattr(self, f.name))
+            for f in fields(self)
+            if f.name not in ("runs", "calibration", "passed")
+        }
         if self.calibration is not None:
             out["calibration"] = to_plain(self.calibration)
         out["passed"] = self.passed
-        out["runs"] = {v: {n: {k: r[k] for k in RUN_KEYS if k in r} for n, r in runs.items()}
-                       for v, runs in self.runs.items()}
+        out["runs"] = {
+            v: {n: {k: r[k] for k in RUN_KEYS if k in r} for n, r in runs.items()} for v, runs in self.runs.items()
+        }
         return out
 
     @classmethod
@@ -173,18 +177,23 @@ def from_plain(tp, value):
 
 def json_schema() -> dict:
     """The JSON Schema (draft 2020-12) of report.json, from the classes above."""
-    definitions = {}
+    definitions: dict[str, dict | None] = {}
 
     def schema(tp) -> dict:
-        if dataclasses.is_dataclass(tp):
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):  # a class, never an instance, here
             if tp.__name__ not in definitions:
                 definitions[tp.__name__] = None  # reserved against recursion
                 hints = typing.get_type_hints(tp)
                 definitions[tp.__name__] = {
-                    "type": "object", "description": (tp.__doc__ or "").split("\n\n")[0].strip(),
+                    "type": "object",
+                    "description": (tp.__doc__ or "").split("\n\n")[0].strip(),
                     "properties": {f.name: schema(hints[f.name]) for f in fields(tp)},
-                    "required": [f.name for f in fields(tp)
-                                 if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]}
+                    "required": [
+                        f.name
+                        for f in fields(tp)
+                        if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+                    ],
+                }
             return {"$ref": f"#/$defs/{tp.__name__}"}
         origin, args = typing.get_origin(tp), typing.get_args(tp)
         if origin is dict:
@@ -193,9 +202,19 @@ def json_schema() -> dict:
             return {"type": "array", "items": schema(args[0])}
         if origin in (typing.Union, types.UnionType):
             return {"anyOf": [schema(a) for a in args]}
-        return {str: {"type": "string"}, int: {"type": "integer"}, float: {"type": "number"},
-                bool: {"type": "boolean"}, type(None): {"type": "null"}, Any: {}}[tp]
+        return {
+            str: {"type": "string"},
+            int: {"type": "integer"},
+            float: {"type": "number"},
+            bool: {"type": "boolean"},
+            type(None): {"type": "null"},
+            Any: {},
+        }[tp]
 
     root = schema(ValidationReport)
-    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "footforge validate: report.json",
-            **root, "$defs": definitions}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "footforge validate: report.json",
+        **root,
+        "$defs": definitions,
+    }

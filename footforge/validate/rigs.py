@@ -5,14 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from footforge import constants as C
-from footforge.mjcf import foot as foot_lib
 from footforge.inputs.params import VariantParams
+from footforge.mjcf import foot as foot_lib
 from footforge.mjcf.rig import build_rig
 from footforge.models.foot_source import FootSource
 from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
 from footforge.validate.simulate import RigCase
 from footforge.variants import DERIVED
-
 
 
 def build_feet(source: FootSource, variants) -> dict[str, foot_lib.FootModel | None]:
@@ -33,14 +32,28 @@ def sole_extent(full: foot_lib.FootModel) -> SoleExtent:
     sole = foot_lib.sole_bodies(full)
     pts = foot_lib.collision_points(model, data, sole)
     centre = data.xpos[model.body(full.root_body).id]
-    return SoleExtent(half_length_m=float(np.abs(pts[:, 0] - centre[0]).max()),
-                      half_width_m=float(np.abs(pts[:, 1] - centre[1]).max()))
+    return SoleExtent(
+        half_length_m=float(np.abs(pts[:, 0] - centre[0]).max()),
+        half_width_m=float(np.abs(pts[:, 1] - centre[1]).max()),
+    )
 
 
-def rig_case(foot: foot_lib.FootModel | None, variant: str, scenario: Scenario, sole: SoleExtent,
-             params: VariantParams, friction: float) -> RigCase:
-    rig = build_rig(foot, C.BALL_FOOT_RADIUS_M, variant=variant, params=params, friction=friction,
-                    mount_quat=mount_quat(scenario))
+def rig_case(
+    foot: foot_lib.FootModel | None,
+    variant: str,
+    scenario: Scenario,
+    sole: SoleExtent,
+    params: VariantParams,
+    friction: float,
+) -> RigCase:
+    rig = build_rig(
+        foot, C.BALL_FOOT_RADIUS_M, variant=variant, params=params, friction=friction, mount_quat=mount_quat(scenario)
+    )
     add_obstacle(rig.mjcf, scenario, sole)
-    return RigCase(scenario, variant, rig.mjcf.to_xml_string(), rig.mjcf.get_assets(),
-                   sole_bodies=tuple(foot_lib.sole_bodies(foot)) if foot is not None else ())
+    return RigCase(
+        scenario,
+        variant,
+        rig.mjcf.to_xml_string(),
+        rig.mjcf.get_assets(),
+        sole_bodies=tuple(foot_lib.sole_bodies(foot)) if foot is not None else (),
+    )

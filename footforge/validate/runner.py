@@ -6,24 +6,30 @@ from __future__ import annotations
 import multiprocessing
 import os
 import platform
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
-from typing import Callable
 
 from footforge import __version__
-from footforge.mjcf import foot as foot_lib
 from footforge.errors import InputError
-from footforge.variants import VALIDATED
 from footforge.inputs.params import VariantParams
+from footforge.mjcf import foot as foot_lib
 from footforge.models.foot_source import FootInputs, load_foot_source
 from footforge.processes import die_with_parent
 from footforge.provenance import versions
 from footforge.timing import StageTimer
-from footforge.validate import calibrate as calibration
-from footforge.validate import fidelity, rigs, simulate
-from footforge.validate.results import (Fidelity, FidelitySummary, ReferenceChecks, Speed, ValidationReport,
-                                        from_plain, to_plain)
+from footforge.validate import calibrate as calibration, fidelity, rigs, simulate
+from footforge.validate.results import (
+    Fidelity,
+    FidelitySummary,
+    ReferenceChecks,
+    Speed,
+    ValidationReport,
+    from_plain,
+    to_plain,
+)
 from footforge.validate.scenarios import Scenario, select
+from footforge.variants import VALIDATED
 
 CLOSURE_LIMIT_MM = 0.5
 """The closed chain is a trustworthy reference only if no loop opens by more than this."""
@@ -70,9 +76,16 @@ class Pool:
 
     def __init__(self, jobs: int):
         self.jobs = max(1, int(jobs))
-        self._pool = (ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"),
-                                          initializer=die_with_parent, initargs=(os.getpid(),))
-                      if self.jobs > 1 else None)
+        self._pool = (
+            ProcessPoolExecutor(
+                self.jobs,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=die_with_parent,
+                initargs=(os.getpid(),),
+            )
+            if self.jobs > 1
+            else None
+        )
 
     def map(self, cases: list[simulate.RigCase], progress: Callable[[], None] | None = None) -> list[dict]:
         results = []
@@ -100,7 +113,7 @@ class ValidationModels:
         """Input files with their hashes, checks and warnings (build_report's form)."""
         self.source = load_foot_source(options.foot, stage, self.inputs)
         self.feet = rigs.build_feet(self.source, options.variants)
-        self.sole = rigs.sole_extent(self.feet["full"])
+        self.sole = rigs.sole_extent(self.feet["full"])  # type: ignore[arg-type]  # the closed chain has a foot model
 
     def reload(self, variant: str, params: VariantParams) -> None:
         """Rebuilds `variant`'s foot with updated parameters."""
@@ -108,8 +121,10 @@ class ValidationModels:
         self.feet[variant] = foot_lib.build_derived(self.source, variant, full=self.feet["full"])
 
     def cases(self, variant: str, scenarios: list[Scenario]) -> list[simulate.RigCase]:
-        return [rigs.rig_case(self.feet[variant], variant, s, self.sole, self.source.params,
-                              self.source.sidecar.friction) for s in scenarios]
+        return [
+            rigs.rig_case(self.feet[variant], variant, s, self.sole, self.source.params, self.source.sidecar.friction)
+            for s in scenarios
+        ]
 
 
 def reference_checks(runs: dict[str, dict]) -> ReferenceChecks:
@@ -117,14 +132,23 @@ def reference_checks(runs: dict[str, dict]) -> ReferenceChecks:
     per = {}
     for name, r in runs.items():
         sc = r["scalars"]
-        per[name] = {"failed": r["failed"], "max_closure_gap_mm": sc.get("max_closure_gap_mm"),
-                     "energy_gain_j": sc.get("energy_gain_j")}
+        per[name] = {
+            "failed": r["failed"],
+            "max_closure_gap_mm": sc.get("max_closure_gap_mm"),
+            "energy_gain_j": sc.get("energy_gain_j"),
+        }
     ok = [p for p in per.values() if not p["failed"]]
     worst_gap = max((p["max_closure_gap_mm"] for p in ok), default=float("nan"))
     worst_gain = max((p["energy_gain_j"] for p in ok), default=float("nan"))
     passed = len(ok) == len(per) and worst_gap <= CLOSURE_LIMIT_MM and worst_gain <= ENERGY_GAIN_TOL_J
-    return ReferenceChecks(per_scenario=per, max_closure_gap_mm=worst_gap, closure_limit_mm=CLOSURE_LIMIT_MM,
-                           max_energy_gain_j=worst_gain, energy_gain_tolerance_j=ENERGY_GAIN_TOL_J, passed=passed)
+    return ReferenceChecks(
+        per_scenario=per,
+        max_closure_gap_mm=worst_gap,
+        closure_limit_mm=CLOSURE_LIMIT_MM,
+        max_energy_gain_j=worst_gain,
+        energy_gain_tolerance_j=ENERGY_GAIN_TOL_J,
+        passed=passed,
+    )
 
 
 def speed(runs: dict[str, dict], full_realtime_factor: float | None = None) -> Speed:
@@ -133,8 +157,12 @@ def speed(runs: dict[str, dict], full_realtime_factor: float | None = None) -> S
     simulated = sum(r["steps"] * r["timestep_s"] for r in runs.values())
     wall = sum(r["wall_s"] for r in runs.values())
     factor = simulated / wall if wall else float("nan")
-    return Speed(simulated_s=simulated, wall_s=wall, realtime_factor=factor,
-                 vs_full=factor / (factor if full_realtime_factor is None else full_realtime_factor))
+    return Speed(
+        simulated_s=simulated,
+        wall_s=wall,
+        realtime_factor=factor,
+        vs_full=factor / (factor if full_realtime_factor is None else full_realtime_factor),
+    )
 
 
 def compare(variant_runs: dict[str, dict], full_runs: dict[str, dict], thresholds: fidelity.Thresholds) -> Fidelity:
@@ -143,7 +171,9 @@ def compare(variant_runs: dict[str, dict], full_runs: dict[str, dict], threshold
     return Fidelity(per_scenario=per, summary=from_plain(FidelitySummary, fidelity.summarise(per, thresholds)))
 
 
-def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callable[[], None]] | None = None) -> ValidationReport:
+def validate(
+    options: ValidateOptions, *, progress: Callable[[str, int], Callable[[], None]] | None = None
+) -> ValidationReport:
     """Runs the validation; returns the report (figures, series, definitions) without writing it.
 
     `progress(description, total)` returns a callback to advance by one finished run.
@@ -157,7 +187,7 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
         variants = ("full",) + options.variants
         cases = [c for v in variants for c in models.cases(v, scenarios)]
         results = pool.map(cases, advance("drop tests", len(cases)))
-        runs = {v: {} for v in variants}
+        runs: dict[str, dict[str, dict]] = {v: {} for v in variants}
         for r in results:
             runs[r["variant"]][r["scenario"]] = r
         fidelity_of = {v: compare(runs[v], runs["full"], options.thresholds) for v in options.variants}
@@ -173,10 +203,20 @@ def validate(options: ValidateOptions, *, progress: Callable[[str, int], Callabl
     reference = reference_checks(runs["full"])
     full = speed(runs["full"])
     return ValidationReport(
-        footforge=__version__, versions=versions(), machine=platform.platform(), seed=options.seed, jobs=options.jobs,
-        thresholds=options.thresholds.as_dict(), params=str(models.source.params.source),
-        inputs=models.inputs.get("inputs", {}), scenarios=[s.describe() for s in scenarios],
-        sole_extent_m=asdict(models.sole), reference=reference, speed={v: speed(runs[v], full.realtime_factor) for v in variants},
-        fidelity=fidelity_of, calibration=calibrated, runs=runs,
-        passed=bool(reference.passed and all(f.summary.passed for f in fidelity_of.values())))
-
+        footforge=__version__,
+        versions=versions(),
+        machine=platform.platform(),
+        seed=options.seed,
+        jobs=options.jobs,
+        thresholds=options.thresholds.as_dict(),
+        params=str(models.source.params.source),
+        inputs=models.inputs.get("inputs", {}),
+        scenarios=[s.describe() for s in scenarios],
+        sole_extent_m=asdict(models.sole),
+        reference=reference,
+        speed={v: speed(runs[v], full.realtime_factor) for v in variants},
+        fidelity=fidelity_of,
+        calibration=calibrated,
+        runs=runs,
+        passed=bool(reference.passed and all(f.summary.passed for f in fidelity_of.values())),
+    )

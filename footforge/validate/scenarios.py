@@ -68,29 +68,37 @@ class Scenario:
     def describe(self) -> dict:
         """The parameters that matter for this obstacle kind (for reports)."""
         keep = {"name", "obstacle", "drop_height_m", "leg_pitch_deg", "leg_roll_deg", "duration_s"}
-        keep |= {"slope": {"slope_deg", "slope_axis"}, "step": {"step_side", "step_height_m"},
-                 "cylinder": {"cylinder_radius_m", "cylinder_axis", "x_frac"},
-                 "rock": {"rock_radius_m", "x_frac", "y_frac"},
-                 "rough": {"rough_amplitude_m", "rough_cell_m", "seed"}}.get(self.obstacle, set())
+        keep |= {
+            "slope": {"slope_deg", "slope_axis"},
+            "step": {"step_side", "step_height_m"},
+            "cylinder": {"cylinder_radius_m", "cylinder_axis", "x_frac"},
+            "rock": {"rock_radius_m", "x_frac", "y_frac"},
+            "rough": {"rough_amplitude_m", "rough_cell_m", "seed"},
+        }.get(self.obstacle, set())
         return {k: v for k, v in asdict(self).items() if k in keep}
 
 
 def _scenarios() -> tuple[Scenario, ...]:
-    s = [Scenario("flat_2cm", "flat"), Scenario("flat_5cm", "flat", drop_height_m=0.05),
-         Scenario("flat_10cm", "flat", drop_height_m=0.10)]
+    s = [
+        Scenario("flat_2cm", "flat"),
+        Scenario("flat_5cm", "flat", drop_height_m=0.05),
+        Scenario("flat_10cm", "flat", drop_height_m=0.10),
+    ]
     for axis in ("pitch", "roll"):
         for deg in (10, 20):
             s.append(Scenario(f"slope_{axis}_{deg}deg", "slope", slope_deg=deg, slope_axis=axis))
     s += [Scenario(f"step_{side}", "step", step_side=side) for side in ("toe", "heel", "left")]
-    s += [Scenario("cylinder_across", "cylinder", cylinder_axis="across"),
-          Scenario("cylinder_along", "cylinder", cylinder_axis="along"),
-          Scenario("cylinder_across_10cm", "cylinder", cylinder_axis="across", drop_height_m=0.10)]
+    s += [
+        Scenario("cylinder_across", "cylinder", cylinder_axis="across"),
+        Scenario("cylinder_along", "cylinder", cylinder_axis="along"),
+        Scenario("cylinder_across_10cm", "cylinder", cylinder_axis="across", drop_height_m=0.10),
+    ]
     s += [Scenario(f"rock_{where}", "rock", x_frac=x) for where, x in (("front", 0.6), ("middle", 0.0), ("back", -0.6))]
     s += [Scenario("rock_middle_10cm", "rock", drop_height_m=0.10), Scenario("rock_side", "rock", y_frac=0.6)]
     s += [Scenario(f"rough_seed{k}", "rough", seed=k) for k in range(3)]
     for axis in ("pitch", "roll"):
         for deg in (10, -10):
-            s.append(Scenario(f"leg_{axis}_{deg:+d}deg", "flat", **{f"leg_{axis}_deg": float(deg)}))
+            s.append(Scenario(f"leg_{axis}_{deg:+d}deg", "flat", **{f"leg_{axis}_deg": float(deg)}))  # type: ignore[arg-type]
     s.append(Scenario("slope_pitch_20deg_5cm", "slope", slope_deg=20, slope_axis="pitch", drop_height_m=0.05))
     return tuple(s)
 
@@ -115,8 +123,9 @@ def select(spec: list[str] | tuple[str, ...] | str) -> list[Scenario]:
         return list(SCENARIOS)
     unknown = [n for n in names if n not in BY_NAME]
     if unknown:
-        raise InputError(f"unknown scenario(s): {', '.join(unknown)}",
-                         fix="use quick, all, or names from: " + ", ".join(BY_NAME))
+        raise InputError(
+            f"unknown scenario(s): {', '.join(unknown)}", fix="use quick, all, or names from: " + ", ".join(BY_NAME)
+        )
     return [BY_NAME[n] for n in dict.fromkeys(names)]
 
 
@@ -149,32 +158,53 @@ def add_obstacle(root: mjcf.RootElement, scenario: Scenario, sole: SoleExtent) -
         h = scenario.step_height_m
         half = 0.5
         # A box whose top is at z = h and whose edge passes under the middle of the named part.
-        edge, direction = {"toe": (0.5 * L, [1, 0]), "heel": (-0.5 * L, [-1, 0]),
-                           "left": (0.5 * W, [0, 1]), "right": (-0.5 * W, [0, -1])}[scenario.step_side]
+        edge, direction = {
+            "toe": (0.5 * L, [1, 0]),
+            "heel": (-0.5 * L, [-1, 0]),
+            "left": (0.5 * W, [0, 1]),
+            "right": (-0.5 * W, [0, -1]),
+        }[scenario.step_side]
         centre = np.array(direction, float) * half + (np.array([edge, 0]) if direction[0] else np.array([0, edge]))
         world.add("geom", name="obstacle", type="box", size=[half, half, h / 2], pos=[*centre, h / 2], **kw)
     elif o == "cylinder":
         r = scenario.cylinder_radius_m
-        quat = [0.7071067811865476, 0.7071067811865476, 0, 0] if scenario.cylinder_axis == "across" else \
-            [0.7071067811865476, 0, 0.7071067811865476, 0]
-        world.add("geom", name="obstacle", type="cylinder", size=[r, 0.15], pos=[scenario.x_frac * L, 0, r],
-                  quat=quat, **kw)
+        quat = (
+            [0.7071067811865476, 0.7071067811865476, 0, 0]
+            if scenario.cylinder_axis == "across"
+            else [0.7071067811865476, 0, 0.7071067811865476, 0]
+        )
+        world.add(
+            "geom", name="obstacle", type="cylinder", size=[r, 0.15], pos=[scenario.x_frac * L, 0, r], quat=quat, **kw
+        )
     elif o == "rock":
-        world.add("geom", name="obstacle", type="sphere", size=[scenario.rock_radius_m],
-                  pos=[scenario.x_frac * L, scenario.y_frac * W, 0], **kw)
+        world.add(
+            "geom",
+            name="obstacle",
+            type="sphere",
+            size=[scenario.rock_radius_m],
+            pos=[scenario.x_frac * L, scenario.y_frac * W, 0],
+            **kw,
+        )
     elif o == "rough":
         n, cell = 41, scenario.rough_cell_m
         rng = np.random.default_rng(scenario.seed)
         heights = rng.uniform(0.0, 1.0, size=(n, n))
         # Smooth with a 3x3 mean so bumps are a couple of cells wide, then span [0, 1].
         padded = np.pad(heights, 1, mode="edge")
-        heights = sum(padded[i:i + n, j:j + n] for i in range(3) for j in range(3)) / 9.0
+        heights = sum(padded[i : i + n, j : j + n] for i in range(3) for j in range(3)) / 9.0  # type: ignore[assignment]
         heights = (heights - heights.min()) / (heights.max() - heights.min())
         half = cell * (n - 1) / 2
-        root.asset.add("hfield", name="rough", nrow=n, ncol=n, size=[half, half, scenario.rough_amplitude_m, 0.005],
-                       elevation=heights.ravel().tolist())
+        root.asset.add(
+            "hfield",
+            name="rough",
+            nrow=n,
+            ncol=n,
+            size=[half, half, scenario.rough_amplitude_m, 0.005],
+            elevation=heights.ravel().tolist(),
+        )
         world.add("geom", name="obstacle", type="hfield", hfield="rough", **kw)
     else:
-        raise InputError(f"unknown obstacle kind '{o}' in scenario '{scenario.name}'",
-                         fix="use flat, slope, step, cylinder, rock or rough")
-
+        raise InputError(
+            f"unknown obstacle kind '{o}' in scenario '{scenario.name}'",
+            fix="use flat, slope, step, cylinder, rock or rough",
+        )

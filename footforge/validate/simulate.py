@@ -125,20 +125,26 @@ def _ground_contacts(model, data, foot_mask):
         mujoco.mj_contactForce(model, data, i, force)
         f_world = data.contact.frame[i].reshape(3, 3).T @ force[:3]  # on geom2, along the normal 1 -> 2
         forces[n] = -f_world if on_foot[i, 0] else f_world
-    return (data.contact.pos[chosen].reshape(-1, 3), forces,
-            np.maximum(0.0, -data.contact.dist[chosen]).reshape(-1), geoms[chosen])
+    return (
+        data.contact.pos[chosen].reshape(-1, 3),
+        forces,
+        np.maximum(0.0, -data.contact.dist[chosen]).reshape(-1),
+        geoms[chosen],
+    )
 
 
 def _place(model, data, slider_adr, foot_mask, drop_height_m) -> None:
     """Sets the slider so the foot's lowest point is `drop_height_m` above the obstacle
     (bisection on the first contact; works for every geom type, heightfields included)."""
+
     def touching(z):
         data.qpos[slider_adr] = z
         mujoco.mj_kinematics(model, data)
         mujoco.mj_collision(model, data)
-        geoms = data.contact.geom[:data.ncon].reshape(-1, 2)
+        geoms = data.contact.geom[: data.ncon].reshape(-1, 2)
         on_foot = foot_mask[model.geom_bodyid[geoms]]
-        return bool(((on_foot[:, 0] != on_foot[:, 1]) & (data.contact.dist[:data.ncon] < 0)).any())
+        return bool(((on_foot[:, 0] != on_foot[:, 1]) & (data.contact.dist[: data.ncon] < 0)).any())
+
     lo, hi = -0.5, 0.5
     while not touching(lo):
         lo -= 0.5
@@ -159,8 +165,11 @@ class _RigState:
         self.root = int(model.body_rootid[model.body("carriage").id])
         self.hanging_mass = float(model.body_subtreemass[self.root])
         self.mount = model.site("mount").id
-        connect = [e for e in range(model.neq) if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT
-                   and model.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE]
+        connect = [
+            e
+            for e in range(model.neq)
+            if model.eq_type[e] == mujoco.mjtEq.mjEQ_CONNECT and model.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE
+        ]
         self.site_a, self.site_b = model.eq_obj1id[connect], model.eq_obj2id[connect]
         self._com_jac = np.zeros((3, model.nv))
 
@@ -220,10 +229,28 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     if not np.isclose(every * model.opt.timestep, sample_dt_s, rtol=1e-9, atol=0.0):
         raise ValueError(f"sample interval {sample_dt_s} s is not a multiple of the timestep {model.opt.timestep} s")
     n = steps // every + 1
-    series = {k: np.full(n, np.nan) for k in ("time_s", "force_z_n", "force_peak_n", "impulse_ns", "momentum_z_ns",
-                                              "height_m", "pitch_rad", "roll_rad", "contacts",
-                                              "cop_x_m", "cop_y_m", "spread_m", "penetration_m", "closure_gap_m", "energy_j",
-                                              "sole_x_m", "sole_y_m")}
+    series = {
+        k: np.full(n, np.nan)
+        for k in (
+            "time_s",
+            "force_z_n",
+            "force_peak_n",
+            "impulse_ns",
+            "momentum_z_ns",
+            "height_m",
+            "pitch_rad",
+            "roll_rad",
+            "contacts",
+            "cop_x_m",
+            "cop_y_m",
+            "spread_m",
+            "penetration_m",
+            "closure_gap_m",
+            "energy_j",
+            "sole_x_m",
+            "sole_y_m",
+        )
+    }
     rig = _RigState(model, sole_bodies, sole_local)
     hanging_mass = rig.hanging_mass
     failed, wall, footprint = None, 0.0, np.zeros((0, 3))
@@ -234,7 +261,7 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     # after which the mount no longer descends (its slider velocity >= 0).
     slider_dof = int(slider.dofadr[0])
     touched, compressing, compression_impulse = False, True, 0.0
-    window = collections.deque(maxlen=max(1, int(round(PEAK_WINDOW_S / model.opt.timestep))))
+    window: collections.deque[float] = collections.deque(maxlen=max(1, int(round(PEAK_WINDOW_S / model.opt.timestep))))
     # The foot-ground contacts of the current state: from the placing forward pass, then after
     # every step those of the step just taken (read once, for the force sums and the records).
     pos, force, penetration, pairs = _ground_contacts(model, data, foot_mask)
@@ -264,7 +291,7 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
             compression_impulse += f_z * model.opt.timestep
             compressing = data.qvel[slider_dof] < 0.0
         window.append(f_z)
-        peak = max(peak, sum(window) / window.maxlen)
+        peak = max(peak, sum(window) / window.maxlen)  # type: ignore[operator]  # maxlen given above
         if data.warning.number.any() or not np.isfinite(data.qacc).all():
             warnings = [mujoco.mjtWarning(j).name for j, w in enumerate(data.warning) if w.number]
             failed = f"step {k}: " + (", ".join(warnings) if warnings else "non-finite acceleration")
@@ -274,9 +301,19 @@ def run(case: RigCase, sample_dt_s: float = SAMPLE_DT_S) -> dict:
     if obstacle >= 0 and not failed:
         total = float(np.nansum(series["impulse_ns"]))
         result_scalars["obstacle_share"] = obstacle_impulse / total if total > 0 else 0.0
-    return {"footprint": footprint, "scenario": scenario.name, "variant": case.variant, "series": series,
-            "scalars": result_scalars, "failed": failed, "wall_s": wall, "steps": k,
-            "timestep_s": model.opt.timestep, "supported_weight_n": weight, "hanging_mass_kg": hanging_mass}
+    return {
+        "footprint": footprint,
+        "scenario": scenario.name,
+        "variant": case.variant,
+        "series": series,
+        "scalars": result_scalars,
+        "failed": failed,
+        "wall_s": wall,
+        "steps": k,
+        "timestep_s": model.opt.timestep,
+        "supported_weight_n": weight,
+        "hanging_mass_kg": hanging_mass,
+    }
 
 
 def _tail_mean_deg(values: np.ndarray) -> float:
@@ -300,7 +337,7 @@ def scalars(s: dict, weight_n: float, failed: str | None, compression_impulse_ns
     rising = np.flatnonzero(v[first:] >= 0)
     end = first + int(rising[0]) if rising.size else len(t) - 1
     impulse = float(compression_impulse_ns)
-    low = first + int(np.argmin(h[first:end + 1])) if end > first else first
+    low = first + int(np.argmin(h[first : end + 1])) if end > first else first
     rebound = float(max(0.0, np.nanmax(h[low:]) - final_h))
     peak = int(np.nanargmax(s["force_peak_n"]))
     cop = np.c_[s["cop_x_m"], s["cop_y_m"]]
@@ -312,19 +349,29 @@ def scalars(s: dict, weight_n: float, failed: str | None, compression_impulse_ns
     sole = np.c_[s["sole_x_m"], s["sole_y_m"]]
     supported = np.flatnonzero(f >= weight_n)
     start = int(supported[0]) if supported.size else first
-    slip = float(np.linalg.norm(np.nanmean(sole[tail], axis=0) - sole[start])) if np.isfinite(sole[start]).all() else 0.0
+    slip = (
+        float(np.linalg.norm(np.nanmean(sole[tail], axis=0) - sole[start])) if np.isfinite(sole[start]).all() else 0.0
+    )
     # Released at rest, the rig has only gravity (in the energy), springs (in it too) and
     # dissipative forces acting: its energy may never exceed the initial value.
     energy = s["energy_j"]
     gain = float(np.nanmax(energy) - energy[0])
     return {
-        "peak_force_n": float(s["force_peak_n"][peak]), "impulse_ns": impulse, "settling_time_s": settle,
-        "final_height_m": final_h, "final_force_n": float(np.nanmean(f[tail])),
-        "final_pitch_deg": _tail_mean_deg(s["pitch_rad"][tail]), "final_roll_deg": _tail_mean_deg(s["roll_rad"][tail]),
-        "contacts": float(np.nanmean(s["contacts"][tail])), "cop_x_mm": float(cop_final[0] * 1e3),
+        "peak_force_n": float(s["force_peak_n"][peak]),
+        "impulse_ns": impulse,
+        "settling_time_s": settle,
+        "final_height_m": final_h,
+        "final_force_n": float(np.nanmean(f[tail])),
+        "final_pitch_deg": _tail_mean_deg(s["pitch_rad"][tail]),
+        "final_roll_deg": _tail_mean_deg(s["roll_rad"][tail]),
+        "contacts": float(np.nanmean(s["contacts"][tail])),
+        "cop_x_mm": float(cop_final[0] * 1e3),
         "cop_y_mm": float(cop_final[1] * 1e3),
         "spread_mm": float(np.nanmean(s["spread_m"][tail]) * 1e3) if np.isfinite(s["spread_m"][tail]).any() else 0.0,
-        "rebound_mm": rebound * 1e3, "slip_mm": slip * 1e3,
+        "rebound_mm": rebound * 1e3,
+        "slip_mm": slip * 1e3,
         "max_penetration_mm": float(np.nanmax(s["penetration_m"]) * 1e3),
         "max_closure_gap_mm": float(np.nanmax(s["closure_gap_m"]) * 1e3),
-        "energy_gain_j": gain, "failed": False}
+        "energy_gain_j": gain,
+        "failed": False,
+    }

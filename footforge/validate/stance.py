@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -83,7 +84,9 @@ def foot_loads(model: mujoco.MjModel, *, keyframe: str = "stand", settle_s: floa
     wrench = np.zeros(6)
     for i in range(data.ncon):
         contact = data.contact[i]
-        robot_geom = contact.geom2 if model.geom_bodyid[contact.geom1] == 0 else contact.geom1  # the world's is the ground
+        robot_geom = (
+            contact.geom2 if model.geom_bodyid[contact.geom1] == 0 else contact.geom1
+        )  # the world's is the ground
         leg = model.body(model.geom_bodyid[robot_geom]).name.split("_")[0]
         if leg not in legs:
             continue
@@ -122,13 +125,28 @@ class EnvStance:
     """The episode ended (a fall or a diverged simulation) before the end."""
 
 
-STANCE_TERRAIN_FIELDS = {"num_levels": 3, "num_columns": 6, "tile_size_m": 4.0, "border_m": 2.0, "platform_m": 1.5}
+STANCE_TERRAIN_FIELDS: dict[str, Any] = {
+    "num_levels": 3,
+    "num_columns": 6,
+    "tile_size_m": 4.0,
+    "border_m": 2.0,
+    "platform_m": 1.5,
+}
 """The rough terrain of the stance measurement (TerrainConfig fields): level 0's spawn platform is
 the same as in the full field, which compiles far slower."""
 
 
-def env_stance_start(task: str, feet: str, build_dir: str, *, contact_model: str | None = None,
-                     float64_physics: bool = False, seed: int = 0, physics: str | None = None, **overrides):
+def env_stance_start(
+    task: str,
+    feet: str,
+    build_dir: str,
+    *,
+    contact_model: str | None = None,
+    float64_physics: bool = False,
+    seed: int = 0,
+    physics: str | None = None,
+    **overrides,
+):
     """(environment, start state) of issue 12's stance measurement: the task's default
     configuration (or `contact_model`), pushes off; flat: the task's own reset (the `stand`
     keyframe, joint velocities U(+-0.1) rad/s); rough: level 0 of a small field
@@ -146,14 +164,18 @@ def env_stance_start(task: str, feet: str, build_dir: str, *, contact_model: str
     from footforge.envs.terrain import TerrainConfig
 
     config = envs.default_config(task, feet, "B", contact_model)
-    config = replace(envs.with_float64_physics(config, float64_physics), build_dir=str(build_dir),
-                     pushes=replace(config.pushes, enabled=False))
+    config = replace(
+        envs.with_float64_physics(config, float64_physics),
+        build_dir=str(build_dir),
+        pushes=replace(config.pushes, enabled=False),
+    )
     if physics is not None:
         config = replace(config, physics=physics)
     config = replace(config, **overrides)
     if task == "rough":
-        config = replace(config, reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)),
-                         terrain=TerrainConfig(**STANCE_TERRAIN_FIELDS))
+        config = replace(
+            config, reset=ResetConfig(joint_pos_factor_range=(1.0, 1.0)), terrain=TerrainConfig(**STANCE_TERRAIN_FIELDS)
+        )
     envs.enable_float64_physics(config)
     env = envs.from_config(config)
     key = jax.random.PRNGKey(seed)
@@ -184,5 +206,6 @@ def env_stance(env, state, *, seconds: float, settle_s: float = 0.5, step=None) 
     if fell:
         return EnvStance(float("nan"), float("nan"), min(heights, default=float("nan")), True)
     settled, xy = np.array(heights[settle:]), np.array(feet_xy[settle:])
-    return EnvStance(float(settled[0] - settled.min()), float(np.linalg.norm(xy - xy[0], axis=-1).max()),
-                     float(min(heights)), False)
+    return EnvStance(
+        float(settled[0] - settled.min()), float(np.linalg.norm(xy - xy[0], axis=-1).max()), float(min(heights)), False
+    )

@@ -16,15 +16,41 @@ REPO = Path(__file__).resolve().parents[2]
 # What the GPU machine has (DEVELOPERS' notes on the machine), JAX at its version.
 # Pinned to the set that ran scripts/device/ablations.sh's dry run on 2026-11-26 (the GPU
 # machine's own versions may differ: KINDS.md of the device tool lists some).
-MACHINE_PACKAGES = ["jax==0.11.2", "jaxlib==0.11.2", "flax==0.12.12", "optax==0.2.8", "orbax-checkpoint==0.12.8",
-                    "numpy==2.5.5", "scipy==1.18.1", "matplotlib==3.11.2", "tensorboard==2.21.0", "onnx==1.23.2",
-                    "onnxruntime==1.32.0", "rich==15.0.0", "pyyaml==6.0.4"]
+MACHINE_PACKAGES = [
+    "jax==0.11.2",
+    "jaxlib==0.11.2",
+    "flax==0.12.12",
+    "optax==0.2.8",
+    "orbax-checkpoint==0.12.8",
+    "numpy==2.5.5",
+    "scipy==1.18.1",
+    "matplotlib==3.11.2",
+    "tensorboard==2.21.0",
+    "onnx==1.23.2",
+    "onnxruntime==1.32.0",
+    "rich==15.0.0",
+    "pyyaml==6.0.4",
+]
 # Each job compiles Brax PPO anew, about 5 minutes on 2 busy cores: a 9-minute budget would stop
 # the first job after its first checkpoint (the budget's estimate of an epoch includes the
 # compilation), so the dry run gives each job 30 minutes; tests/test_train.py tests the stop.
 MINUTES = ["--minutes", "30"]
-TINY = ["--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
-        "--eval-envs", "4", "--checkpoint-every", "32", "--physics", "mjx"]
+TINY = [
+    "--num-envs",
+    "8",
+    "--unroll-length",
+    "4",
+    "--batch-size",
+    "8",
+    "--minibatches",
+    "1",
+    "--eval-envs",
+    "4",
+    "--checkpoint-every",
+    "32",
+    "--physics",
+    "mjx",
+]
 """The flat job, tiny. --physics mjx: on the CPU `auto` would take MuJoCo's C engine, and the dry run
 checks the path the GPU takes (MJX)."""
 T0 = time.time()
@@ -45,8 +71,21 @@ def step(name: str, cmd: list[str], **kw) -> subprocess.CompletedProcess:
     return done
 
 
-ROUGH_TINY = ["--no-evaluations", "--num-envs", "8", "--unroll-length", "4", "--batch-size", "8", "--minibatches", "1",
-              "--checkpoint-every", "32", "--physics", "mjx"]
+ROUGH_TINY = [
+    "--no-evaluations",
+    "--num-envs",
+    "8",
+    "--unroll-length",
+    "4",
+    "--batch-size",
+    "8",
+    "--minibatches",
+    "1",
+    "--checkpoint-every",
+    "32",
+    "--physics",
+    "mjx",
+]
 """The prepared rough call's jobs (docs/training.md: AOF P and PH side by side, no evaluations,
 frequent checkpoints), at a size the CPU compiles and runs in minutes."""
 
@@ -80,8 +119,9 @@ def main(argv: list[str]) -> int:
         repo = work / "repo"
         shutil.rmtree(repo, ignore_errors=True)
         repo.mkdir()
-        files = subprocess.run(["git", "-C", REPO, "ls-files", "-z", "-co", "--exclude-standard"],
-                               capture_output=True, check=True).stdout.split(b"\0")
+        files = subprocess.run(
+            ["git", "-C", REPO, "ls-files", "-z", "-co", "--exclude-standard"], capture_output=True, check=True
+        ).stdout.split(b"\0")
         for name in filter(None, (f.decode() for f in files)):
             if (REPO / name).is_file():
                 (repo / name).parent.mkdir(parents=True, exist_ok=True)
@@ -103,15 +143,36 @@ def main(argv: list[str]) -> int:
             return 0
 
         t = time.time()
-        step("train", [run_sh, *MINUTES, "--results", results[0], "train-flat", "ball", "--", *TINY, "--timesteps", "64"],
-             cwd=repo, env=env)
+        step(
+            "train",
+            [run_sh, *MINUTES, "--results", results[0], "train-flat", "ball", "--", *TINY, "--timesteps", "64"],
+            cwd=repo,
+            env=env,
+        )
         first = check(results[0], "train-flat", min_step=64)
         times["train_s"] = time.time() - t
 
         t = time.time()
         shutil.rmtree(repo / "runs")  # a fresh machine: only the tarball comes back
-        step("resume", [run_sh, *MINUTES, "--results", results[1], "--resume", results[0] / "flat_ball_B.tar.gz",
-                        "train-flat", "ball", "--", *TINY, "--timesteps", "128"], cwd=repo, env=env)
+        step(
+            "resume",
+            [
+                run_sh,
+                *MINUTES,
+                "--results",
+                results[1],
+                "--resume",
+                results[0] / "flat_ball_B.tar.gz",
+                "train-flat",
+                "ball",
+                "--",
+                *TINY,
+                "--timesteps",
+                "128",
+            ],
+            cwd=repo,
+            env=env,
+        )
         second = check(results[1], "train-flat", min_step=128)
         progress = json.loads(extract(results[1] / "flat_ball_B.tar.gz", "flat_ball_B/progress.json"))
         if progress.get("resumes") != 1:
@@ -120,16 +181,40 @@ def main(argv: list[str]) -> int:
 
         t = time.time()
         shutil.rmtree(repo / "runs")
-        step("evaluate", [run_sh, *MINUTES, "--results", results[2], "--resume", results[1] / "flat_ball_B.tar.gz",
-                          "evaluate", "flat_ball_B", "--", "--num-envs", "2", "--seconds", "0.4", "--physics", "mjx"], cwd=repo, env=env)
+        step(
+            "evaluate",
+            [
+                run_sh,
+                *MINUTES,
+                "--results",
+                results[2],
+                "--resume",
+                results[1] / "flat_ball_B.tar.gz",
+                "evaluate",
+                "flat_ball_B",
+                "--",
+                "--num-envs",
+                "2",
+                "--seconds",
+                "0.4",
+                "--physics",
+                "mjx",
+            ],
+            cwd=repo,
+            env=env,
+        )
         third = check(results[2], "evaluate", min_step=128)
         indices = third["evaluation"][0]["indices"]
         if "flat_ball_B/evaluation/metrics.json" not in tar_names(results[2] / "flat_ball_B.tar.gz"):
             raise Failed("the evaluation is not in the results tarball")
         times["evaluate_s"] = time.time() - t
-        summary |= {"dryrun": "ok", "jax": third["jax"].get("version"), "steps": [first["global_step"], second["global_step"]],
-                    "forward_error": indices.get("lin_vel_x_error", {}).get("mean") if isinstance(indices, dict) else None,
-                    "tarball_kib": round((results[1] / "flat_ball_B.tar.gz").stat().st_size / 1024)}
+        summary |= {
+            "dryrun": "ok",
+            "jax": third["jax"].get("version"),
+            "steps": [first["global_step"], second["global_step"]],
+            "forward_error": indices.get("lin_vel_x_error", {}).get("mean") if isinstance(indices, dict) else None,
+            "tarball_kib": round((results[1] / "flat_ball_B.tar.gz").stat().st_size / 1024),
+        }
         return 0
     except Failed as e:
         summary["error"] = str(e)
@@ -152,7 +237,11 @@ def rough_campaign(work: Path, repo: Path, env: dict) -> dict:
         t = time.time()
         specs = []
         for policy in ("P", "PH"):
-            resume = f"--resume {work / 'campaign1' / f'train-rough_aof_{policy}' / f'rough_aof_{policy}.tar.gz'} " if call == 2 else ""
+            resume = (
+                f"--resume {work / 'campaign1' / f'train-rough_aof_{policy}' / f'rough_aof_{policy}.tar.gz'} "
+                if call == 2
+                else ""
+            )
             specs.append(f"{resume}train-rough aof {policy} -- {' '.join(ROUGH_TINY)} --timesteps {steps}")
         out = work / f"rough_results{call}"
         shutil.rmtree(out, ignore_errors=True)
@@ -175,13 +264,18 @@ def rough_campaign(work: Path, repo: Path, env: dict) -> dict:
             run = f"rough_aof_{policy}"
             s = check(unpacked / f"train-rough_aof_{policy}", f"train-rough aof {policy}", min_step=steps, run=run)
             if call == 2:
-                progress = json.loads(extract(unpacked / f"train-rough_aof_{policy}" / f"{run}.tar.gz", f"{run}/progress.json"))
+                progress = json.loads(
+                    extract(unpacked / f"train-rough_aof_{policy}" / f"{run}.tar.gz", f"{run}/progress.json")
+                )
                 if progress.get("resumes") != 1:
                     raise Failed(f"{run} did not resume from the first call's checkpoint: {progress}")
             figures[f"{run}_call{call}_step"] = s["global_step"]
         figures[f"rough_call{call}_s"] = round(time.time() - t)
-        figures[f"rough_call{call}_cache_mib"] = round((out / "jax_cache.tar.gz").stat().st_size / 2**20, 1) \
-            if (out / "jax_cache.tar.gz").is_file() else None
+        figures[f"rough_call{call}_cache_mib"] = (
+            round((out / "jax_cache.tar.gz").stat().st_size / 2**20, 1)
+            if (out / "jax_cache.tar.gz").is_file()
+            else None
+        )
     return figures | {"dryrun": "ok", "jax": s.get("jax", {}).get("version")}
 
 

@@ -46,17 +46,33 @@ def main(argv: list[str]) -> int:
     extra: list[str] = []
     if "--" in argv:
         i = argv.index("--")
-        argv, extra = argv[:i], argv[i + 1:]
-    p = argparse.ArgumentParser(prog="run.sh", description=__doc__.splitlines()[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+        argv, extra = argv[:i], argv[i + 1 :]
+    p = argparse.ArgumentParser(
+        prog="run.sh",
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__,
+    )
     p.add_argument("--kit", type=Path, default=REPO / ".kit", help="the kit (prepare.sh's KITDIR; default .kit)")
-    p.add_argument("--results", type=Path, default=Path(os.environ.get("OUT") or "results"),
-                   help="folder for the results (default $OUT, else results/)")
-    p.add_argument("--minutes", type=float, default=9.0,
-                   help="wall-clock budget of the whole job, install excluded (default 9: a 10-minute job)")
+    p.add_argument(
+        "--results",
+        type=Path,
+        default=Path(os.environ.get("OUT") or "results"),
+        help="folder for the results (default $OUT, else results/)",
+    )
+    p.add_argument(
+        "--minutes",
+        type=float,
+        default=9.0,
+        help="wall-clock budget of the whole job, install excluded (default 9: a 10-minute job)",
+    )
     p.add_argument("--runs", type=Path, default=Path("runs"), help="folder of the run folders (default runs/)")
-    p.add_argument("--resume", type=Path, metavar="TARBALL|RUNDIR",
-                   help="a RUN.tar.gz (or run folder) brought back from an earlier job, unpacked into --runs first")
+    p.add_argument(
+        "--resume",
+        type=Path,
+        metavar="TARBALL|RUNDIR",
+        help="a RUN.tar.gz (or run folder) brought back from an earlier job, unpacked into --runs first",
+    )
     p.add_argument("--ppo-envs", type=int, default=4096, help="bench: robots of the PPO throughput run")
     p.add_argument("job", choices=("bench", "train-flat", "train-rough", "evaluate"))
     p.add_argument("names", nargs="*", help="FEET [POLICY] or RUN [FEET...]")
@@ -75,7 +91,9 @@ def run_job(args, extra: list[str]) -> int:
         raise UsageError(f"{args.job} FEET [POLICY]: FEET one of {', '.join(FEET)}")
     if args.job == "evaluate" and not args.names:
         raise UsageError("evaluate RUN [FEET...]")
-    if any(f not in FEET for f in (args.names[1:] if args.job == "evaluate" else args.names if args.job == "bench" else [])):
+    if any(
+        f not in FEET for f in (args.names[1:] if args.job == "evaluate" else args.names if args.job == "bench" else [])
+    ):
         raise UsageError(f"FEET must be among {', '.join(FEET)}")
     results = args.results.resolve()
     results.mkdir(parents=True, exist_ok=True)
@@ -84,8 +102,13 @@ def run_job(args, extra: list[str]) -> int:
     link_builds(args.kit.resolve())
     deadline = T0 + args.minutes * 60
     log = results / f"{args.job}.log"
-    summary: dict = {"job": args.job, "args": args.names, "extra": extra, "machine": platform.node(),
-                     "python": sys.version.split()[0]}
+    summary: dict = {
+        "job": args.job,
+        "args": args.names,
+        "extra": extra,
+        "machine": platform.node(),
+        "python": sys.version.split()[0],
+    }
     if args.resume:
         summary["resumed_from"] = str(args.resume)
         unpack(args.resume, runs)
@@ -96,8 +119,16 @@ def run_job(args, extra: list[str]) -> int:
             raise UsageError(f"{args.job} FEET [POLICY]: FEET one of {', '.join(FEET)}")
         feet, policy = args.names[0], (args.names[1] if len(args.names) > 1 else "B")
         run = runs / f"{task}_{feet}_{policy}"
-        cmd = [sys.executable, str(REPO / f"pipelines/train_{task}.py"), "--feet", feet, "--policy", policy,
-               "--out", str(run)]
+        cmd = [
+            sys.executable,
+            str(REPO / f"pipelines/train_{task}.py"),
+            "--feet",
+            feet,
+            "--policy",
+            policy,
+            "--out",
+            str(run),
+        ]
         if (run / "checkpoints").is_dir() and any(p.name.isdigit() for p in (run / "checkpoints").iterdir()):
             cmd.append("--resume")
         elif run.is_dir():  # a run killed before its first checkpoint: training refuses it without --force
@@ -121,8 +152,18 @@ def run_job(args, extra: list[str]) -> int:
         feet = args.names[1:]
         if any(f not in FEET for f in feet):
             raise UsageError(f"FEET must be among {', '.join(FEET)}")
-        cmd = [sys.executable, str(REPO / "pipelines/evaluate.py"), "--policy", str(run / "policy"),
-               "--out", str(run / "evaluation")] + (["--feet", *feet] if feet else []) + extra
+        cmd = (
+            [
+                sys.executable,
+                str(REPO / "pipelines/evaluate.py"),
+                "--policy",
+                str(run / "policy"),
+                "--out",
+                str(run / "evaluation"),
+            ]
+            + (["--feet", *feet] if feet else [])
+            + extra
+        )
         code = call(cmd, log, timeout=deadline - time.time() - 20)
         summary |= {"run": run.name, "returncode": code} | run_state(run)
         if code == 0:
@@ -138,7 +179,7 @@ def run_job(args, extra: list[str]) -> int:
         with open(env_json, "w") as out:
             code = call(cmd, log, timeout=(deadline - time.time()) * 0.6, stdout=out)
         summary["env_speed_returncode"] = code
-        lines = [l for l in env_json.read_text().splitlines() if l.strip().startswith("{")]
+        lines = [line for line in env_json.read_text().splitlines() if line.strip().startswith("{")]
         summary["env_speed"] = json.loads(lines[-1]) if lines else None
         # PPO throughput: flat ball with the paper's settings, for what is left of the budget.
         run = runs / "bench_ppo_flat_ball"
@@ -146,15 +187,37 @@ def run_job(args, extra: list[str]) -> int:
         train_s = deadline - time.time() - 30
         if train_s > 60:
             n = args.ppo_envs
-            cmd = [sys.executable, str(REPO / "pipelines/train_flat.py"), "--feet", "ball", "--out", str(run),
-                   "--num-envs", str(n), "--batch-size", str(n // 4), "--timesteps", "1000000000",
-                   "--checkpoint-every", str(n * 48 * 10), "--max-minutes", f"{train_s / 60:.3f}"]
+            cmd = [
+                sys.executable,
+                str(REPO / "pipelines/train_flat.py"),
+                "--feet",
+                "ball",
+                "--out",
+                str(run),
+                "--num-envs",
+                str(n),
+                "--batch-size",
+                str(n // 4),
+                "--timesteps",
+                "1000000000",
+                "--checkpoint-every",
+                str(n * 48 * 10),
+                "--max-minutes",
+                f"{train_s / 60:.3f}",
+            ]
             ppo_code = call(cmd, log, timeout=deadline - time.time() - 10)
-            metrics = [json.loads(l) for l in (run / "metrics.jsonl").read_text().splitlines()] \
-                if (run / "metrics.jsonl").is_file() else []
+            metrics = (
+                [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+                if (run / "metrics.jsonl").is_file()
+                else []
+            )
             sps = [m["training/sps"] for m in metrics if "training/sps" in m]
-            summary["ppo"] = {"returncode": ppo_code, "num_envs": n, "training_sps": sps,
-                              "first_eval_wall_s": next((m["wall_s"] for m in metrics if "eval/episode_reward" in m), None)}
+            summary["ppo"] = {
+                "returncode": ppo_code,
+                "num_envs": n,
+                "training_sps": sps,
+                "first_eval_wall_s": next((m["wall_s"] for m in metrics if "eval/episode_reward" in m), None),
+            }
             code = code or ppo_code
         summary["returncode"] = code
 
@@ -163,8 +226,14 @@ def run_job(args, extra: list[str]) -> int:
     summary["forbidden_imported"] = forbidden_in_log(log)
     (results / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     ok = summary.get("returncode") == 0 and not summary["forbidden_imported"]
-    print(json.dumps({k: summary.get(k) for k in ("job", "run", "returncode", "global_step", "num_timesteps",
-                                                 "complete", "wall_s", "tarball")}))
+    print(
+        json.dumps(
+            {
+                k: summary.get(k)
+                for k in ("job", "run", "returncode", "global_step", "num_timesteps", "complete", "wall_s", "tarball")
+            }
+        )
+    )
     return 0 if ok else 1
 
 
@@ -200,8 +269,14 @@ def call(cmd: list[str], log: Path, timeout: float, stdout=None) -> int:
         f.flush()
         wrapped = [cmd[0], str(Path(__file__).with_name("trace_imports.py"))] + cmd[1:]
         try:
-            proc = subprocess.run(wrapped, stdout=stdout or subprocess.PIPE, stderr=subprocess.STDOUT if stdout is None else f,
-                                  text=True, env=env, timeout=max(timeout, 1))
+            proc = subprocess.run(
+                wrapped,
+                stdout=stdout or subprocess.PIPE,
+                stderr=subprocess.STDOUT if stdout is None else f,
+                text=True,
+                env=env,
+                timeout=max(timeout, 1),
+            )
         except subprocess.TimeoutExpired:
             f.write("run: killed at the job's time limit\n")
             return 124
@@ -225,8 +300,13 @@ def run_state(run: Path) -> dict:
     config = json.loads((run / "config.json").read_text()) if (run / "config.json").is_file() else {}
     total = state.get("num_timesteps") or config.get("ppo", {}).get("num_timesteps")
     step = state.get("global_step", 0)
-    return {"global_step": step, "num_timesteps": total, "complete": bool(total) and step >= total,
-            "stopped": state.get("stopped"), "metrics": state.get("metrics", {})}
+    return {
+        "global_step": step,
+        "num_timesteps": total,
+        "complete": bool(total) and step >= total,
+        "stopped": state.get("stopped"),
+        "metrics": state.get("metrics", {}),
+    }
 
 
 def pack(run: Path, results: Path) -> str:
@@ -238,20 +318,23 @@ def pack(run: Path, results: Path) -> str:
     found = [path for _, path in run_checkpoints(run)]
     intact = [p for p in found if checkpoint_problem(p, read=False) is None]
     if found and not intact:
-        print(f"run: warning: no intact checkpoint in {run.name}; packing the newest, {found[-1].name}",
-              file=sys.stderr)
+        print(
+            f"run: warning: no intact checkpoint in {run.name}; packing the newest, {found[-1].name}", file=sys.stderr
+        )
     keep = (intact or found)[-1:]
     folder = run / "checkpoints"
     old = {str(p) for p in folder.iterdir() if p not in keep} if folder.is_dir() else set()
     target = results / f"{run.name}.tar.gz"
     for skip_tb in (False, True):
-        def keep(info: tarfile.TarInfo):
+
+        def keep(info: tarfile.TarInfo, skip_tb=skip_tb):  # this pass's skip_tb, bound
             path = str(run.parent / info.name)
             if any(path == o or path.startswith(o + "/") for o in old):
                 return None
             if skip_tb and (path == str(run / "tensorboard") or path.startswith(str(run / "tensorboard") + "/")):
                 return None
             return info
+
         with tarfile.open(target, "w:gz") as tar:
             tar.add(run, arcname=run.name, filter=keep)
         if target.stat().st_size <= MAX_TARBALL:
@@ -279,8 +362,17 @@ def unpack(source: Path, runs: Path) -> None:
 
 def jax_info() -> dict:
     try:
-        out = subprocess.run([sys.executable, "-c", "import jax, json; print(json.dumps({'version': jax.__version__, "
-                              "'devices': [str(d) for d in jax.devices()]}))"], capture_output=True, text=True, timeout=120)
+        out = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                "import jax, json; print(json.dumps({'version': jax.__version__, "
+                "'devices': [str(d) for d in jax.devices()]}))",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         return json.loads(out.stdout.strip().splitlines()[-1])
     except Exception as e:  # reporting only
         return {"error": str(e)}

@@ -11,8 +11,10 @@ FORBIDDEN = ("dm_control", "pinocchio", "coacd", "pxr", "xacro")
 
 def _report() -> None:
     found = sorted(m for m in FORBIDDEN if m in sys.modules)
-    print(f"footforge-kit: imported {' '.join(found)}" if found else "footforge-kit: no build-time package imported",
-          flush=True)
+    print(
+        f"footforge-kit: imported {' '.join(found)}" if found else "footforge-kit: no build-time package imported",
+        flush=True,
+    )
 
 
 atexit.register(_report)

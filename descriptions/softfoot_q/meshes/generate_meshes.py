@@ -129,9 +129,10 @@ def _seg_intersect(p1, p2, p3, p4) -> bool:
         return 0 if abs(v) < 1e-12 else (1 if v > 0 else -1)
 
     def on_seg(a, b, c):
-        return min(a[0], b[0]) - 1e-12 <= c[0] <= max(a[0], b[0]) + 1e-12 and min(
-            a[1], b[1]
-        ) - 1e-12 <= c[1] <= max(a[1], b[1]) + 1e-12
+        return (
+            min(a[0], b[0]) - 1e-12 <= c[0] <= max(a[0], b[0]) + 1e-12
+            and min(a[1], b[1]) - 1e-12 <= c[1] <= max(a[1], b[1]) + 1e-12
+        )
 
     o1, o2 = orient(p1, p2, p3), orient(p1, p2, p4)
     o3, o4 = orient(p3, p4, p1), orient(p3, p4, p2)
@@ -177,9 +178,7 @@ def triangulate(poly):
             cu = math.hypot(*u) * math.hypot(*v)
             return math.acos(max(-1.0, min(1.0, (u[0] * v[0] + u[1] * v[1]) / cu)))
 
-        return min(
-            ang(b - a, c - a), ang(a - b, c - b), ang(a - c, b - c)
-        )
+        return min(ang(b - a, c - a), ang(a - b, c - b), ang(a - c, b - c))
 
     while len(idx) > 3:
         m = len(idx)
@@ -215,8 +214,7 @@ def arc(center, r, a0, a1, n):
     """Points on a circle from angle a0 to a1 (radians), n segments, n + 1 points."""
     cx, cy = center
     return [
-        (cx + r * math.cos(a0 + (a1 - a0) * i / n), cy + r * math.sin(a0 + (a1 - a0) * i / n))
-        for i in range(n + 1)
+        (cx + r * math.cos(a0 + (a1 - a0) * i / n), cy + r * math.sin(a0 + (a1 - a0) * i / n)) for i in range(n + 1)
     ]
 
 
@@ -372,10 +370,7 @@ def _arch_centerline(n: int):
 
 def _outside_run(curve, centers_radii):
     """Longest contiguous run of curve points outside all given discs."""
-    ok = [
-        all(math.hypot(p[0] - c[0], p[1] - c[1]) > r + 1e-6 for c, r in centers_radii)
-        for p in curve
-    ]
+    ok = [all(math.hypot(p[0] - c[0], p[1] - c[1]) > r + 1e-6 for c, r in centers_radii) for p in curve]
     runs, cur = [], []
     for p, flag in zip(curve, ok):
         if flag:
@@ -476,16 +471,7 @@ def arch_profile():
     # bar leaves the hub along +x and arrives at the boss from +z
     boss_arc = _sweep_arc(ROLL_PIVOT, ARCH_BOSS_R, o_boss, i_boss, avoid_dir=(0.0, 1.0))
     hub_arc = _sweep_arc(ARCH_PIVOT, ARCH_HUB_R, i_hub, o_hub, avoid_dir=(1.0, 0.0))
-    poly = (
-        [o_hub]
-        + outer
-        + [o_boss]
-        + boss_arc
-        + [i_boss]
-        + list(reversed(inner))
-        + [i_hub]
-        + hub_arc
-    )
+    poly = [o_hub] + outer + [o_boss] + boss_arc + [i_boss] + list(reversed(inner)) + [i_hub] + hub_arc
     poly = clip_halfplane(poly, axis=1, bound=ARCH_HUB_ZMAX, keep_below=True)
     poly = clip_halfplane(poly, axis=1, bound=ARCH_BOSS_ZMIN, keep_below=False)
     return poly
@@ -649,9 +635,7 @@ def stl_bytes(mesh: trimesh.Trimesh, name: str) -> bytes:
     n[:, 2] = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
     ln = np.sqrt(n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1] + n[:, 2] * n[:, 2])
     n = n / ln[:, None]
-    dt = np.dtype(
-        [("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")]
-    )
+    dt = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])
     packed = np.zeros(len(tri), dtype=dt)
     packed["normal"] = n
     packed["vertices"] = tri
