@@ -1,5 +1,5 @@
-"""The package layout: each package imports only the ones below it, and the README's
-Architecture section lists every module of the tree."""
+"""The package layout: each package imports only the ones below it, and docs/architecture.md's
+tree lists every module of the package."""
 
 import ast
 import re
@@ -68,9 +68,9 @@ def test_the_layering_check_sees_an_upward_import(tmp_path):
     assert _package_of("footforge.build.pipeline") == "build" and "build" not in ALLOWED["envs"]
 
 
-def test_readme_architecture_lists_every_module():
-    readme = (REPO / "README.md").read_text()
-    section = readme[readme.index("## Architecture") :]
+def test_architecture_page_lists_every_module():
+    page = (REPO / "docs" / "architecture.md").read_text()
+    section = page[page.index("## The package") :]
     tree = section[section.index("```") + 3 :]
     tree = tree[: tree.index("```")]
     listed, folder = set(), None
@@ -85,7 +85,7 @@ def test_readme_architecture_lists_every_module():
             listed.add(f"{folder}/{name}" if indent == 4 else name)
     actual = {str(p.relative_to(PACKAGE)) for p in _modules() if not (p.name == "__init__.py" and p.parent != PACKAGE)}
     assert listed == actual, (
-        f"missing from the README: {sorted(actual - listed)}; listed but absent: {sorted(listed - actual)}"
+        f"missing from docs/architecture.md: {sorted(actual - listed)}; listed but absent: {sorted(listed - actual)}"
     )
 
 
