@@ -156,30 +156,31 @@ def test_reset_and_step_every_registered_env(rollouts, built):
 
 
 def test_reward_terms_on_known_states():
-    cfg = RewardConfig(tracking_sigma=0.25, base_height_target_m=0.52)
+    cfg = RewardConfig()
     Q = rewards.Quantities
     assert float(
-        rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([1.0, 0.0, 0.0])), cfg)
+        rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([1.0, 0.0, 0.0])), sigma=0.25)
     ) == pytest.approx(1.0)
     assert float(
-        rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([0.5, 0.0, 0.0])), cfg)
+        rewards.lin_vel_xy(Q(command=jp.array([1.0, 0.0, 0.0]), lin_vel=jp.array([0.5, 0.0, 0.0])), sigma=0.25)
     ) == pytest.approx(math.exp(-1))
-    assert float(rewards.yaw_rate(Q(command=jp.array([0.0, 0.0, 0.5]), ang_vel=jp.zeros(3)), cfg)) == pytest.approx(
-        math.exp(-1)
-    )
-    assert float(rewards.lin_vel_z(Q(lin_vel=jp.array([0.0, 0.0, 0.3])), cfg)) == pytest.approx(0.09)
-    assert float(rewards.ang_vel_xy(Q(ang_vel=jp.array([0.1, 0.2, 5.0])), cfg)) == pytest.approx(0.05)
-    assert float(rewards.orientation(Q(gravity=jp.array([0.0, 0.0, -1.0])), cfg)) == 0.0
-    tilt = math.radians(30)  # base rolled by 30 deg: gravity has sin(30) along base y
     assert float(
-        rewards.orientation(Q(gravity=jp.array([0.0, math.sin(tilt), -math.cos(tilt)])), cfg)
-    ) == pytest.approx(0.25)
-    assert float(rewards.base_height(Q(base_height=0.42), cfg)) == pytest.approx(0.01)
-    assert float(rewards.torques(Q(torques=jp.full(12, 10.0)), cfg)) == pytest.approx(1200.0)
-    assert float(rewards.joint_acc(Q(joint_vel=jp.ones(12), last_joint_vel=jp.zeros(12)), cfg)) == pytest.approx(12.0)
-    assert float(rewards.action_rate(Q(action=jp.ones(12), last_action=jp.ones(12)), cfg)) == 0.0
-    assert float(rewards.hip(Q(haa_offset=jp.array([0.1, -0.1, 0.0, 0.0])), cfg)) == pytest.approx(0.2)
-    # Each term is declared once, in RewardConfig: its function is the one above, its scale a number.
+        rewards.yaw_rate(Q(command=jp.array([0.0, 0.0, 0.5]), ang_vel=jp.zeros(3)), sigma=0.25)
+    ) == pytest.approx(math.exp(-1))
+    assert float(rewards.lin_vel_z(Q(lin_vel=jp.array([0.0, 0.0, 0.3])))) == pytest.approx(0.09)
+    assert float(rewards.ang_vel_xy(Q(ang_vel=jp.array([0.1, 0.2, 5.0])))) == pytest.approx(0.05)
+    assert float(rewards.orientation(Q(gravity=jp.array([0.0, 0.0, -1.0])))) == 0.0
+    tilt = math.radians(30)  # base rolled by 30 deg: gravity has sin(30) along base y
+    assert float(rewards.orientation(Q(gravity=jp.array([0.0, math.sin(tilt), -math.cos(tilt)])))) == pytest.approx(
+        0.25
+    )
+    assert float(rewards.base_height(Q(base_height=0.42), target_m=0.52)) == pytest.approx(0.01)
+    assert float(rewards.torques(Q(torques=jp.full(12, 10.0)))) == pytest.approx(1200.0)
+    assert float(rewards.joint_acc(Q(joint_vel=jp.ones(12), last_joint_vel=jp.zeros(12)))) == pytest.approx(12.0)
+    assert float(rewards.action_rate(Q(action=jp.ones(12), last_action=jp.ones(12)))) == 0.0
+    assert float(rewards.hip(Q(haa_offset=jp.array([0.1, -0.1, 0.0, 0.0])))) == pytest.approx(0.2)
+    # Each term is declared once, in RewardConfig: its function is the one above, its scale a
+    # number, its parameters the defaults used above.
     terms = rewards.terms(cfg)
     assert list(terms) == [
         "lin_vel_xy",
@@ -196,13 +197,17 @@ def test_reward_terms_on_known_states():
         "stand_still",
     ]
     assert all(term.compute is getattr(rewards, name) and isinstance(term.scale, float) for name, term in terms.items())
+    assert {name: term.params for name, term in terms.items() if term.params} == {
+        "lin_vel_xy": {"sigma": 0.25},
+        "yaw_rate": {"sigma": 0.25},
+        "base_height": {"target_m": 0.52},
+        "feet_air_time": {"target_s": 0.5},
+    }
     assert cfg.feet_air_time.scale == cfg.stand_still.scale == 0.0  # not among the paper's terms: off unless asked for
     # stand_still: |q - default| summed, only under a planar command below 0.1 m/s.
     offset = jp.array([0.1, -0.2, 0.0] * 4)
-    assert float(
-        rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.05, 0.05, 0.8])), cfg)
-    ) == pytest.approx(1.2)
-    assert float(rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.3, 0.0, 0.0])), cfg)) == 0.0
+    assert float(rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.05, 0.05, 0.8])))) == pytest.approx(1.2)
+    assert float(rewards.stand_still(Q(joint_offset=offset, command=jp.array([0.3, 0.0, 0.0])))) == 0.0
 
 
 def test_feet_air_time_pays_touchdowns_after_long_enough_steps():
@@ -228,12 +233,12 @@ def test_feet_air_time_pays_touchdowns_after_long_enough_steps():
     touchdowns = np.array(touchdowns)
     assert touchdowns[31, 0] == pytest.approx(30 * dt) and touchdowns[15, 1] == pytest.approx(10 * dt)
     assert np.count_nonzero(touchdowns) == 2  # one touchdown each; a foot on the ground earns nothing
-    cfg = RewardConfig()
+    term = RewardConfig().feet_air_time  # target_s 0.5
     both = jp.array([0.6, 0.2, 0.0, 0.0])
     moving = rewards.Quantities(command=jp.array([0.5, 0.0, 0.0]), touchdown_air_time=both)
-    assert float(rewards.feet_air_time(moving, cfg)) == pytest.approx((0.6 - 0.5) + (0.2 - 0.5))
+    assert float(term(moving)) == pytest.approx((0.6 - 0.5) + (0.2 - 0.5))
     still = moving._replace(command=jp.zeros(3))
-    assert float(rewards.feet_air_time(still, cfg)) == 0.0
+    assert float(term(still)) == 0.0
 
 
 def test_ground_contacts_count_base_and_knees():

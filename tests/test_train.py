@@ -61,7 +61,8 @@ def test_configs_round_trip_through_json():
     # loading restores it from the declaration.
     saved = json.loads(json.dumps(to_dict(env)))
     assert saved["observations"]["joint_vel"] == {"scale": 0.05, "noise": 1.5}
-    assert saved["rewards"]["lin_vel_z"] == {"scale": -0.03}
+    assert saved["rewards"]["lin_vel_z"] == {"scale": -0.03, "params": {}}
+    assert saved["rewards"]["lin_vel_xy"] == {"scale": 2.0, "params": {"sigma": 0.25}}
     with pytest.raises(InputError, match="unknown configuration key 'lin_vel_scael'"):
         env_config_from_dict({**saved, "observations": {"lin_vel_scael": 2.0}})
 
@@ -89,7 +90,10 @@ def test_configs_saved_before_terms_were_declared_once_load_unchanged():
     assert {name: term.scale for name, term in rewards.terms(r).items()} == {
         name: old["rewards"].get(name, 0.0) for name in rewards.terms(r)
     }
-    assert r.fall == old["rewards"]["fall"] and r.tracking_sigma == old["rewards"]["tracking_sigma"]
+    assert r.fall == old["rewards"]["fall"]
+    # One tracking_sigma then, each tracking term's own sigma now; the base height's target its own too.
+    assert r.lin_vel_xy.params == r.yaw_rate.params == {"sigma": old["rewards"]["tracking_sigma"]}
+    assert r.base_height.params == {"target_m": old["rewards"]["base_height_target_m"]}
 
 
 def test_tiny_ppo_run_increases_the_return(built, tmp_path):

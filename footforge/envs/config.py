@@ -48,21 +48,24 @@ class CommandConfig:
 
 @dataclass(frozen=True)
 class RewardConfig:
-    """The paper's ten terms, each declared once (function and scale), and their parameters.
-    Each term is multiplied by its scale and the policy step dt."""
+    """The paper's ten terms and two of legged_gym's, each declared once, on one line: its function
+    (envs.rewards), scale and own parameters (a RewardTerm). Each term is multiplied by its scale
+    and the policy step dt; the sum, the `reward/<name>` metrics, config.json and the overrides
+    follow these fields, so a new term is its function and its line here."""
 
-    lin_vel_xy: RewardTerm = RewardTerm(rewards.lin_vel_xy, 1.0)
-    """exp(-|v_xy,cmd - v_xy|^2 / sigma)."""
-    yaw_rate: RewardTerm = RewardTerm(rewards.yaw_rate, 0.5)
-    """exp(-(w_z,cmd - w_z)^2 / sigma)."""
+    lin_vel_xy: RewardTerm = RewardTerm(rewards.lin_vel_xy, 1.0, sigma=0.25)
+    """exp(-|v_xy,cmd - v_xy|^2 / sigma), sigma (m/s)^2 the kernel's width (runs saved with one
+    `tracking_sigma` for both tracking terms load it into both: upgrade_saved)."""
+    yaw_rate: RewardTerm = RewardTerm(rewards.yaw_rate, 0.5, sigma=0.25)
+    """exp(-(w_z,cmd - w_z)^2 / sigma), sigma (rad/s)^2."""
     lin_vel_z: RewardTerm = RewardTerm(rewards.lin_vel_z, -4.0)
     """v_z^2, (m/s)^2."""
     ang_vel_xy: RewardTerm = RewardTerm(rewards.ang_vel_xy, -0.05)
     """Roll and pitch rate, |w_xy|^2, (rad/s)^2."""
     orientation: RewardTerm = RewardTerm(rewards.orientation, -1.0)
     """|projected gravity_xy|^2 (unpublished value; the paper turns the term on)."""
-    base_height: RewardTerm = RewardTerm(rewards.base_height, -10.0)
-    """(h - target)^2, m^2, with h the base height over the ground (unpublished value)."""
+    base_height: RewardTerm = RewardTerm(rewards.base_height, -10.0, target_m=0.52)
+    """(h - target_m)^2, m^2, with h the base height over the ground (unpublished value)."""
     torques: RewardTerm = RewardTerm(rewards.torques, -2e-5)
     """sum tau^2, (N m)^2."""
     joint_acc: RewardTerm = RewardTerm(rewards.joint_acc, -5e-4)
@@ -71,20 +74,16 @@ class RewardConfig:
     """sum (a - a_prev)^2."""
     hip: RewardTerm = RewardTerm(rewards.hip, -0.06)
     """sum |q_HAA - default|, rad."""
-    feet_air_time: RewardTerm = RewardTerm(rewards.feet_air_time, 0.0)
-    """sum over touchdowns of (air time - feet_air_time_target_s), s, under a moving command: it
+    feet_air_time: RewardTerm = RewardTerm(rewards.feet_air_time, 0.0, target_s=0.5)
+    """sum over touchdowns of (air time - target_s), s, under a moving command: it
     pays for steps long enough to lift every foot. Not among the paper's terms, so off (0) here and
     on the rough task; the flat task sets legged_gym's 1.0 (envs.FLAT_FEET_AIR_TIME; Playground's
-    Go1 uses 0.8): without it a flat policy walked on three legs (docs/defaults.md)."""
+    Go1 uses 0.8): without it a flat policy walked on three legs (docs/defaults.md). target_s: the
+    air time a step must last to pay, s (legged_gym's 0.5)."""
     stand_still: RewardTerm = RewardTerm(rewards.stand_still, 0.0)
     """sum |q - default| over the actuated joints, rad, under a planar command below 0.1 m/s
     (legged_gym's stand_still term, off there too by default). Not among the paper's terms, so off:
     a lever, with CommandConfig.standing_fraction, for policies that hold still when told to."""
-    feet_air_time_target_s: float = 0.5
-    """Air time a step must last to pay, s (legged_gym's 0.5)."""
-    tracking_sigma: float = 0.25
-    """Width of the tracking kernels, (m/s)^2 and (rad/s)^2."""
-    base_height_target_m: float = 0.52
     clip_total_at_zero: bool = True
     """The baseline clips the summed reward at zero from below."""
     fall: float = -1.0
@@ -442,12 +441,20 @@ _SAVED_BEFORE_TERMS = {  # ObservationConfig's flat keys before each group was d
     "height_noise_m": ("height_scan", "noise"),
 }
 
+_REWARD_PARAMETERS_BEFORE_TERMS_OWNED_THEM = {  # RewardConfig's flat parameters before each term held its own
+    "tracking_sigma": (("lin_vel_xy", "sigma"), ("yaw_rate", "sigma")),
+    "base_height_target_m": (("base_height", "target_m"),),
+    "feet_air_time_target_s": (("feet_air_time", "target_s"),),
+}
+
 
 def upgrade_saved(env: dict) -> dict:
     """An EnvConfig as a run saved it (config.json's "env"), in today's form: runs saved before the
     observation groups and reward terms were declared once hold flat scale and noise keys
-    (lin_vel_scale, ...) and bare reward scales; the values carry over unchanged. Rough runs saved
-    before EnvConfig.heightfield_soles collided their soles as boxes, and load so."""
+    (lin_vel_scale, ...) and bare reward scales, and runs saved before each reward term held its
+    own parameters hold them flat in "rewards" (tracking_sigma, shared by both tracking terms,
+    base_height_target_m, feet_air_time_target_s); the values carry over unchanged. Rough runs
+    saved before EnvConfig.heightfield_soles collided their soles as boxes, and load so."""
     env = dict(env)
     if env.get("task") == "rough" and "heightfield_soles" not in env:
         env["heightfield_soles"] = "box"  # rough runs saved before the key stood on the build's sole boxes
@@ -462,8 +469,15 @@ def upgrade_saved(env: dict) -> dict:
         env["observations"] = obs
     if "rewards" in env:
         reward_terms = rewards.terms(RewardConfig())
-        env["rewards"] = {
+        saved = {
             key: {"scale": value} if key in reward_terms and not isinstance(value, dict) else value
             for key, value in env["rewards"].items()
         }
+        for key, places in _REWARD_PARAMETERS_BEFORE_TERMS_OWNED_THEM.items():
+            if key in saved:
+                value = saved.pop(key)
+                for term, parameter in places:
+                    saved[term] = {**saved.get(term, {})}
+                    saved[term]["params"] = {**saved[term].get("params", {}), parameter: value}
+        env["rewards"] = saved
     return env

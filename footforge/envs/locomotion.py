@@ -330,7 +330,7 @@ class LocomotionEnv(Env):
 
         steps = self._feet_steps(data, info)
         terms, errors = self._reward_terms(data, info, action, steps["touchdown_air_time"])
-        weighted = {name: terms[name] * term.scale * cfg.policy_dt for name, term in rewards.terms(cfg.rewards).items()}
+        weighted = rewards.weighted(cfg.rewards, terms, cfg.policy_dt)
         reward = sum(weighted.values())
         # A robot whose simulation diverged ends its episode as a fall with zero metrics; its
         # NaNs must reach neither the returns nor the policy's inputs. Finiteness (of the state
@@ -523,9 +523,7 @@ class LocomotionEnv(Env):
             touchdown_air_time=touchdown_air_time,
             joint_offset=data.qpos[r.actuated_qpos] - self.default_q,
         )
-        terms = {
-            name: term.compute(q, self.config.rewards) for name, term in rewards.terms(self.config.rewards).items()
-        }
+        terms = rewards.unscaled(self.config.rewards, q)
         command = q.command
         errors = {
             "error/lin_vel_x_per_step": jp.abs(command[0] - lin[0]),

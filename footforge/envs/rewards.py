@@ -1,9 +1,16 @@
 """The paper's ten reward terms (and two optional terms of legged_gym's: feet air time, standing
 still) as pure functions of what they penalise or reward.
 
-Each term is declared once, as a field of RewardConfig (envs.config): its function (here), unit
-and scale (a RewardTerm, envs.terms). The environment measures a step's Quantities once; each function returns its
-unscaled term, which the environment multiplies by the term's scale and the policy step dt.
+Each term is declared once, as a field of RewardConfig (envs.config): its function (here), scale
+and parameters (a RewardTerm, envs.terms), e.g.
+
+    lin_vel_xy: RewardTerm = RewardTerm(rewards.lin_vel_xy, 1.0, sigma=0.25)
+
+A function takes the step's Quantities and, keyword-only, its own parameters, and returns its
+unscaled term. The environment measures a step's Quantities once, evaluates every declared term
+(unscaled), multiplies each by its scale and the policy step dt and sums them; the metrics
+(`reward/<name>`), config.json and the `--set env.rewards.<name>...` overrides all follow
+RewardConfig's fields. Adding a term: its function here and its line in RewardConfig.
 """
 
 from __future__ import annotations
@@ -14,7 +21,7 @@ from typing import TYPE_CHECKING, NamedTuple
 if TYPE_CHECKING:
     import jax
 
-from footforge.envs.terms import RewardParameters, RewardTerm
+from footforge.envs.terms import RewardTerm
 
 
 class Quantities(NamedTuple):
@@ -49,74 +56,75 @@ class Quantities(NamedTuple):
     again; zero on every other step."""
 
 
-def lin_vel_xy(q: Quantities, cfg: RewardParameters) -> jax.Array:
-    """exp(-|command - velocity|^2 / sigma) of the planar velocity, base frame (m/s)."""
+def lin_vel_xy(q: Quantities, *, sigma: float) -> jax.Array:
+    """exp(-|command - velocity|^2 / sigma) of the planar velocity, base frame (m/s); sigma, the
+    kernel's width, (m/s)^2."""
     import jax.numpy as jp  # here, not at the top: envs.config imports this module and stays free of JAX
 
     error = q.command[:2] - q.lin_vel[:2]
-    return jp.exp(-(error * error).sum() / cfg.tracking_sigma)
+    return jp.exp(-(error * error).sum() / sigma)
 
 
-def yaw_rate(q: Quantities, cfg: RewardParameters) -> jax.Array:
-    """exp(-(command - yaw rate)^2 / sigma), rad/s."""
+def yaw_rate(q: Quantities, *, sigma: float) -> jax.Array:
+    """exp(-(command - yaw rate)^2 / sigma), rad/s; sigma, the kernel's width, (rad/s)^2."""
     import jax.numpy as jp
 
-    return jp.exp(-((q.command[2] - q.ang_vel[2]) ** 2) / cfg.tracking_sigma)
+    return jp.exp(-((q.command[2] - q.ang_vel[2]) ** 2) / sigma)
 
 
-def lin_vel_z(q: Quantities, cfg: RewardParameters) -> jax.Array:
+def lin_vel_z(q: Quantities) -> jax.Array:
     """Vertical base velocity squared, (m/s)^2."""
     return q.lin_vel[2] ** 2
 
 
-def ang_vel_xy(q: Quantities, cfg: RewardParameters) -> jax.Array:
+def ang_vel_xy(q: Quantities) -> jax.Array:
     """Roll and pitch rate squared, (rad/s)^2."""
     return (q.ang_vel[:2] ** 2).sum()
 
 
-def orientation(q: Quantities, cfg: RewardParameters) -> jax.Array:
+def orientation(q: Quantities) -> jax.Array:
     """|projected gravity_xy|^2: zero when the base is level (gravity along -z of the base)."""
     return (q.gravity[:2] ** 2).sum()
 
 
-def base_height(q: Quantities, cfg: RewardParameters) -> jax.Array:
-    """(h - target)^2, m^2, with h the base height over the ground."""
-    return (q.base_height - cfg.base_height_target_m) ** 2
+def base_height(q: Quantities, *, target_m: float) -> jax.Array:
+    """(h - target_m)^2, m^2, with h the base height over the ground, m."""
+    return (q.base_height - target_m) ** 2
 
 
-def torques(q: Quantities, cfg: RewardParameters) -> jax.Array:
+def torques(q: Quantities) -> jax.Array:
     """sum tau^2, (N m)^2."""
     return (q.torques**2).sum()
 
 
-def joint_acc(q: Quantities, cfg: RewardParameters) -> jax.Array:
+def joint_acc(q: Quantities) -> jax.Array:
     """sum of squared joint-velocity changes over one policy step, (rad/s)^2: how the paper's
     baseline computes its "joint accelerations" term (the change, not divided by the step)."""
     return ((q.joint_vel - q.last_joint_vel) ** 2).sum()
 
 
-def action_rate(q: Quantities, cfg: RewardParameters) -> jax.Array:
+def action_rate(q: Quantities) -> jax.Array:
     """sum (a - a_prev)^2."""
     return ((q.action - q.last_action) ** 2).sum()
 
 
-def hip(q: Quantities, cfg: RewardParameters) -> jax.Array:
+def hip(q: Quantities) -> jax.Array:
     """sum |q_HAA - default|, rad."""
     return abs(q.haa_offset).sum()
 
 
-def feet_air_time(q: Quantities, cfg: RewardParameters) -> jax.Array:
-    """sum over the feet touching down of (air time - feet_air_time_target_s), s, while the planar
+def feet_air_time(q: Quantities, *, target_s: float) -> jax.Array:
+    """sum over the feet touching down of (air time - target_s), s, while the planar
     command is above 0.1 m/s (legged_gym's feet_air_time: steps of at least the target length
     pay, shorter ones cost; no reward for stepping in place under a zero command)."""
     import jax.numpy as jp
 
     landed = q.touchdown_air_time > 0
     moving = jp.linalg.norm(q.command[:2]) > 0.1
-    return jp.where(landed, q.touchdown_air_time - cfg.feet_air_time_target_s, 0.0).sum() * moving
+    return jp.where(landed, q.touchdown_air_time - target_s, 0.0).sum() * moving
 
 
-def stand_still(q: Quantities, cfg: RewardParameters) -> jax.Array:
+def stand_still(q: Quantities) -> jax.Array:
     """sum |q - default| over the actuated joints, rad, while the planar command is below 0.1 m/s
     (legged_gym's stand_still: under a zero command, hold the default pose; nothing otherwise)."""
     import jax.numpy as jp
@@ -127,3 +135,14 @@ def stand_still(q: Quantities, cfg: RewardParameters) -> jax.Array:
 def terms(cfg) -> dict[str, RewardTerm]:
     """name -> RewardTerm of every term of a RewardConfig, in declaration order."""
     return {f.name: getattr(cfg, f.name) for f in fields(cfg) if isinstance(getattr(cfg, f.name), RewardTerm)}
+
+
+def unscaled(cfg, q: Quantities) -> dict[str, jax.Array]:
+    """name -> each term of a RewardConfig on a step's quantities, before its scale and dt."""
+    return {name: term(q) for name, term in terms(cfg).items()}
+
+
+def weighted(cfg, values: dict[str, jax.Array], dt: float) -> dict[str, jax.Array]:
+    """name -> each term's unscaled value (unscaled's) times its scale and the policy step dt: the
+    summands of the reward."""
+    return {name: values[name] * term.scale * dt for name, term in terms(cfg).items()}

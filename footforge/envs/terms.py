@@ -7,9 +7,12 @@ this module imports neither, so that no import circle joins them.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import inspect
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol
+
+from footforge.errors import InputError
 
 if TYPE_CHECKING:
     import jax
@@ -20,26 +23,55 @@ NOT_SAVED = {"saved": False}
 """Field metadata: declared in code, not written to a run's config.json (functions, widths)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class RewardTerm:
-    """One reward term: its function and its scale."""
+    """One reward term: its function, its scale and its own parameters, declared on one line of
+    RewardConfig, e.g. `RewardTerm(rewards.lin_vel_xy, 1.0, sigma=0.25)`.
+
+    The function takes the step's quantities (rewards.Quantities) and, as keyword-only arguments,
+    exactly the parameters named here (checked when the term is made). config.json holds a term as
+    {"scale": ..., "params": {...}}; `--set env.rewards.<term>.params.<name>=...` sets one."""
 
     compute: Callable = field(default=None, metadata=NOT_SAVED)
-    """(rewards.Quantities, RewardParameters) -> the unscaled term (envs.rewards, whose docstrings give
-    each term's formula and unit)."""
+    """(rewards.Quantities, **params) -> the unscaled term (envs.rewards, whose docstrings give each
+    term's formula and unit)."""
     scale: float = 0.0
     """Multiplies the term (and the policy step dt): positive rewards, negative penalises."""
+    params: dict[str, Any] = field(default_factory=dict)
+    """The function's own parameters by name (a kernel's width, a target height, ...), in their units."""
 
+    def __init__(
+        self,
+        compute: Callable | None = None,
+        scale: float = 0.0,
+        params: Mapping[str, Any] | None = None,
+        **named: Any,
+    ):
+        # Parameters come by name (the declarations' form) or as one mapping (dataclasses.replace's
+        # and rl.config.from_dict's form).
+        object.__setattr__(self, "compute", compute)
+        object.__setattr__(self, "scale", scale)
+        object.__setattr__(self, "params", {**(params or {}), **named})
+        if compute is not None:
+            takes = {
+                p.name
+                for p in inspect.signature(compute).parameters.values()
+                if p.kind is inspect.Parameter.KEYWORD_ONLY
+            }
+            if set(self.params) != takes:
+                name = getattr(compute, "__name__", repr(compute))
+                raise InputError(
+                    f"reward term {name}: parameters {sorted(self.params)} given, its function takes {sorted(takes)}",
+                    fix=f"give exactly: {', '.join(sorted(takes)) or 'none'} (a run's config.json: "
+                    f'"rewards": {{"{name}": {{"params": {{...}}}}}})',
+                )
 
-class RewardParameters(Protocol):
-    """The parameters the reward functions read besides the step's quantities (RewardConfig's)."""
+    def __hash__(self) -> int:  # params is a dict: hashed by its items, so that configurations stay hashable
+        return hash((self.compute, self.scale, tuple(sorted(self.params.items()))))
 
-    tracking_sigma: float
-    """Width of the tracking kernels, (m/s)^2 and (rad/s)^2."""
-    base_height_target_m: float
-    """Base height the base-height term measures from, m."""
-    feet_air_time_target_s: float
-    """Air time a step must last to pay, s."""
+    def __call__(self, q) -> jax.Array:
+        """The unscaled term of a step's quantities (rewards.Quantities), with this term's parameters."""
+        return self.compute(q, **self.params)
 
 
 @dataclass(frozen=True)

@@ -132,17 +132,23 @@ def default_ppo(task: str, **overrides) -> PPOConfig:
 
 def to_dict(config) -> dict:
     """A (nested) frozen dataclass as config.json holds it: every field but those declared in code
-    (metadata "saved": False, e.g. an observation group's reading function)."""
-    return {
-        f.name: to_dict(v) if is_dataclass(v := getattr(config, f.name)) else (list(v) if isinstance(v, tuple) else v)
-        for f in fields(config)
-        if f.metadata.get("saved", True)
-    }
+    (metadata "saved": False, e.g. an observation group's reading function or a reward term's
+    function); a mapping (a reward term's params) as a JSON object."""
+    return {f.name: _saved(getattr(config, f.name)) for f in fields(config) if f.metadata.get("saved", True)}
+
+
+def _saved(value):
+    if is_dataclass(value):
+        return to_dict(value)
+    if isinstance(value, dict):
+        return {k: _saved(v) for k, v in value.items()}
+    return list(value) if isinstance(value, tuple) else value
 
 
 def from_dict(cls, data: dict, default=None):
     """A (nested) frozen dataclass from its to_dict() form; tuples restored from lists. Fields
-    not in `data` keep their defaults (`default`, an instance, where the class has none)."""
+    not in `data` keep their defaults (`default`, an instance, where the class has none); a
+    mapping (a reward term's params) is updated key by key over its default."""
     kwargs = {}
     types = {f.name: f for f in fields(cls)}
     for name, value in data.items():
@@ -157,6 +163,8 @@ def from_dict(cls, data: dict, default=None):
         )
         if is_dataclass(field_default):
             value = from_dict(type(field_default), value, field_default)
+        elif isinstance(field_default, dict) and isinstance(value, dict):
+            value = field_default | {k: tuple(v) if isinstance(v, list) else v for k, v in value.items()}
         elif isinstance(value, list):
             value = tuple(value)
         kwargs[name] = value

@@ -7,6 +7,7 @@ feet and policy type (envs.default_config, rl.config.default_ppo), then override
 
 An override names a leaf of config.json's form of the configuration (rl.config.to_dict), `env.`
 or `ppo.` first: `env.commands.resample_s=10`, `env.rewards.feet_air_time.scale=0`,
+`env.rewards.lin_vel_xy.params.sigma=0.5` (a reward term's own parameter),
 `ppo.policy_hidden_layers=512,256,128`. Its value is read as the type of the field it sets (a
 comma-separated list for a tuple, true/false for a flag, none where the field may be None). This is
 the pattern of Isaac Lab's Hydra overrides (`env.rewards.x.weight=...`) and mjlab's tyro CLI, in
@@ -250,6 +251,16 @@ def _assign(config, path: tuple[str, ...], value_text: str, text: str, source: s
             fix=f"did you mean {' or '.join(close)}?" if close else f"its fields: {', '.join(saved)}",
         )
     current = getattr(config, name)
+    if len(path) == 2 and isinstance(current, dict):  # a mapping of values: a reward term's params
+        key = path[1]
+        if key not in current:
+            close = difflib.get_close_matches(key, list(current), n=3)
+            raise InputError(
+                f"{source} {text}: '{name}' has no '{key}'",
+                fix=f"did you mean {' or '.join(close)}?" if close else f"its keys: {', '.join(current) or 'none'}",
+            )
+        value = _parsed(value_text, current[key], _type_of(current[key]), text, source)
+        return replace(config, **{name: {**current, key: value}})
     if len(path) > 1:
         if not is_dataclass(current):
             raise InputError(f"{source} {text}: '{name}' is a value, not a section", fix=f"set {name}=VALUE")
