@@ -1,6 +1,7 @@
 """The command line: exit codes, messages that name file/element/fix, no partial output."""
 
 import math
+import re
 import shutil
 
 import numpy as np
@@ -415,6 +416,97 @@ def test_every_option_of_every_job_says_what_it_does_and_its_default():
                     if value not in flat and (value.rstrip("0").rstrip(".") if "." in value else value) not in flat:
                         missing.append(f"{job} {name}: default {value} not shown")
     assert not missing, "\n".join(missing)
+
+
+def _named_defaults(job: str) -> dict[str, list]:
+    """Per option, the configuration defaults its help names where argparse holds none (or holds a
+    copy): the dataclass field (or module constant) each stands for."""
+    from footforge.envs.config import EnvConfig
+    from footforge.models.collision import DecompositionConfig
+    from footforge.rl.config import default_ppo
+    from footforge.rl.evaluate import SECONDS
+    from footforge.rl.play import PlayConfig
+
+    decomposition = DecompositionConfig()
+    named: dict[str, dict[str, list]] = {
+        "build": {
+            "--max-hull-vertices": [decomposition.max_hull_vertices],
+            "--coacd-timeout": [decomposition.timeout_s],
+            "--face-budget": [decomposition.face_budget],
+        },
+        "evaluate": {"--seconds": list(SECONDS.values())},
+        "play": {"--seed": [PlayConfig.seed]},
+    }
+    named["validate"] = {k: v for k, v in named["build"].items()}
+    for task in ("flat", "rough"):
+        ppo, env = default_ppo(task), EnvConfig()
+        named[f"train {task}"] = {
+            "--feet": [env.feet],
+            "--policy": [env.policy],
+            "--num-envs": [ppo.num_envs],
+            "--timesteps": [ppo.num_timesteps],
+            "--seed": [ppo.seed],
+            "--unroll-length": [ppo.unroll_length],
+            "--batch-size": [ppo.batch_size],
+            "--minibatches": [ppo.num_minibatches],
+            "--checkpoint-every": [ppo.checkpoint_every_steps],
+            "--eval-envs": [ppo.num_eval_envs],
+            "--contact-model": [env.contact_model],
+            "--mjx-impl": [env.mjx_impl],
+        }
+    return named.get(job, {})
+
+
+_FIGURE = re.compile(r"(?<![\w.])-?\d[\d,]*(?:\.\d+)?(?:e[+-]?\d+)?(?![\w])")
+
+
+def test_every_default_a_help_names_is_the_one_in_use():
+    """Each figure in an option's '(default ...)' (up to a bracket, ';' or ':') is the option's
+    argparse default or the configuration default it stands for (_named_defaults: EnvConfig,
+    PPOConfig through default_ppo, DecompositionConfig, PlayConfig, rl.evaluate.SECONDS), so a
+    default changed in a dataclass cannot leave a stale figure in --help; where an option stands
+    for a dataclass field, its argparse default (if any) is that field's and its help names it."""
+    import argparse
+
+    from footforge.cli.main import parsers
+
+    wrong, checked = [], 0
+    for job, parser in parsers().items():
+        named = _named_defaults(job)
+        formatter = parser._get_formatter()
+        for action in parser._actions:
+            if isinstance(action, argparse._HelpAction) or not action.help or action.help == argparse.SUPPRESS:
+                continue
+            name = action.option_strings[0] if action.option_strings else action.dest
+            text = (
+                " ".join(formatter._expand_help(action).split())
+                if "%(" in action.help
+                else " ".join(action.help.split())
+            )
+            if action.option_strings and "default" not in text.lower() and "%(default)" not in action.help:
+                text = " ".join(formatter._get_help_string(action).replace("%(default)s", str(action.default)).split())
+            defaults = action.default if isinstance(action.default, (list, tuple)) else [action.default]
+            allowed = [d for d in [*defaults, *named.get(name, [])] if d is not None and not isinstance(d, bool)]
+            for phrase in re.findall(r"default:?[^);:]*", text, flags=re.IGNORECASE):
+                for figure in _FIGURE.findall(phrase):
+                    checked += 1
+                    value = float(figure.replace(",", ""))
+                    if not any(isinstance(d, (int, float)) and math.isclose(value, d) for d in allowed):
+                        wrong.append(f"{job} {name}: '{figure}' in \"{phrase}\" is none of {allowed}")
+            for value in named.get(name, []):
+                if action.default not in (None, [], argparse.SUPPRESS) and action.default != value:
+                    wrong.append(f"{job} {name}: argparse default {action.default!r}, the configuration's {value!r}")
+                shown = (
+                    f"{value:,}"
+                    if isinstance(value, int) and value >= 10_000
+                    else f"{value:g}"
+                    if isinstance(value, float)
+                    else str(value)
+                )
+                if len(named[name]) == 1 and shown not in text and str(value) not in text:
+                    wrong.append(f"{job} {name}: the help does not name its default {value!r}: {text!r}")
+    assert checked > 20  # the figures are found at all
+    assert not wrong, "\n".join(wrong)
 
 
 def test_commands_hold_back_mjx_s_lines_about_a_missing_warp():

@@ -35,8 +35,8 @@ def parser(prog: str = "footforge evaluate-closed-chain") -> argparse.ArgumentPa
         help="training runs' folders (each its policy/, or without an intact one its newest intact "
         "checkpoint), policy/ folders, or checkpoints/<step>/ folders",
     )
-    p.add_argument("--seconds", type=float, default=10.0, help="simulated time per robot (default 10)")
-    p.add_argument("--robots", type=int, default=4, help="robots per feet (default 4)")
+    p.add_argument("--seconds", type=float, default=10.0, help="simulated time per robot (default %(default)g)")
+    p.add_argument("--robots", type=int, default=4, help="robots per feet (default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the commands and observation noise")
     p.add_argument(
         "--terrain",

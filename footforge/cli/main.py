@@ -85,7 +85,9 @@ def _add_description_options(p: argparse.ArgumentParser, params_help: str | None
     p.add_argument(
         "--repair", action="store_true", help="repair repairable description defects (reported in build_report.json)"
     )
-    p.add_argument("--max-hull-vertices", type=int, default=64, help="vertex cap per convex hull (default 64)")
+    # DecompositionConfig's defaults (footforge.models.collision, whose trimesh import would slow every
+    # command's start), checked against it by tests/test_cli.py.
+    p.add_argument("--max-hull-vertices", type=int, default=64, help="vertex cap per convex hull (default %(default)s)")
     p.add_argument(
         "--coacd-timeout",
         type=float,
@@ -97,7 +99,7 @@ def _add_description_options(p: argparse.ArgumentParser, params_help: str | None
         "--face-budget",
         type=int,
         default=DEFAULT_FACE_BUDGET,
-        help=f"simplify collision meshes above this many faces before CoACD (default {DEFAULT_FACE_BUDGET}; 0: never)",
+        help="simplify collision meshes above this many faces before CoACD (default %(default)s; 0: never)",
     )
     p.add_argument("--cache-dir", type=Path, help="CoACD cache folder (default ~/.cache/footforge/coacd)")
 

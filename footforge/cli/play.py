@@ -27,6 +27,7 @@ PROG = "footforge play"
 def parser(prog: str = "footforge play") -> argparse.ArgumentParser:
     """The options of `footforge play`."""
     from footforge.cli.help import DocstringHelpFormatter
+    from footforge.rl.play import PlayConfig
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
     p.add_argument(
@@ -45,9 +46,9 @@ def parser(prog: str = "footforge play") -> argparse.ArgumentParser:
     p.add_argument(
         "--build-root", type=Path, help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)"
     )
-    p.add_argument("--seed", type=int, default=0, help="observation noise seed (default 0)")
+    p.add_argument("--seed", type=int, default=PlayConfig.seed, help="observation noise seed (default %(default)s)")
     p.add_argument("--headless", action="store_true", help="no viewer: run --seconds under --command")
-    p.add_argument("--seconds", type=float, default=10.0, help="headless: simulated seconds (default 10)")
+    p.add_argument("--seconds", type=float, default=10.0, help="headless: simulated seconds (default %(default)g)")
     p.add_argument(
         "--command",
         type=float,
@@ -57,8 +58,8 @@ def parser(prog: str = "footforge play") -> argparse.ArgumentParser:
         help="headless: forward and lateral velocity (m/s) and yaw rate (rad/s); default 0 0 0",
     )
     p.add_argument("--video", type=Path, metavar="FILE.gif", help="headless: write a GIF (25 fps, real time)")
-    p.add_argument("--width", type=int, default=480, help="video width in pixels (default 480)")
-    p.add_argument("--height", type=int, default=270, help="video height in pixels (default 270)")
+    p.add_argument("--width", type=int, default=480, help="video width in pixels (default %(default)s)")
+    p.add_argument("--height", type=int, default=270, help="video height in pixels (default %(default)s)")
     p.add_argument("--log", type=Path, metavar="FILE.json", help="headless: write the robot's states per policy step")
     p.add_argument("--force", action="store_true", help="replace --video or --log even if footforge did not write it")
     return p

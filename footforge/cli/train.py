@@ -28,8 +28,11 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     """The options of `footforge train TASK`."""
     from footforge.cli.help import DefaultsHelpFormatter
     from footforge.envs import FEET, TASKS
+    from footforge.envs.config import EnvConfig
     from footforge.rl.config import default_ppo
 
+    # Defaults the help names are read from the configuration dataclasses (tests/test_cli.py checks them).
+    env, ppo = EnvConfig(), default_ppo(task)
     p = argparse.ArgumentParser(prog=prog, description=description, formatter_class=DefaultsHelpFormatter)
     from footforge.rl import presets
 
@@ -49,14 +52,16 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
         "--set env.commands.resample_s=10 --set env.rewards.feet_air_time.scale=0 (repeatable, "
         "applied in order after the preset and the flags below)",
     )
-    p.add_argument("--feet", choices=FEET, help="foot variant (default aof)")
-    p.add_argument("--policy", choices=TASKS[task], help="policy type (default B)")
-    p.add_argument("--num-envs", type=int, help="parallel robots (default: the preset's; the task's 2048)")
+    p.add_argument("--feet", choices=FEET, help=f"foot variant (default {env.feet})")
+    p.add_argument("--policy", choices=TASKS[task], help=f"policy type (default {env.policy})")
+    p.add_argument(
+        "--num-envs", type=int, help=f"parallel robots (default: the preset's, from the task's {ppo.num_envs})"
+    )
     p.add_argument(
         "--timesteps",
         type=int,
-        help=f"environment steps in total (default: the preset's; the task's "
-        f"{default_ppo(task).num_timesteps:,}; with --resume it may extend "
+        help=f"environment steps in total (default: the preset's, from the task's "
+        f"{ppo.num_timesteps:,}; with --resume it may extend "
         "the run, or with --shorten end it earlier)",
     )
     p.add_argument(
@@ -64,7 +69,7 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
         action="store_true",
         help="with --resume and --timesteps: allow a total below the run's own (refused without it)",
     )
-    p.add_argument("--seed", type=int, help="(default 0)")
+    p.add_argument("--seed", type=int, help=f"(default {ppo.seed})")
     p.add_argument("--out", type=Path, required=True, help="run folder")
     p.add_argument(
         "--resume",
@@ -83,14 +88,24 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
         help="wall-clock budget: stop at the last checkpoint that leaves no time for another epoch "
         "(for time-limited jobs; --resume continues)",
     )
-    p.add_argument("--unroll-length", type=int, help="policy steps per robot per iteration (the task's default 48)")
-    p.add_argument("--batch-size", type=int, help="trajectories per minibatch (the task's default 512)")
-    p.add_argument("--minibatches", type=int, help="minibatches per iteration (the task's default 4)")
     p.add_argument(
-        "--checkpoint-every", type=int, help="environment steps between checkpoints (the task's default 5e6)"
+        "--unroll-length",
+        type=int,
+        help=f"policy steps per robot per iteration (the task's default {ppo.unroll_length})",
+    )
+    p.add_argument("--batch-size", type=int, help=f"trajectories per minibatch (the task's default {ppo.batch_size})")
+    p.add_argument(
+        "--minibatches", type=int, help=f"minibatches per iteration (the task's default {ppo.num_minibatches})"
     )
     p.add_argument(
-        "--eval-envs", type=int, help="robots per evaluation (the task's default 128, or --num-envs if fewer)"
+        "--checkpoint-every",
+        type=int,
+        help=f"environment steps between checkpoints (the task's default {ppo.checkpoint_every_steps:,})",
+    )
+    p.add_argument(
+        "--eval-envs",
+        type=int,
+        help=f"robots per evaluation (the task's default {ppo.num_eval_envs}, or --num-envs if fewer)",
     )
     p.add_argument(
         "--no-compile-cache",
@@ -116,7 +131,8 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
         "--contact-model",
         choices=["stance", "fast"],
         help="the MJX contact model (EnvConfig.contact_model) with the step and solver iterations it "
-        "needs (default: the preset's; default stance, cpu and forward fast): stance holds a standing robot "
+        f"needs (default: the preset's; default {env.contact_model}, cpu and forward fast): stance holds a "
+        "standing robot "
         "(2.5 ms step); fast is 2-3x cheaper on the "
         "CPU but a robot at rest sinks and slides 150-180 mm in 10 s (5 ms step)",
     )
@@ -130,7 +146,7 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     p.add_argument(
         "--mjx-impl",
         choices=["jax", "warp"],
-        help="MJX's backend (EnvConfig.mjx_impl; default jax): warp needs MuJoCo Warp and an NVIDIA GPU",
+        help=f"MJX's backend (EnvConfig.mjx_impl; default {env.mjx_impl}): warp needs MuJoCo Warp and an NVIDIA GPU",
     )
     p.add_argument(
         "--float64-physics",
@@ -443,9 +459,10 @@ def _recipe(task: str, args, feet: str, policy: str, preset_name: str | None = N
 
 def _new_configs(task: str, args):
     from footforge.envs import engine
+    from footforge.envs.config import EnvConfig
     from footforge.rl import presets
 
-    feet, policy = args.feet or "aof", args.policy or "B"
+    feet, policy = args.feet or EnvConfig.feet, args.policy or EnvConfig.policy  # the defaults --help names
     name, overrides = _recipe(task, args, feet, policy)
     env_config, ppo = presets.resolve(task, feet, policy, name, overrides)
     args.recipe = {"preset": name, "overrides": overrides}
