@@ -802,3 +802,37 @@ def test_policy_types_swept_by_the_benchmarks():
     assert envs.policy_types("rough", "ball", ["B", "PH", "P"]) == ["B", "P"]  # PH stands for P on ball feet
     assert envs.policy_types("rough", "aof", ["B", "PH"]) == ["B", "PH"]
     assert envs.policy_types("flat", "aof", ["B", "PH"]) == ["B"]  # the flat task has blind policies only
+
+
+def test_observation_noise_is_uniform_within_each_term_s_scale(built):
+    """EnvConfig.observations.<term>.noise: each term's observation is its noiseless value plus
+    uniform noise of +-noise in its unit, times its scale: never further than noise x scale from
+    the noiseless observation, with the uniform's spread (noise x scale / sqrt(3)); terms of noise
+    0, and every term with ObservationConfig.noise off, are the noiseless value exactly. A haptic
+    policy on AOF feet (every noisy term), the C engine, one reset's state, 400 draws."""
+    from footforge.envs import observation_layout
+
+    config = replace(envs.default_config("flat", "aof", "BH"), build_dir=str(built["aof"][0]), physics="mujoco")
+    noisy = envs.from_config(config)
+    clean = envs.from_config(replace(config, observations=replace(config.observations, noise=False)))
+    state = noisy.reset(jax.random.PRNGKey(0))
+    keys = jax.random.split(jax.random.PRNGKey(1), 400)
+    observe = jax.jit(jax.vmap(noisy.observe, in_axes=(None, None, 0)))
+    drawn = np.asarray(observe(state.pipeline_state, state.info, keys))
+    truth = np.asarray(clean.observe(state.pipeline_state, state.info, keys[0]))
+    np.testing.assert_array_equal(np.asarray(clean.observe(state.pipeline_state, state.info, keys[1])), truth)
+    assert np.abs(truth).max() < config.observations.clip  # nothing clipped: the bounds below hold as stated
+    terms = dict(observation_layout.terms(config))
+    start = 0
+    for name, width in observation_layout.layout(config, n_passive=16):
+        term = terms[name]
+        error = drawn[:, start : start + width] - truth[start : start + width]
+        start += width
+        bound = term.noise * np.abs(np.broadcast_to(np.asarray(term.scale, dtype=float), (width,)))
+        if term.noise == 0:
+            assert np.all(error == 0), name
+            continue
+        assert np.all(np.abs(error) <= bound * (1 + 1e-5) + 1e-6), name
+        spread = error.std(axis=0) / (bound / np.sqrt(3))
+        assert np.all((spread > 0.85) & (spread < 1.15)), (name, spread)
+    assert start == truth.size

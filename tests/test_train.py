@@ -1286,3 +1286,35 @@ def test_rough_runs_saved_before_the_sole_spheres_resume_on_boxes():
     assert envs.default_config("rough", "aof", "PH").heightfield_soles == "spheres"
     now = to_dict(envs.default_config("rough", "aof", "PH"))
     assert env_config_from_dict(json.loads(json.dumps(now))).heightfield_soles == "spheres"
+
+
+def test_the_policy_s_initial_actions_are_as_small_as_its_output_scale_says():
+    """PPOConfig.policy_output_init_scale scales the freshly initialised policy's output (mean)
+    layer: over random observations the mean actions' spread is in proportion to the scale (the
+    hidden layers are initialised alike for a seed), the default 0.01 making the untrained policy's
+    mean actions a few hundredths, and the exploration deviation (init_noise_std) is left alone."""
+    from brax.training.acme import running_statistics, specs
+
+    from footforge.rl import train
+
+    observations = jax.random.normal(jax.random.PRNGKey(1), (256, 48))
+
+    def initial_actions(scale: float):
+        ppo = PPOConfig(policy_output_init_scale=scale)
+        nets = train.network_factory(ppo)(
+            observation_size=48, action_size=12, preprocess_observations_fn=running_statistics.normalize
+        )
+        normaliser = running_statistics.init_state(specs.Array((48,), jp.dtype("float32")))
+        params = nets.policy_network.init(jax.random.PRNGKey(0))
+        mean, deviation = nets.policy_network.apply(normaliser, params, observations)
+        return float(jp.std(mean)), np.asarray(deviation), ppo
+
+    full, full_deviation, _ = initial_actions(1.0)
+    tenth, tenth_deviation, _ = initial_actions(0.1)
+    default, default_deviation, ppo = initial_actions(PPOConfig().policy_output_init_scale)
+    assert ppo.policy_output_init_scale == 0.01
+    assert 0.3 < full < 3.0, full  # a full-size layer: actions of order one
+    assert tenth == pytest.approx(0.1 * full, rel=1e-3) and default == pytest.approx(0.01 * full, rel=1e-3)
+    assert default < 0.05, default
+    np.testing.assert_array_equal(default_deviation, full_deviation)
+    np.testing.assert_array_equal(tenth_deviation, full_deviation)
