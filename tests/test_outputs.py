@@ -4,6 +4,7 @@
 import importlib.util
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -272,11 +273,27 @@ def children_of(pid: int) -> list[int]:
 
 
 def kill_parent_and_wait_for(parent: subprocess.Popen, workers: list[int], timeout_s: float = 10.0) -> list[int]:
+    """Kills `parent` and waits, up to `timeout_s`, for each of `workers` (not this process's
+    children) to exit: a pidfd becomes readable when its process exits. Returns those still alive."""
+    pidfds = {}
+    for w in workers:
+        try:
+            pidfds[w] = os.pidfd_open(w)
+        except ProcessLookupError:  # gone already
+            pass
     parent.send_signal(signal.SIGKILL)
     parent.wait(timeout=120)
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline and not all(process_gone(w) for w in workers):
-        time.sleep(0.2)
+    try:
+        waiting = select.poll()
+        for fd in pidfds.values():
+            waiting.register(fd, select.POLLIN)
+        deadline = time.monotonic() + timeout_s
+        exited: set[int] = set()
+        while len(exited) < len(pidfds) and (left := deadline - time.monotonic()) > 0:
+            exited |= {fd for fd, _ in waiting.poll(left * 1000)}
+    finally:
+        for fd in pidfds.values():
+            os.close(fd)
     alive = [w for w in workers if not process_gone(w)]
     for w in alive:  # do not leave them running when the test fails
         os.kill(w, signal.SIGKILL)
@@ -314,6 +331,7 @@ def Mesh(vertices, faces):
 
 
 def run_coacd(mesh, **kwargs):
+    print("coacd running", flush=True)
     return sum(range(10 ** 13))  # minutes in C code that holds the GIL, as CoACD does
 """
 
@@ -329,16 +347,13 @@ _run_coacd(Path("fake.stl"), trimesh.creation.box(), DecompositionConfig(timeout
 def test_coacd_worker_exits_when_build_is_killed(tmp_path):
     (tmp_path / "coacd.py").write_text(FAKE_COACD)
     env = os.environ | {"PYTHONPATH": os.pathsep.join([str(tmp_path), str(REPO)])}
-    parent = subprocess.Popen([sys.executable, "-c", PARENT_WITH_COACD], env=env)
-    deadline = time.monotonic() + 30
-    workers = []
-    while time.monotonic() < deadline and not workers:
-        workers = [
-            c for c in children_of(parent.pid) if "spawn_main" in Path(f"/proc/{c}/cmdline").read_text(errors="replace")
-        ]
-        time.sleep(0.2)
-    assert workers, "the CoACD worker did not start"
-    time.sleep(2)  # into the fake CoACD's GIL-holding loop
+    parent = subprocess.Popen([sys.executable, "-c", PARENT_WITH_COACD], env=env, stdout=subprocess.PIPE, text=True)
+    # The fake CoACD says when it enters its GIL-holding loop (its worker shares the parent's stdout).
+    assert parent.stdout.readline() == "coacd running\n", "the CoACD worker did not start"
+    workers = [
+        c for c in children_of(parent.pid) if "spawn_main" in Path(f"/proc/{c}/cmdline").read_text(errors="replace")
+    ]
+    assert workers, "the CoACD worker is not the parent's child"
     assert kill_parent_and_wait_for(parent, workers) == []
 
 

@@ -1,6 +1,7 @@
 """The policies committed under policies/ load with today's code (configs upgraded, weights
 intact by their manifests) and are what policies/README.md says: each was evaluated on its own
-feet and walks there by the verdict its evaluation recorded."""
+feet and walks there by the verdict its evaluation recorded, and still walks there when rolled
+out with today's code (a few robots, a few seconds)."""
 
 import json
 
@@ -34,6 +35,33 @@ def test_a_shipped_policy_loads_and_walks_on_its_own_feet(name):
     text = (folder / "evaluation/policy_card.md").read_text()
     line = next(row for row in text.splitlines() if row.startswith(f"- on {saved.env.feet} feet:"))
     assert "walks:" in line, line
+
+
+ROLLOUT_ROBOTS, ROLLOUT_SECONDS = 4, 4.0
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_a_shipped_policy_walks_on_its_own_feet_when_rolled_out(name, built, tmp_path):
+    """Each shipped policy rolled out now, not read from its recorded evaluation: `footforge
+    evaluate` on its own feet with the C engine, 4 robots for 4 s (seed 0). Too short for the full
+    verdict (its uptime and stance shares are 20-s figures, and the first second is the start from
+    rest), so it asks what 4 s can show: no robot falls or diverges, the base rides at least
+    verdict.MIN_BASE_HEIGHT_M high, and the forward error is within the verdict's
+    MAX_FORWARD_ERROR_MPS."""
+    from footforge.cli.main import main
+    from footforge.rl import verdict
+
+    feet = load_policy_parameters(REPO / "policies" / name / "policy").env.feet
+    out = tmp_path / "evaluation"
+    command = ["evaluate", "--policy", str(REPO / "policies" / name), "--num-envs", str(ROLLOUT_ROBOTS)]
+    command += ["--seconds", str(ROLLOUT_SECONDS), "--seed", "0", "--physics", "mujoco"]
+    assert main([*command, "--build-root", str(built[feet][0].parent), "--out", str(out)]) == 0
+    (result,) = json.loads((out / "metrics.json").read_text())
+    assert (result["feet"], result["num_envs"], result["seconds"]) == (feet, ROLLOUT_ROBOTS, ROLLOUT_SECONDS)
+    walking = result["walking"]
+    assert result["falls"] == 0 and result["diverged"] == 0 and walking["uptime"] == 1.0, result["fall_times_s"]
+    assert walking["base_height_m"] >= verdict.MIN_BASE_HEIGHT_M, walking
+    assert walking["forward_error_mps"] <= verdict.MAX_FORWARD_ERROR_MPS, walking
 
 
 def test_an_evaluation_repeats_byte_for_byte(tmp_path):
