@@ -154,6 +154,10 @@ def _replace_block(path: Path, start: str, end: str, text: str) -> None:
         print(f"wrote {path.relative_to(REPO)}")
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
 def _steps(n: int) -> str:
     return f"{n / 1e6:.1f} M"
 
@@ -192,7 +196,8 @@ def row(run: Path) -> str:
         )
     recipe = config.get("recipe")
     recipe_cell = (
-        f"`{recipe['preset']}`" + (f" + {len(recipe['overrides'])} overrides" if recipe.get("overrides") else "")
+        f"`{recipe['preset']}`"
+        + (f" + {_count(len(recipe['overrides']), 'override')}" if recipe.get("overrides") else "")
         if recipe
         else "not recorded"
     )
