@@ -362,19 +362,20 @@ def test_a_bad_thread_count_is_refused_before_any_work(command, tmp_path, capsys
 
 
 def test_a_run_resumes_under_the_other_engine(tmp_path):
-    """Checkpoints move between the engines: a run trained on MJX resumes on the C engine (only
-    EnvConfig.physics differs), while any other difference is still refused."""
+    """Checkpoints move between the engines: a run resumes under the other engine than the one its
+    config.json names (rough_aof_P: begun on an H100 in MJX, continued on this CPU under the C engine;
+    only EnvConfig.physics differs), while any other difference is still refused."""
     from footforge.rl import train
 
     run = tmp_path / "rough_aof_P"
     shutil.copytree(REPO / "policies/rough_aof_P", run)
     saved = json.loads((run / "config.json").read_text())
-    assert saved["env"].get("physics", "mjx") == "mjx"
+    other = "mjx" if saved["env"].get("physics", "mjx") == "mujoco" else "mujoco"
     env_config, ppo = train.load_run_config(run)
-    offset, restore, _, _ = train._resume_state(run, replace(env_config, physics="mujoco"), ppo, print, False)
+    offset, restore, _, _ = train._resume_state(run, replace(env_config, physics=other), ppo, print, False)
     assert offset == json.loads((run / "progress.json").read_text())["global_step"] and restore is not None
     with pytest.raises(InputError, match="other settings"):
-        train._resume_state(run, replace(env_config, physics="mujoco", decimation=4), ppo, print, False)
+        train._resume_state(run, replace(env_config, physics=other, decimation=4), ppo, print, False)
 
 
 def test_a_blown_up_c_simulation_ends_as_diverged(built):
