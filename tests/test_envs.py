@@ -757,6 +757,17 @@ def test_a_policy_evaluated_on_other_feet_steps_them_at_their_own_physics_step(m
     assert ball.commands.resample_s == pytest.approx(envs.FLAT_COMMAND_RESAMPLE_S) == pytest.approx(5.0)
     assert built_configs[0].commands.resample_s == pytest.approx(evaluation.EVALUATION_COMMAND_EVERY_S) == 10.0
     assert built_configs[0].commands.lin_vel_x_range == ball.commands.lin_vel_x_range  # its own ranges
+    # Trained with a push every 5 s (a push curriculum) or none, evaluated under the task's default
+    # pushes (every 15 s, up to 1 m/s), which the flat default trains with.
+    assert built_configs[0].pushes == ball.pushes == evaluation.EVALUATION_PUSHES
+    for pushes in (replace(ball.pushes, interval_s=5.0, max_speed=1.5), replace(ball.pushes, enabled=False)):
+        monkeypatch.setattr(
+            "footforge.rl.policy_files.load_policy", lambda d, p=pushes: (None, replace(ball, pushes=p), None)
+        )
+        evaluation._policy_and_env("policy", "aof", 1.0, None)
+        assert built_configs[-1].pushes == evaluation.EVALUATION_PUSHES
+        assert (built_configs[-1].pushes.interval_s, built_configs[-1].pushes.max_speed) == (15.0, 1.0)
+        assert built_configs[-1].pushes.enabled
 
 
 def test_the_flat_task_changes_commands_every_5_s_and_the_rough_task_every_10_s():

@@ -19,7 +19,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from footforge.envs.config import check_policy_on_feet
+from footforge.envs.config import PushConfig, check_policy_on_feet
 from footforge.errors import InputError
 from footforge.rl.verdict import judge
 from footforge.tables import markdown_table
@@ -51,7 +51,14 @@ EVALUATION_COMMAND_EVERY_S = 10.0
 """Evaluations draw a new command every 10 s (legged_gym's resampling, the schedule of every policy
 trained before 2026-11-27), whatever schedule the policy trained with (the flat task's default is
 5 s: footforge.envs.FLAT_COMMAND_RESAMPLE_S), so that falls and errors compare across policies.
-Command ranges, pushes and physics stay the policy's own."""
+Command ranges and physics stay the policy's own."""
+
+EVALUATION_PUSHES = PushConfig()
+"""Evaluations push every robot as the task's default does (a new planar base velocity up to 1 m/s
+every 15 s: legged_gym's push_interval_s and max_push_vel_xy), whatever pushes the policy trained
+with (a push curriculum, or none under the `forward` preset), for the same reason: falls after a
+push compare across policies only under one schedule. The paper names "interspersed base random
+pushes" without a schedule."""
 
 
 def foot_slip(feet_xy_before, feet_xy, touching_before, touching):
@@ -93,8 +100,11 @@ def _policy_and_env(
     config = on_feet(env_config, feet)
     # One schedule of new commands for every policy, whatever it trained with (EVALUATION_COMMAND_EVERY_S).
     # No standing commands either (CommandConfig.standing_fraction): every policy is judged walking.
+    # One schedule of pushes too (EVALUATION_PUSHES).
     config = replace(
-        config, commands=replace(config.commands, resample_s=EVALUATION_COMMAND_EVERY_S, standing_fraction=0.0)
+        config,
+        commands=replace(config.commands, resample_s=EVALUATION_COMMAND_EVERY_S, standing_fraction=0.0),
+        pushes=EVALUATION_PUSHES,
     )
     from footforge.envs import engine
 
@@ -216,7 +226,7 @@ def evaluate(
         "seconds": seconds,
         "seed": seed,
         "policy_dt_s": env_config.policy_dt,
-        "push_interval_s": env_config.pushes.interval_s,
+        "push_interval_s": config.pushes.interval_s,
         "task": config.task,
         "indices": indices,
         "slippage": slippage,
