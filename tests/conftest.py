@@ -10,6 +10,10 @@ os.environ.setdefault("MUJOCO_GL", "disable")
 # The suite's compiled programs go to a compilation cache of its own (footforge/rl/compile_cache.py),
 # used by this process and its subprocesses alike (the command-line tests compile the same tiny
 # trainings several times) and removed afterwards: a user's cache is neither read nor filled.
+# This differs from a user's CPU policy (footforge/rl/compile_cache.py: off on the CPU unless chosen,
+# because reloading a program once crashed XLA:CPU) on purpose: the suite compiles the same programs
+# in many processes, and a crash on reload is the suite's to see (every CI run so far has reloaded
+# footforge's programs without one), never a user's run to lose.
 # FOOTFORGE_TEST_COMPILE_CACHE names a folder to share between pytest sessions instead (CI's
 # default and slow runs; .ci/run makes it and removes it).
 # pytest-xdist's workers start after this process has read this file and inherit its environment,
