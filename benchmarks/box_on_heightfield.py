@@ -107,7 +107,7 @@ def scene(surface: str, slope_deg: float, quantum_m: float, shape: str) -> mujoc
     spec = mujoco.MjSpec()
     spec.option.timestep = 0.0025
     spec.option.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-    spec.option.impratio = 10.0  # anymal.STANCE_CONTACT_IMPRATIO
+    spec.option.impratio = 10.0  # contact_model "stance"'s (envs.contact_physics)
     spec.option.iterations = spec.option.ls_iterations = 50
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
     if surface == "plane":

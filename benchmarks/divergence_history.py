@@ -4,7 +4,7 @@ AFF and AOF into a temporary folder and drives them with an untrained policy's r
 setting, the robots that diverged and when.
 
 - `aff_stance_float64`: why float64 `stance` needs 16 Newton iterations on AFF feet
-  (anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64). At 16/16 no robot diverged; with the refusal
+  (its row in envs.contact_physics). At 16/16 no robot diverged; with the refusal
   lifted, at 8/16, 3 to 7 of 8 robots did (7 of 8 within 0.35 s with every foot box colliding,
   3 of 8 within 8 s with the sole alone). Was tests/test_envs.py's
   test_the_adaptive_feet_s_stance_diverges_under_actions_with_fewer_iterations.
@@ -31,7 +31,7 @@ from pathlib import Path
 
 from footforge import envs
 from footforge.build import BuildOptions, build
-from footforge.envs import anymal
+from footforge.envs import contact_physics
 from footforge.envs.config import EnvConfig
 from footforge.envs.stability import divergence_times
 from footforge.inputs.params import default_params_path
@@ -50,12 +50,13 @@ def aff_stance_float64(tmp: Path, robots: int, seconds: float, seed: int) -> dic
     float32 = envs.with_contact_model(EnvConfig(feet="aff", build_dir=str(tmp / "aff")), "stance")
     stance = envs.with_float64_physics(float32)
     figures = {"16_16": _figures(stance, robots, seconds, seed)}
-    minimum = anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64
-    try:  # the refusal lifted, to show what it prevents
-        anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = minimum | {"aff": (8, 16)}
+    rows = contact_physics.CONTACT_PHYSICS
+    row = contact_physics.resolve("stance", "aff", float64_physics=True, on_heightfield=False)
+    try:  # the refusal lifted, to show what it prevents: a row for AFF alone in front (the first match wins)
+        contact_physics.CONTACT_PHYSICS = (replace(row, feet=("aff",), min_iterations=(8, 16)), *rows)
         figures["8_16"] = _figures(replace(stance, solver_iterations=8), robots, seconds, seed)
     finally:
-        anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = minimum
+        contact_physics.CONTACT_PHYSICS = rows
     return figures
 
 

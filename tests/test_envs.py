@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from footforge import envs
-from footforge.envs import anymal, observation_layout, rewards
+from footforge.envs import observation_layout, rewards
 from footforge.envs.anymal import GEOM_BASE
 from footforge.envs.config import EnvConfig, ObservationConfig, ObservationTerm, RewardConfig
 from footforge.envs.contacts import ground_contacts
@@ -417,6 +417,7 @@ def test_contact_models_are_refused_where_they_diverge(built):
     loaded, naming the keys to change. envs.with_contact_model and envs.with_float64_physics set
     what it needs."""
     from footforge.envs.anymal import load_robot
+    from footforge.envs.contact_physics import resolve
 
     for feet, float32_iterations, float64_iterations in (("ball", 8, 8), ("aff", 16, 16), ("aof", 8, 16)):
         config = EnvConfig(feet=feet, build_dir=str(built[feet][0]), solver_iterations=4, solver_ls_iterations=8)
@@ -445,14 +446,14 @@ def test_contact_models_are_refused_where_they_diverge(built):
         assert "decimation=8" in e.value.fix
         model = load_robot(stance).model
         assert model.opt.cone == 0 and model.opt.impratio == 10.0  # pyramidal
-        # Euler; the float32 impedance is softer for the adaptive feet (STANCE_CONTACT_SOLIMP_FLOAT32)
+        # Euler; the float32 impedance is softer for the adaptive feet (envs.contact_physics)
         solimp = (0.99, 0.999, 0.001) if feet == "ball" else (0.97, 0.995, 0.001)
         assert model.opt.integrator == 0 and np.allclose(model.geom_solimp[:, :3], solimp)
         # ... and for every feet on a heightfield, whose MJX contacts exist only while penetrating.
-        assert anymal.stance_contact_solimp(stance, on_heightfield=True) == (0.97, 0.995, 0.001)
-        assert anymal.stance_contact_solimp(stiff, on_heightfield=True) == (0.99, 0.999, 0.001)
-        # The adaptive feet in float32 rest on a softer normal, every geom alike
-        # (STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE); ball feet and float64 keep the build's solref.
+        assert resolve("stance", feet, float64_physics=False, on_heightfield=True).solimp == (0.97, 0.995, 0.001)
+        assert resolve("stance", feet, float64_physics=True, on_heightfield=True).solimp == (0.99, 0.999, 0.001)
+        # The adaptive feet in float32 rest on a softer normal, every geom alike (envs.contact_physics);
+        # ball feet and float64 keep the build's solref.
         built_solref = load_robot(replace(stance, contact_model="fast", sim_dt=0.005, decimation=4)).model.geom_solref
         if feet == "ball":
             assert np.array_equal(model.geom_solref, built_solref)
@@ -467,8 +468,8 @@ def test_contact_models_are_refused_where_they_diverge(built):
 
 
 def test_the_adaptive_feet_s_float64_stance_survives_an_untrained_policy_s_actions(built):
-    """Float64 'stance' on AFF feet steps at 16 Newton iterations
-    (STANCE_CONTACT_MIN_ITERATIONS_FLOAT64), refuses fewer, and no robot diverges there under an
+    """Float64 'stance' on AFF feet steps at 16 Newton iterations (its row in
+    envs.contact_physics), refuses fewer, and no robot diverges there under an
     untrained policy's random actions (footforge.envs.stability, CPU MuJoCo). What fewer
     iterations do (robots thrown at 8/16) is an experiment: benchmarks/divergence_history.py."""
     from footforge.envs.anymal import load_robot

@@ -431,7 +431,7 @@ def test_ball_robots_stand_on_level_0_in_float32(built):
     issue's stance target (sinking < 10 mm, slip < 5 mm after 0.5 s) holds on tile (0, 0), the
     measurement of benchmarks/stance_env.py. At the stiffer impedance ball keeps on a plane
     (0.99/0.999), MJX's penetration-only heightfield contacts flickered: 3 of the 6 fell and two
-    slid 315 and 534 mm (anymal.STANCE_CONTACT_SOLIMP_FLOAT32)."""
+    slid 315 and 534 mm (envs.contact_physics; docs/defaults.md)."""
     from footforge.validate.stance import env_stance, env_stance_start
 
     env, first = env_stance_start("rough", "ball", built["ball"][0])

@@ -100,27 +100,25 @@ POLICY_DT = EnvConfig.sim_dt * EnvConfig.decimation
 
 def physics(feet: str, contact_model: str) -> dict:
     """EnvConfig's sim_dt, decimation, solver_iterations and solver_ls_iterations for `contact_model`
-    on `feet` at the 50 Hz policy step (what envs.default_config sets).
+    on `feet` at the 50 Hz policy step (what envs.default_config sets): the step and the minimum
+    iterations of its row in envs.contact_physics (float32; the same on either ground), or
+    contact_physics.DEFAULT_ITERATIONS where the row has no minimum.
 
     Step: 'fast' the baselines' 5 ms x 4 on every feet; 'stance' and 'build' 2.5 ms x 8, the
-    step at which they hold a stance (anymal.STANCE_CONTACT_MAX_SIM_DT). The adaptive feet take
-    5 ms under 'fast' too, half the physics of 2.5 ms: with the parameter file's passive-joint
-    armature (1e-3 kg m^2) none diverges there under a policy's actions, where AOF did with the
-    earlier 1e-5 (docs/defaults.md). Iterations: 'fast' 4 Newton / 8 line search (MuJoCo
-    Playground trains at 1-4), 'stance' and 'build' anymal.min_solver_iterations.
+    step at which they hold a stance. The adaptive feet take 5 ms under 'fast' too, half the
+    physics of 2.5 ms: with the parameter file's passive-joint armature (1e-3 kg m^2) none diverges
+    there under a policy's actions, where AOF did with the earlier 1e-5 (docs/defaults.md).
 
     Raises:
       InputError: an unknown contact model.
     """
-    from footforge.envs.anymal import STANCE_CONTACT_MAX_SIM_DT, min_solver_iterations
+    from footforge.envs.contact_physics import DEFAULT_ITERATIONS, resolve
 
-    if contact_model not in CONTACT_MODELS:
-        raise InputError(f"unknown contact model '{contact_model}'", fix=f"use one of {', '.join(CONTACT_MODELS)}")
-    sim_dt = 0.005 if contact_model == "fast" else STANCE_CONTACT_MAX_SIM_DT
-    iterations, ls_iterations = min_solver_iterations(contact_model, feet) or (4, 8)
+    row = resolve(contact_model, feet, float64_physics=False, on_heightfield=False)
+    iterations, ls_iterations = row.min_iterations or DEFAULT_ITERATIONS
     return {
-        "sim_dt": sim_dt,
-        "decimation": int(round(POLICY_DT / sim_dt)),
+        "sim_dt": row.sim_dt_s,
+        "decimation": int(round(POLICY_DT / row.sim_dt_s)),
         "solver_iterations": iterations,
         "solver_ls_iterations": ls_iterations,
     }
@@ -142,26 +140,32 @@ def on_feet(config, feet: str):
 
 
 def with_contact_model(config, contact_model: str):
-    """`config` with `contact_model` (EnvConfig.contact_model) and what it needs beyond config's
-    own physics: for 'stance' a step of at most STANCE_CONTACT_MAX_SIM_DT (the policy step kept);
-    for 'stance' and 'build' at least anymal.min_solver_iterations (in config's precision).
-    Settings already finer than those are kept (envs.default_config sets a model's own physics,
-    physics())."""
-    from footforge.envs.anymal import STANCE_CONTACT_MAX_SIM_DT, min_solver_iterations
+    """`config` with `contact_model` (EnvConfig.contact_model) and what its row in envs.contact_physics
+    needs beyond config's own physics, in config's precision: a step of at most the row's longest
+    ('stance': 2.5 ms; the policy step kept) and at least its minimum solver iterations ('stance',
+    'build'). Settings already finer than those are kept (envs.default_config sets a model's own
+    physics, physics()).
 
+    Raises:
+      InputError: an unknown contact model, or a policy step the longest step does not divide.
+    """
+    from footforge.envs.contact_physics import resolve
+
+    # Step and iterations are the same on either ground (tests/test_contact_physics.py).
+    row = resolve(contact_model, config.feet, config.float64_physics, on_heightfield=False)
     changes: dict[str, Any] = {"contact_model": contact_model}
-    if contact_model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT:
-        decimation = config.policy_dt / STANCE_CONTACT_MAX_SIM_DT
+    longest = row.max_sim_dt_s
+    if longest is not None and config.sim_dt > longest:
+        decimation = config.policy_dt / longest
         if abs(decimation - round(decimation)) > 1e-6:
             raise InputError(
-                f"contact_model 'stance' steps at most {STANCE_CONTACT_MAX_SIM_DT} s, which does not "
+                f"contact_model '{contact_model}' steps at most {longest} s, which does not "
                 f"divide the policy step {config.policy_dt:g} s",
-                fix="use a policy step (sim_dt x decimation) that is a multiple of 2.5 ms",
+                fix=f"use a policy step (sim_dt x decimation) that is a multiple of {longest * 1e3:g} ms",
             )
-        changes |= {"sim_dt": STANCE_CONTACT_MAX_SIM_DT, "decimation": int(round(decimation))}
-    needed = min_solver_iterations(contact_model, config.feet, config.float64_physics)
-    if needed:
-        iterations, ls_iterations = needed
+        changes |= {"sim_dt": longest, "decimation": int(round(decimation))}
+    if row.min_iterations:
+        iterations, ls_iterations = row.min_iterations
         changes |= {
             "solver_iterations": max(config.solver_iterations, iterations),
             "solver_ls_iterations": max(config.solver_ls_iterations, ls_iterations),
@@ -172,7 +176,7 @@ def with_contact_model(config, contact_model: str):
 def with_float64_physics(config, on: bool = True):
     """`config` with EnvConfig.float64_physics `on`, and the solver iterations its contact model
     needs in that precision (float64 'stance' on the adaptive feet: 16/16, where AOF takes 8/16 in
-    float32; anymal.STANCE_CONTACT_MIN_ITERATIONS_FLOAT64); iterations already finer are kept. JAX's x64
+    float32; envs.contact_physics); iterations already finer are kept. JAX's x64
     mode is still the caller's to turn on (enable_float64_physics)."""
     return with_contact_model(replace(config, float64_physics=on), config.contact_model)
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from footforge import constants as C
 from footforge.envs.config import EnvConfig
+from footforge.envs.contact_physics import resolve
 from footforge.errors import InputError
 from footforge.variants import DERIVED
 
@@ -36,49 +37,6 @@ GEOM_NONE, GEOM_BASE = 0, 1
 GEOM_THIGH, GEOM_FOOT = 3, 10
 GEOM_SHANK = 20
 """Shank tube of leg i on a heightfield (MJX): 20 + i. It collides, but is neither a foot nor a knee."""
-FAST_CONTACT_SOLIMP = (0.9, 0.95, 0.001)
-"""MuJoCo's default solimp, for EnvConfig.contact_model 'fast'."""
-BUILD_CONTACT_MIN_ITERATIONS = (16, 50)
-"""Newton and line-search iterations the build's stiff contact needs: with fewer, an unconverged
-solve of its friction diverges from any moving start, in MJX as in CPU MuJoCo (at 5 ms; at
-2.5 ms 4/8 diverged too: docs/defaults.md)."""
-STANCE_CONTACT_SOLIMP = (0.99, 0.999, 0.001)
-"""Contact impedance of EnvConfig.contact_model 'stance' (the build's): 99-99.9% of the constraint
-force is kept, so the friction's regularisation, and with it the creep speed, is about 1/20 of
-MuJoCo's default (0.9-0.95)."""
-STANCE_CONTACT_SOLIMP_FLOAT32 = (0.97, 0.995, 0.001)
-"""'stance' impedance in float32 MJX (stance_contact_solimp says where): for the adaptive feet, whose
-stiff friction rows on light links float32 solves less exactly, and for every feet on a heightfield,
-where MJX keeps a contact only while a geom penetrates and float32 resolves the depth too coarsely
-for a foot resting micrometres deep at the stiffer impedance: it flickers out of contact and the
-robot is thrown. Stiffer is solved less exactly, softer creeps by its regularisation; 0.97/0.995
-was the best compromise measured (docs/defaults.md). Ball feet on a plane,
-where the depth is exact, and float64_physics on every feet keep the stiffer STANCE_CONTACT_SOLIMP."""
-STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE = (-10000.0, -400.0)
-"""'stance' contact solref of the adaptive feet in float32 MJX (stance_contact_solref says where),
-in MuJoCo's direct form (-stiffness 1/s^2, -damping 1/s): the build's damping at the 2.5 ms step
-(400 1/s, the most that step allows, as MuJoCo clamps a time constant to at least two steps) with a
-quarter of its stiffness (1e4, not 4e4 1/s^2: damping ratio 2, not 1). On a heightfield MJX re-picks
-every step the 4 points it keeps under a sole box, and each jump throws a load the float32 solve does
-not hold exactly; a softer normal lets the sole settle deeper, where fewer points come and go, and
-the creep, which goes with the damping, does not grow. It halved AOF's slip on rough level 0. Ball
-feet keep the build's solref: their single sphere per foot slid far more with this one
-(docs/defaults.md)."""
-STANCE_CONTACT_IMPRATIO = 10.0
-"""Friction-to-normal impedance ratio of 'stance': the friction rows' regularisation / 10."""
-STANCE_CONTACT_MIN_ITERATIONS = {"ball": (8, 16), "aff": (16, 16), "aof": (8, 16)}
-"""Newton and line-search iterations 'stance' needs per feet (2.5 ms), float32 physics (the
-default); check_contact_model refuses fewer. Below them an unconverged solve of its stiff friction
-diverges under a policy's actions or lets a standing robot creep (ball at 6 Newton iterations, AFF
-at 8/16), and the solve's cost grows with them (docs/defaults.md)."""
-STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 = {"ball": (8, 16), "aff": (16, 16), "aof": (16, 16)}
-"""The same under float64_physics, whose adaptive feet keep the stiffer impedance (0.99/0.999)
-and the build's solref: at 8/16 some AFF and AOF robots diverged under random actions, none at
-16/16 (docs/defaults.md)."""
-STANCE_CONTACT_MAX_SIM_DT = 0.0025
-"""Largest physics step of 'stance', s: at 5 ms (its friction's time constant then 10 ms) an
-unconverged step lets a ball foot chatter and walk, even at 16/50 iterations
-(docs/defaults.md)."""
 
 
 @dataclass(frozen=True)
@@ -212,7 +170,7 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     instead (LocomotionEnv.contact_flags). for_mjx=False keeps the model's own geoms, for MuJoCo
     on the CPU.
     """
-    check_contact_model(config)
+    check_contact_model(config, on_heightfield=terrain is not None)
     folder = ensure_built(config)
     if terrain is None:
         model = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
@@ -398,27 +356,23 @@ def _sole_boxes_as_spheres(spec: mujoco.MjSpec, grid: Sequence[int], radius: flo
 
 
 def _set_physics_options(model: mujoco.MjModel, config: EnvConfig, *, on_heightfield: bool) -> None:
-    """The step, solver iterations and contact model of `config` (EnvConfig.contact_model), in place."""
+    """The step and solver iterations of `config`, and the contact settings its contact model takes
+    on its feet, precision and ground (envs.contact_physics), in place; a setting the row leaves
+    None keeps the build's."""
     model.opt.timestep = config.sim_dt
     model.opt.iterations = config.solver_iterations
     model.opt.ls_iterations = config.solver_ls_iterations
-    if config.contact_model == "fast":  # EnvConfig.contact_model
-        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        model.opt.impratio = 1.0
-        model.geom_solimp[:, :3] = FAST_CONTACT_SOLIMP
-    elif config.contact_model == "stance":
-        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        model.opt.impratio = STANCE_CONTACT_IMPRATIO
-        model.geom_solimp[:, :3] = stance_contact_solimp(config, on_heightfield=on_heightfield)
-        solref = stance_contact_solref(config)
-        if solref is not None:  # every geom alike, so MuJoCo's mixing of two geoms' solref changes nothing
-            model.geom_solref[:] = solref
-        # Semi-implicit Euler (joint damping still implicit: eulerdamp stays on), as MuJoCo
-        # Playground's quadrupeds. implicitfast adds the actuators' velocity derivative (kv) to the
-        # mass matrix after the constraint solve, so the contact forces, solved for the plain
-        # mass matrix, no longer produce the accelerations they were solved for; with friction
-        # this stiff that mismatch threw ball robots metres up within 7 steps.
-        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    row = resolve(config.contact_model, config.feet, config.float64_physics, on_heightfield)
+    if row.cone is not None:
+        model.opt.cone = getattr(mujoco.mjtCone, f"mjCONE_{row.cone.upper()}")
+    if row.impratio is not None:
+        model.opt.impratio = row.impratio
+    if row.solimp is not None:
+        model.geom_solimp[:, :3] = row.solimp
+    if row.solref is not None:  # every geom alike, so MuJoCo's mixing of two geoms' solref changes nothing
+        model.geom_solref[:] = row.solref
+    if row.integrator is not None:
+        model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{row.integrator.upper()}")
 
 
 def _with_engine_sensors(
@@ -472,46 +426,25 @@ def fit_heightfield_subgrids(mjx_model, model: mujoco.MjModel):
     return mjx_private.with_heightfield_bounds(mjx_model, fitted)
 
 
-def stance_contact_solimp(config: EnvConfig, *, on_heightfield: bool) -> tuple[float, float, float]:
-    """Contact impedance (solimp's first three) of contact_model 'stance' for config's feet and
-    precision: the stiff STANCE_CONTACT_SOLIMP where MJX solves it exactly enough (float64; ball
-    feet on a plane), else STANCE_CONTACT_SOLIMP_FLOAT32 (its measurements:
-    docs/defaults.md)."""
-    if config.float64_physics or (config.feet == "ball" and not on_heightfield):
-        return STANCE_CONTACT_SOLIMP
-    return STANCE_CONTACT_SOLIMP_FLOAT32
-
-
-def stance_contact_solref(config: EnvConfig) -> tuple[float, float] | None:
-    """Contact solref of contact_model 'stance' for config's feet and precision:
-    STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE for the adaptive feet in float32 (its measurements:
-    docs/defaults.md), else None: the build's (0.004, 1), clamped by MuJoCo
-    to the 5 ms of two steps."""
-    if config.feet != "ball" and not config.float64_physics:
-        return STANCE_CONTACT_SOLREF_FLOAT32_ADAPTIVE
-    return None
-
-
 def min_solver_iterations(contact_model: str, feet: str, float64_physics: bool = False) -> tuple[int, int] | None:
     """(Newton, line-search) iterations `contact_model` needs on `feet` in float32 or float64
-    physics, or None (fast: any)."""
-    if contact_model == "stance":
-        return (STANCE_CONTACT_MIN_ITERATIONS_FLOAT64 if float64_physics else STANCE_CONTACT_MIN_ITERATIONS)[feet]
-    return BUILD_CONTACT_MIN_ITERATIONS if contact_model == "build" else None
+    physics, or None (fast: any): envs.contact_physics's row (the same on either ground)."""
+    return resolve(contact_model, feet, float64_physics, on_heightfield=False).min_iterations
 
 
-def check_contact_model(config: EnvConfig) -> None:
+def check_contact_model(config: EnvConfig, *, on_heightfield: bool = False) -> None:
     """Raises InputError where config.contact_model cannot run stably with config's feet, step and
-    solver iterations (EnvConfig.contact_model; the limits are this module's constants)."""
+    solver iterations (EnvConfig.contact_model; the limits are envs.contact_physics's), or is unknown."""
     model = config.contact_model
-    if model == "stance" and config.sim_dt > STANCE_CONTACT_MAX_SIM_DT + 1e-12:
+    row = resolve(model, config.feet, config.float64_physics, on_heightfield)
+    if row.max_sim_dt_s is not None and config.sim_dt > row.max_sim_dt_s + 1e-12:
         raise InputError(
-            f"contact_model 'stance' needs sim_dt <= {STANCE_CONTACT_MAX_SIM_DT} s (given "
+            f"contact_model '{model}' needs sim_dt <= {row.max_sim_dt_s} s (given "
             f"{config.sim_dt}): at a longer step its friction chatters",
-            fix=f"set sim_dt={STANCE_CONTACT_MAX_SIM_DT} and decimation="
-            f"{int(round(config.policy_dt / STANCE_CONTACT_MAX_SIM_DT))}, or contact_model='fast'",
+            fix=f"set sim_dt={row.max_sim_dt_s} and decimation="
+            f"{int(round(config.policy_dt / row.max_sim_dt_s))}, or contact_model='fast'",
         )
-    needed = min_solver_iterations(model, config.feet, config.float64_physics)
+    needed = row.min_iterations
     if needed and (config.solver_iterations < needed[0] or config.solver_ls_iterations < needed[1]):
         precision = "float64" if config.float64_physics else "float32"
         raise InputError(

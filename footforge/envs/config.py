@@ -245,7 +245,7 @@ class EnvConfig:
     sim_dt: float = 0.0025
     """Physics step, s (MuJoCo clamps contact time constants to at least 2 steps). The default is
     contact_model 'stance''s; envs.default_config and envs.with_contact_model set the step each
-    contact model needs on each feet (envs.physics)."""
+    contact model needs on each feet (its row in envs.contact_physics)."""
     decimation: int = 8
     """Physics steps per policy step (50 Hz)."""
     episode_length_s: float = 20.0
@@ -283,14 +283,15 @@ class EnvConfig:
     observation see the clipped value): rl_games clips to the baselines' action space [-1, 1]."""
     solver_iterations: int = 8
     """MJX Newton iterations per step (Playground uses 1-4); at least what contact_model needs on
-    the feet (anymal.min_solver_iterations: stance ball 8, AFF 16, AOF 8 in float32, AFF and AOF
-    16 under float64_physics; envs.default_config, envs.with_contact_model and envs.with_float64_physics set
-    it), refused with fewer."""
+    the feet in the precision (envs.contact_physics: stance ball 8, AFF 16, AOF 8 in float32, AFF and
+    AOF 16 under float64_physics; envs.default_config, envs.with_contact_model and
+    envs.with_float64_physics set it), refused with fewer."""
     solver_ls_iterations: int = 16
     """MJX line-search iterations per Newton iteration (stance: 16 on every feet)."""
     contact_model: ContactModel = "stance"
-    """The MJX contact model (limits: envs.anymal.check_contact_model; envs.with_contact_model sets
-    the step and solver iterations each needs). Default "stance".
+    """The MJX contact model; its settings per feet, precision and ground are one table,
+    envs.contact_physics.CONTACT_PHYSICS (limits checked by envs.anymal.check_contact_model;
+    envs.with_contact_model sets the step and solver iterations each needs). Default "stance".
 
     Why: with kp 80 N m/rad ANYmal C stands on static friction (each foot pushes sideways with
     about half its load); MuJoCo's friction is regularised, so a robot holding still creeps
@@ -299,7 +300,7 @@ class EnvConfig:
 
     - stance (default): pyramidal cone, impratio 10, solimp 0.99/0.999/0.001 (0.97/0.995 in
       float32 for the adaptive feet and on heightfields; the adaptive feet's soles also on a
-      softer normal, solref (-1e4, -400): anymal.stance_contact_solimp / _solref), semi-implicit
+      softer normal, solref (-1e4, -400): envs.contact_physics), semi-implicit
       Euler, 2.5 ms x 8 per policy step, Newton / line-search iterations ball 8/16, AFF 16/16,
       AOF 8/16 (AFF and AOF 16/16 under float64_physics). Zero-action robots sink and slide a few
       millimetres in 10 s, flat and on rough level 0, float32 and float64. Needs a friction
