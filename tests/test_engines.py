@@ -140,6 +140,8 @@ def float64_parts(built) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow  # MJX compiled in float64 in a subprocess: 1-2 minutes on 2 cores
+@pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 def test_engines_are_the_same_physics_in_float64(float64_parts):
     """MJX in float64 and the C engine (float64) step flat ball robots under random actions to the
     same states, contacts, forces, probes and observations, to rounding (TIGHT)."""
@@ -147,6 +149,8 @@ def test_engines_are_the_same_physics_in_float64(float64_parts):
     _assert_agree(parts, obs=TIGHT, passive=TIGHT, force_n=TIGHT, position_m=TIGHT)
 
 
+@pytest.mark.slow  # shares the subprocess above
+@pytest.mark.timeout(900)
 def test_the_engine_comparison_can_fail(float64_parts):
     """The same comparison against a C engine taking one physics step more per policy step (2.5 ms
     in 20) parts by thousands of times TIGHT (measured: base 3.6 mm, feet 8 mm, a foot's contact):

@@ -79,16 +79,20 @@ def test_observation_layout_is_documented_and_sized():
 RICHEST = {"ball": "B", "aff": "BH", "aof": "BH"}
 
 
-@pytest.fixture(scope="module")
-def rollouts(built):
-    """Per feet, the richest flat policy type's env with reset and step compiled once, a reset
-    and 3 steps of random actions: {feet: (env, states, jitted step)}. Pushes are off: the
-    zero-action test measures standing, not push recovery."""
+def _flat_envs(built, physics):
+    """Per feet, the richest flat policy type's env under `physics` with reset and step compiled
+    once, a reset and 3 steps of random actions: {feet: (env, states, jitted step)}. Pushes are
+    off: the zero-action tests measure standing, not push recovery."""
     out = {}
     for feet, policy in RICHEST.items():
         config = envs.default_config("flat", feet, policy)
         env = envs.make(
-            "flat", feet, policy, build_dir=str(built[feet][0]), pushes=replace(config.pushes, enabled=False)
+            "flat",
+            feet,
+            policy,
+            build_dir=str(built[feet][0]),
+            pushes=replace(config.pushes, enabled=False),
+            physics=physics,
         )
         step = jax.jit(env.step)
         states = [jax.jit(env.reset)(jax.random.PRNGKey(0))]
@@ -96,6 +100,20 @@ def rollouts(built):
             states.append(step(states[-1], jax.random.normal(k, (env.action_size,))))
         out[feet] = (env, states, step)
     return out
+
+
+@pytest.fixture(scope="module")
+def rollouts(built):
+    """_flat_envs under MuJoCo's C engine, the CPU's physics (`--physics auto` on a CPU): the task's
+    maths are the same under either engine (tests/test_engines.py), and it compiles in a fraction of
+    MJX's time."""
+    return _flat_envs(built, "mujoco")
+
+
+@pytest.fixture(scope="module")
+def rollouts_mjx(built):
+    """_flat_envs in MJX (float32), for the tests of MJX's own stance physics (slow run)."""
+    return _flat_envs(built, "mjx")
 
 
 def test_reset_and_step_every_registered_env(rollouts, built):
@@ -250,7 +268,7 @@ def test_ground_contacts_count_base_and_knees():
     assert bool(base) and int(knees) == 0
 
 
-def test_base_and_knee_contacts_are_measured_on_flat_ground(rollouts):
+def test_base_and_knee_contacts_are_measured_on_flat_ground(rollouts, built):
     """The base's and thighs' colliders are off in MJX (they only end episodes, and were most of
     the contact slots every Newton iteration solves): their ground contact is geometric. Checked
     against CPU MuJoCo's own collisions on the build's full model, pose by pose."""
@@ -260,7 +278,8 @@ def test_base_and_knee_contacts_are_measured_on_flat_ground(rollouts):
 
     from footforge.envs.anymal import GEOM_FOOT, load_robot
 
-    env, states, _ = rollouts["aof"]
+    _, states, _ = rollouts["aof"]  # a reset's joint angles
+    env = envs.make("flat", "aof", RICHEST["aof"], build_dir=str(built["aof"][0]), physics="mjx")  # not compiled
     mjx_model, category = env.robot.model, env.robot.geom_category
     full = load_robot(env.config, for_mjx=False).model  # every collider of the build
     body = (category > 0) & (category < GEOM_FOOT)  # base and thighs
@@ -333,23 +352,25 @@ def test_position_actions_set_the_target_and_velocity_actions_integrate_onto_it(
 
 
 @pytest.fixture(scope="module")
-def zero_action_episodes(rollouts):
+def zero_action_episodes(rollouts_mjx):
     """Per feet: a full 20 s flat episode of zero actions from reset in the default environment
     (footforge.validate.stance.env_stance: figures after the first 0.5 s)."""
     from footforge.validate.stance import env_stance
 
     return {
         feet: env_stance(env, states[0], seconds=env.config.episode_length_s - env.config.policy_dt, step=step)
-        for feet, (env, states, step) in rollouts.items()
+        for feet, (env, states, step) in rollouts_mjx.items()
     }
 
 
 @pytest.fixture(scope="module")
-def ten_second_stances(rollouts):
+def ten_second_stances(rollouts_mjx):
     """Per feet: issue 12's stance measure, 10 s of zero actions from the same reset."""
     from footforge.validate.stance import env_stance
 
-    return {feet: env_stance(env, states[0], seconds=10.0, step=step) for feet, (env, states, step) in rollouts.items()}
+    return {
+        feet: env_stance(env, states[0], seconds=10.0, step=step) for feet, (env, states, step) in rollouts_mjx.items()
+    }
 
 
 @pytest.mark.slow  # 3 x 1000 single-robot steps
@@ -628,6 +649,7 @@ def test_evaluation_reports_robots_whose_simulation_diverged(built, monkeypatch)
         envs.default_config("flat", "ball", "B"),
         build_dir=str(built["ball"][0]),
         pushes=replace(envs.default_config("flat", "ball", "B").pushes, enabled=False),
+        physics="mujoco",
     )
 
     class Diverging(LocomotionEnv):
@@ -832,12 +854,13 @@ def test_observation_noise_is_uniform_within_each_term_s_scale(built):
     config = replace(envs.default_config("flat", "aof", "BH"), build_dir=str(built["aof"][0]), physics="mujoco")
     noisy = envs.from_config(config)
     clean = envs.from_config(replace(config, observations=replace(config.observations, noise=False)))
-    state = noisy.reset(jax.random.PRNGKey(0))
+    state = jax.jit(noisy.reset)(jax.random.PRNGKey(0))
     keys = jax.random.split(jax.random.PRNGKey(1), 400)
     observe = jax.jit(jax.vmap(noisy.observe, in_axes=(None, None, 0)))
     drawn = np.asarray(observe(state.pipeline_state, state.info, keys))
-    truth = np.asarray(clean.observe(state.pipeline_state, state.info, keys[0]))
-    np.testing.assert_array_equal(np.asarray(clean.observe(state.pipeline_state, state.info, keys[1])), truth)
+    observe_clean = jax.jit(clean.observe)
+    truth = np.asarray(observe_clean(state.pipeline_state, state.info, keys[0]))
+    np.testing.assert_array_equal(np.asarray(observe_clean(state.pipeline_state, state.info, keys[1])), truth)
     assert np.abs(truth).max() < config.observations.clip  # nothing clipped: the bounds below hold as stated
     terms = dict(observation_layout.terms(config))
     start = 0

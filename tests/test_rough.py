@@ -31,10 +31,9 @@ SMALL = TerrainConfig(num_levels=3, num_columns=6, tile_size_m=4.0, border_m=2.0
 RICHEST = {"ball": "P", "aff": "PH", "aof": "PH"}
 
 
-@pytest.fixture(scope="module")
-def rough(built):
-    """Per feet, the richest policy type's env with reset and step compiled once, and a reset
-    followed by 3 steps of random actions: {feet: (env, states, step)}."""
+def _rough_envs(built, physics):
+    """Per feet, the richest policy type's env under `physics` with reset and step compiled once, and
+    a reset followed by 3 steps of random actions: {feet: (env, states, step)}."""
     out = {}
     for feet, policy in RICHEST.items():
         config = envs.default_config("rough", feet, policy)
@@ -45,6 +44,7 @@ def rough(built):
             build_dir=str(built[feet][0]),
             terrain=SMALL,
             pushes=replace(config.pushes, enabled=False),
+            physics=physics,
         )  # standing tests measure stance
         step = jax.jit(env.step)
         states = [jax.jit(env.reset)(jax.random.PRNGKey(0))]
@@ -52,6 +52,20 @@ def rough(built):
             states.append(step(states[-1], 0.3 * jax.random.normal(k, (env.action_size,))))
         out[feet] = (env, states, step)
     return out
+
+
+@pytest.fixture(scope="module")
+def rough(built):
+    """_rough_envs under MuJoCo's C engine, the CPU's physics (`--physics auto` on a CPU): the task's
+    maths (spawns, curriculum, height scan, observations) are the same under either engine
+    (tests/test_engines.py), and it compiles in a fraction of MJX's time."""
+    return _rough_envs(built, "mujoco")
+
+
+@pytest.fixture(scope="module")
+def rough_mjx(built):
+    """_rough_envs in MJX (float32), for the tests of MJX's own contact physics (slow run)."""
+    return _rough_envs(built, "mjx")
 
 
 def test_reset_and_step_every_feet_and_policy_type(rough, built):
@@ -81,6 +95,7 @@ def test_reset_and_step_every_feet_and_policy_type(rough, built):
                 build_dir=str(built[feet][0]),
                 terrain=SMALL,
                 observations=replace(env.config.observations, noise=False),
+                physics=env.config.physics,
             )
             obs = other.observe(states[-1].pipeline_state, states[-1].info, jax.random.PRNGKey(0))
             assert obs.shape == (observation_layout.size(other.config, len(other.robot.passive_qpos)),)
@@ -216,6 +231,8 @@ def _lowest_site_clearance(env, qpos) -> float:
     return min(p[2] - env.terrain.height_at(p[0], p[1]) for p in data.site_xpos[env.robot.foot_sites])
 
 
+@pytest.mark.slow  # MJX's heightfield collision compiled twice (the `box` soles, not the default): 1-2 minutes
+@pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 def test_box_heightfield_subgrids_are_fitted_without_losing_a_contact(built):
     """anymal.fit_heightfield_subgrids, with the build's sole boxes on the heightfield
     (heightfield_soles 'box'): AOF's back sole box is tested against 2 x 2 terrain cells instead of
@@ -306,9 +323,10 @@ def test_height_scan_agrees_with_mujoco_ray_casts(rough):
     assert checked > 1000
 
 
-def test_base_and_knee_contacts_are_measured_on_the_terrain(rough):
-    """The base's and thighs' collisions are off on the heightfield: their contact is geometric."""
-    env, states, _ = rough["aof"]
+def test_base_and_knee_contacts_are_measured_on_the_terrain(rough, built):
+    """The base's and thighs' collisions are off on the heightfield in MJX: their contact is geometric."""
+    _, states, _ = rough["aof"]  # a reset's pose
+    env = envs.make("rough", "aof", RICHEST["aof"], build_dir=str(built["aof"][0]), terrain=SMALL, physics="mjx")
     model, cpu = env.robot.model, mujoco.MjData(env.robot.model)
     cpu.qpos[:] = np.asarray(states[0].pipeline_state.qpos)
 
@@ -389,12 +407,12 @@ def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):
 @pytest.mark.slow
 @pytest.mark.timeout(900)  # explicit budget: several times its time on 2 quiet cores
 @pytest.mark.parametrize("feet", list(RICHEST))
-def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough, feet):
+def test_zero_action_robot_stands_a_whole_episode_on_level_0(rough_mjx, feet):
     """Rough task, level 0 (flat platform), zero position actions in the default environment
     (contact_model 'stance', float32): the PD holds the default pose from the randomised start
     (joints at default x U(0.5, 1.5)) for a full 20 s episode without a fall, the base above
     0.25 m throughout. (With 'fast' the ball robot sank from 0.54 to 0.28 m in 12 s and fell.)"""
-    env, _, step = rough[feet]
+    env, _, step = rough_mjx[feet]
     state = jax.jit(env.reset_on_tile)(jax.random.PRNGKey(3), 0, 0)
     heights = []
     for _ in range(env.config.episode_steps - 1):
