@@ -2,6 +2,7 @@ import atexit
 import os
 import shutil
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
@@ -39,13 +40,55 @@ def coacd_cache(tmp_path_factory):
     return tmp_path_factory.mktemp("coacd")
 
 
+class _Builds(Mapping):
+    """{variant: (out_dir, build report)}, each variant built when a test first asks for it, once
+    per test session: under pytest-xdist into a folder of the session that every worker shares, the
+    first worker to ask building it under a lock while the others wait for it (the closed chain's
+    build takes about 20 s on 2 cores, and a worker whose files never ask for a variant skips it)."""
+
+    def __init__(self, root: Path, coacd_cache: Path):
+        self._root, self._coacd_cache = root, coacd_cache
+        self._got: dict = {}
+
+    def __getitem__(self, variant):
+        import fcntl
+        import json
+
+        from footforge.build import VARIANTS, BuildOptions, build
+
+        if variant not in VARIANTS:
+            raise KeyError(variant)
+        if variant not in self._got:
+            out, done = self._root / variant, self._root / f"{variant}.done"
+            with open(self._root / f"{variant}.lock", "w") as lock:
+                fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+                if not done.exists():
+                    build(BuildOptions(variant=variant, out_dir=out, cache_dir=self._coacd_cache))
+                    done.touch()
+            self._got[variant] = (out, json.loads((out / "build_report.json").read_text()))
+        return self._got[variant]
+
+    def __iter__(self):
+        from footforge.build import VARIANTS
+
+        return iter(VARIANTS)
+
+    def __len__(self):
+        from footforge.build import VARIANTS
+
+        return len(VARIANTS)
+
+
 @pytest.fixture(scope="session")
 def built(tmp_path_factory, coacd_cache):
-    """All four variants built once into a session folder: {variant: (out_dir, report)}."""
-    from footforge.build import VARIANTS, BuildOptions, build
-
-    root = tmp_path_factory.mktemp("build")
-    return {v: (root / v, build(BuildOptions(variant=v, out_dir=root / v, cache_dir=coacd_cache))) for v in VARIANTS}
+    """Every variant's build, made on first use (_Builds): {variant: (out_dir, report)}, the report
+    as build_report.json holds it."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # the workers' base folders share this session's parent
+        root = tmp_path_factory.getbasetemp().parent / "shared-builds"
+        root.mkdir(exist_ok=True)
+    else:
+        root = tmp_path_factory.mktemp("build")
+    return _Builds(root, coacd_cache)
 
 
 _FLOAT64_STANCE = """
@@ -87,3 +130,25 @@ def float64_stance(task: str, feet: str, build_root) -> dict:
     )
     assert run.returncode == 0, run.stderr[-3000:]
     return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+HEAVIEST_FIRST = (
+    "test_shipped_policies.py",
+    "test_rough.py",
+    "test_engines.py",
+    "test_train.py",
+    "test_envs.py",
+    "test_closed_chain.py",
+    "test_cli.py",
+    "test_export.py",
+    "test_validate.py",
+    "test_play.py",
+)
+"""Test files with the longest default runs (40-100 s each on 2 cores, 2026-11-29), heaviest first.
+pytest-xdist (`--dist loadfile`) hands whole files to its two workers in collection order; started
+first, the long files end together instead of one of them running on alone at the end."""
+
+
+def pytest_collection_modifyitems(config, items):
+    rank = {name: i for i, name in enumerate(HEAVIEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest keep their order

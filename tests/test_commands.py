@@ -158,8 +158,8 @@ def test_the_total_reward_is_the_sum_of_its_terms_clipped_at_zero_or_not(built, 
             yaw_rate=replace(r.yaw_rate, scale=0.0),
         )
         env = _env(built, rewards=r, pushes=replace(config.pushes, enabled=False))
-        state = env.reset(jax.random.PRNGKey(0))
-        after = env.step(state, jp.full(env.action_size, 0.8))  # off the default pose: the penalties bite
+        state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+        after = jax.jit(env.step)(state, jp.full(env.action_size, 0.8))  # off the default pose: the penalties bite
         assert not bool(after.done)
         terms = {k: float(v) for k, v in after.metrics.items() if k.startswith("reward/") and k != "reward/fall"}
         total = sum(terms.values())

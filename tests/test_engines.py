@@ -53,10 +53,24 @@ def _pair(built, task, feet, policy, **overrides):
     )
 
 
+_COMPILED: dict = {}
+
+
+def _compiled(env):
+    """env's batched reset and step, jitted once per env (a test rolling one env out twice compiles once)."""
+    if id(env) not in _COMPILED:
+        _COMPILED[id(env)] = (
+            env,
+            jax.jit(jax.vmap(env.reset)),
+            jax.jit(jax.vmap(env.step)),
+        )  # env kept: its id stays its own
+    return _COMPILED[id(env)][1:]
+
+
 def _rollout(env, actions):
     """A reset of ROBOTS robots (the same keys for every engine) and STEPS steps of `actions`:
     per step (obs, reward, done, foot contacts, foot forces, probe points, foot sites, base pose)."""
-    reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+    reset, step = _compiled(env)
     state = reset(jax.random.split(jax.random.PRNGKey(0), ROBOTS))
 
     def read(s):
@@ -289,10 +303,16 @@ def test_engines_agree_in_float32(built, task, feet, policy):
 def test_c_engine_results_do_not_depend_on_its_threads(built, monkeypatch):
     """The same seed gives the same bytes with one thread and with two (each robot's warm start is
     its own, never a thread's leftover)."""
+    from footforge.envs.engine_mujoco import Rollouts
+
+    monkeypatch.setenv(THREADS_ENV, "1")
+    _, c_env = _pair(built, "flat", "aof", "B")
     rows = []
     for threads in ("1", "2"):
+        # A new pool of `threads` threads (what a C engine made under this setting holds); the
+        # compiled step, which calls the pool from its host callback, stays the same program.
         monkeypatch.setenv(THREADS_ENV, threads)
-        _, c_env = _pair(built, "flat", "aof", "B")
+        c_env.physics._rollouts = Rollouts(c_env.physics.model)
         assert c_env.physics._rollouts.threads == int(threads)
         rows.append(_rollout(c_env, _actions(c_env, seed=3)))
     for one, two in zip(*rows):
@@ -303,14 +323,28 @@ def test_c_engine_results_do_not_depend_on_its_threads(built, monkeypatch):
         _pair(built, "flat", "aof", "B")
 
 
+@pytest.fixture(scope="module")
+def c_envs(built):
+    """feet -> (flat B env under the C engine, its jitted reset, its jitted step), each made and
+    compiled once for the tests that share it."""
+    made = {}
+
+    def get(feet):
+        if feet not in made:
+            _, env = _pair(built, "flat", feet, "B")
+            made[feet] = (env, jax.jit(env.reset), jax.jit(env.step))
+        return made[feet]
+
+    return get
+
+
 @pytest.mark.parametrize("feet", ["ball", "aof"])
-def test_c_engine_feet_carry_the_robots_weight(built, feet):
+def test_c_engine_feet_carry_the_robots_weight(c_envs, feet):
     """Standing still (zero actions, 1 s), the four feet's normal forces from the contact sensors
     add up to the robot's weight, and the base's probes are above the ground; placed 5 cm into the
     ground, the base's probes end the episode."""
-    _, env = _pair(built, "flat", feet, "B")
-    step = jax.jit(env.step)
-    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    env, reset, step = c_envs(feet)
+    state = reset(jax.random.PRNGKey(0))
     for _ in range(50):
         state = step(state, jp.zeros(env.action_size))
     weight_n = float(env.robot.model.body_subtreemass[0] * 9.81)
@@ -382,12 +416,11 @@ def test_a_run_resumes_under_the_other_engine(tmp_path):
         train._resume_state(run, replace(env_config, physics=other, decimation=4), ppo, print, False)
 
 
-def test_a_blown_up_c_simulation_ends_as_diverged(built):
+def test_a_blown_up_c_simulation_ends_as_diverged(c_envs):
     """MuJoCo resets a simulation that blows up (here a base moving at 1e11 m/s) and carries on;
     the C engine reports it as MJX would, non-finite, so the episode ends as diverged."""
-    _, env = _pair(built, "flat", "ball", "B")
-    step = jax.jit(env.step)
-    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    env, reset, step = c_envs("ball")
+    state = reset(jax.random.PRNGKey(0))
     d = state.pipeline_state
     state = state.replace(pipeline_state=env.physics.place(d, d.qpos, d.qvel.at[0].set(1e11), d.ctrl))
     after = step(state, jp.zeros(env.action_size))
@@ -412,7 +445,7 @@ def test_the_c_engine_s_callbacks_compute_with_numpy_only(built, monkeypatch):
         return original(self, *arrays)
 
     monkeypatch.setattr(engine_mujoco.MujocoPhysics, "_initial_state", spy)
-    _, env = _pair(built, "flat", "aof", "B")
+    _, env = _pair(built, "flat", "ball", "B")
     states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 2))
     jax.jit(jax.vmap(env.step))(states, jp.zeros((2, env.action_size)))
     assert seen and all(kinds == {np.ndarray} for kinds in seen), seen

@@ -143,6 +143,8 @@ def ball_build(tmp_path_factory):
     return root / "ball"
 
 
+@pytest.mark.slow  # a recorded rollout of a shipped policy: about 30 s (random observations: the default run)
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_onnx_matches_the_jax_policy_on_a_recorded_rollout(tmp_path, ball_build):
     """The flat ball B policy walks 40 policy steps in MJX under its JAX actions (pushed at once,
     under a command); onnxruntime, fed the recorded observations, gives the same actions."""

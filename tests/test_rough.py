@@ -123,6 +123,8 @@ def _lowest_foot_clearance(env, qpos) -> float:
     return float(min(lowest))
 
 
+@pytest.mark.slow  # 16 resets on a slope under the C engine, compiled for their own terrain: about 20 s
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_no_foot_starts_inside_a_slope(built):
     """Tiles whose platform (0.5 m) is smaller than the robot: spawned within 0.5 m of a tile's
     centre, feet reach onto the slope around it, and joints are randomised. Every reset leaves the
@@ -207,6 +209,8 @@ def test_sole_boxes_become_spheres_on_the_heightfield_without_changing_the_robot
                 np.testing.assert_array_equal(getattr(spheres, attribute)[h], getattr(boxes, attribute)[g])
 
 
+@pytest.mark.slow  # 10 s of one robot stepped policy step by policy step: about 40 s on 2 cores
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_sole_spheres_stand_from_their_own_rest(built):
     """On the sole spheres the rough task starts from their own rest on flat ground (footforge.rest),
     not from the build's `stand` (the rest on its boxes, a different pose: the spheres, inset from
@@ -603,6 +607,8 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     assert typo.returncode == 2 and "FIELD one of num_levels" in typo.stderr
 
 
+@pytest.mark.slow  # a rough evaluation (C engine, every tile, plots): about 30 s on 2 cores
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
 def test_rough_evaluation_output_is_complete(built, tmp_path):
     """A perceptive ball-foot policy (freshly initialised) evaluated over every tile of a small
     terrain: indices per kind and level, and the Figure 9 table (zero-shot on other feet is the
@@ -614,26 +620,10 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
     initial_policy(config, default_ppo("rough"), tmp_path / "policy", observation_size=188)
     report = tmp_path / "eval"
     robots = SMALL.num_levels * SMALL.num_columns
-    code = subprocess.run(
-        [
-            sys.executable,
-            str(REPO / "pipelines/evaluate.py"),
-            "--policy",
-            str(tmp_path / "policy"),
-            "--num-envs",
-            str(robots),
-            "--seconds",
-            "0.2",
-            "--build-root",
-            str(built["ball"][0].parent),
-            "--out",
-            str(report),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert code.returncode == 0, code.stderr[-3000:]
+    from footforge.cli.main import main  # in this process: the pipeline script is a shim over it (test_cli)
+
+    command = ["evaluate", "--policy", str(tmp_path / "policy"), "--num-envs", str(robots), "--seconds", "0.2"]
+    assert main([*command, "--build-root", str(built["ball"][0].parent), "--out", str(report)]) == 0
     result = json.loads((report / "metrics.json").read_text())[0]
     assert result["task"] == "rough" and result["feet"] == "ball" and result["seconds"] == 0.2
     by_terrain = result["by_terrain"]

@@ -40,23 +40,37 @@ def test_a_shipped_policy_loads_and_walks_on_its_own_feet(name):
 ROLLOUT_ROBOTS, ROLLOUT_SECONDS = 4, 4.0
 
 
+def _roll_out(name, built, out, seed=0):
+    """`footforge evaluate` of shipped policy `name` on its own feet with the C engine, ROLLOUT_ROBOTS
+    robots for ROLLOUT_SECONDS (`seed`): its metrics.json's bytes."""
+    from footforge.cli.main import main
+
+    feet = load_policy_parameters(REPO / "policies" / name / "policy").env.feet
+    command = ["evaluate", "--policy", str(REPO / "policies" / name), "--num-envs", str(ROLLOUT_ROBOTS)]
+    command += ["--seconds", str(ROLLOUT_SECONDS), "--seed", str(seed), "--physics", "mujoco"]
+    assert main([*command, "--build-root", str(built[feet][0].parent), "--out", str(out)]) == 0
+    return (out / "metrics.json").read_bytes()
+
+
+@pytest.fixture(scope="module")
+def first_rollouts(built, tmp_path_factory):
+    """Each shipped policy's rollout (_roll_out, seed 0), made once: {name: metrics.json bytes}."""
+    root = tmp_path_factory.mktemp("rollouts")
+    return {name: _roll_out(name, built, root / name) for name in SHIPPED}
+
+
 @pytest.mark.parametrize("name", SHIPPED)
-def test_a_shipped_policy_walks_on_its_own_feet_when_rolled_out(name, built, tmp_path):
+def test_a_shipped_policy_walks_on_its_own_feet_when_rolled_out(name, first_rollouts):
     """Each shipped policy rolled out now, not read from its recorded evaluation: `footforge
     evaluate` on its own feet with the C engine, 4 robots for 4 s (seed 0). Too short for the full
     verdict (its uptime and stance shares are 20-s figures, and the first second is the start from
     rest), so it asks what 4 s can show: no robot falls or diverges, the base rides at least
     verdict.MIN_BASE_HEIGHT_M high, and the forward error is within the verdict's
     MAX_FORWARD_ERROR_MPS."""
-    from footforge.cli.main import main
     from footforge.rl import verdict
 
     feet = load_policy_parameters(REPO / "policies" / name / "policy").env.feet
-    out = tmp_path / "evaluation"
-    command = ["evaluate", "--policy", str(REPO / "policies" / name), "--num-envs", str(ROLLOUT_ROBOTS)]
-    command += ["--seconds", str(ROLLOUT_SECONDS), "--seed", "0", "--physics", "mujoco"]
-    assert main([*command, "--build-root", str(built[feet][0].parent), "--out", str(out)]) == 0
-    (result,) = json.loads((out / "metrics.json").read_text())
+    (result,) = json.loads(first_rollouts[name])
     assert (result["feet"], result["num_envs"], result["seconds"]) == (feet, ROLLOUT_ROBOTS, ROLLOUT_SECONDS)
     walking = result["walking"]
     assert result["falls"] == 0 and result["diverged"] == 0 and walking["uptime"] == 1.0, result["fall_times_s"]
@@ -64,37 +78,16 @@ def test_a_shipped_policy_walks_on_its_own_feet_when_rolled_out(name, built, tmp
     assert walking["forward_error_mps"] <= verdict.MAX_FORWARD_ERROR_MPS, walking
 
 
-def test_an_evaluation_repeats_byte_for_byte(tmp_path):
+@pytest.mark.slow  # two more evaluations: about 30 s on 2 cores
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
+def test_an_evaluation_repeats_byte_for_byte(built, tmp_path):
     """The same policy, seed and robots give the same metrics.json, byte for byte (the C engine in
     float64, its results independent of its threads; every draw seeded), and another seed gives
     other figures (so the comparison can fail). The issue's differing figures came from code that
     changed between the card and the rerun, not from the rerun."""
-    from footforge.cli.main import main
-
-    def run(out, seed):
-        assert (
-            main(
-                [
-                    "evaluate",
-                    "--policy",
-                    str(REPO / "policies/flat_ball_B"),
-                    "--num-envs",
-                    "4",
-                    "--seconds",
-                    "2",
-                    "--seed",
-                    str(seed),
-                    "--out",
-                    str(tmp_path / out),
-                ]
-            )
-            == 0
-        )
-        return (tmp_path / out / "metrics.json").read_bytes()
-
-    first = run("a", 0)
-    assert run("b", 0) == first
-    assert run("c", 1) != first
+    first = _roll_out("flat_ball_B", built, tmp_path / "first")
+    assert _roll_out("flat_ball_B", built, tmp_path / "again") == first
+    assert _roll_out("flat_ball_B", built, tmp_path / "other", seed=1) != first
 
 
 def test_the_tables_of_shipped_policies_are_their_recorded_evaluations():

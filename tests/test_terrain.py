@@ -125,11 +125,18 @@ def test_surface_height_matches_mujoco_ray_casts(tmp_path):
         ("tile_size_m", -1.0, "tile_size_m must be positive"),
         ("proportions", (1, 1), "proportions must be 6"),
         ("platform_m", 9.0, "platform must be smaller"),
+        ("num_columns", 2, r"num_columns \(2\) is fewer than the 6 terrain kinds"),  # crashed in generate before
     ],
 )
 def test_bad_terrain_configs_are_input_errors(field, value, message):
     with pytest.raises(InputError, match=message):
         generate(replace(TerrainConfig(), **{field: value}))
+
+
+def test_as_many_columns_as_kinds_in_use_make_a_terrain():
+    """The smallest terrains the tests use: two columns for two kinds with a share."""
+    terrain = generate(replace(TerrainConfig(), num_levels=1, num_columns=2, proportions=(1, 1, 0, 0, 0, 0)))
+    assert column_kinds(terrain.config) == (KINDS[0], KINDS[1])
 
 
 def test_evaluation_robots_cover_every_terrain_kind_first():

@@ -81,6 +81,13 @@ class TerrainConfig:
                 f"got {self.proportions}",
                 fix="e.g. (0.1, 0.1, 0.25, 0.25, 0.2, 0.1)",
             )
+        used = sum(1 for share in self.proportions if share > 0)
+        if self.num_columns < used:  # column_kinds gives every kind in use a column of its own
+            raise InputError(
+                f"terrain num_columns ({self.num_columns}) is fewer than the {used} terrain kinds with a share "
+                f"in proportions {self.proportions} ({', '.join(KINDS)}): each kind needs a column",
+                fix=f"give num_columns >= {used}, or zero shares for the kinds to leave out",
+            )
         if self.platform_m >= self.tile_size_m:
             raise InputError(
                 "the spawn platform must be smaller than a tile", fix=f"platform_m < tile_size_m ({self.tile_size_m})"
