@@ -925,6 +925,25 @@ def test_planned_steps_round_up_to_whole_iterations_in_every_epoch():
     assert train.planned_steps(replace_ppo(tiny, num_timesteps=96)) == 96  # whole already: unchanged
     assert train.planned_steps(replace_ppo(tiny, num_timesteps=96), done=64) == 96
     assert train.planned_steps(replace_ppo(tiny, num_timesteps=96), done=96) == 96  # nothing left
+    # A checkpoint every 2.625 iterations (the CPU's 258,048 steps, the rough task's 98,304-step
+    # iterations), 5.31 M of 200 M done: epochs of 2 iterations end within one iteration of the total,
+    # where epochs of 258,048 steps rounded up to 3 iterations each planned 235 M.
+    rough = PPOConfig(num_timesteps=200_000_000, checkpoint_every_steps=258_048)
+    iteration = train.steps_per_iteration(rough)
+    assert iteration == 98_304
+    planned = train.planned_steps(rough, done=5_308_416)
+    assert 200_000_000 <= planned < 200_000_000 + 2 * iteration, planned
+    assert train.training_epochs(rough, done=5_308_416) * 2 * iteration == planned - 5_308_416
+    # The CPU preset's flat run (checkpoints every 42 iterations of 6,144 steps): 10.06 M, as trained.
+    flat = PPOConfig(
+        num_timesteps=10_000_000,
+        num_envs=128,
+        unroll_length=24,
+        batch_size=64,
+        num_minibatches=4,
+        checkpoint_every_steps=258_048,
+    )
+    assert train.planned_steps(flat) == 10_063_872 and train.training_epochs(flat) == 39
 
 
 def test_a_new_run_announces_device_steps_and_rounding_before_compiling(built, tmp_path, monkeypatch, capsys):
