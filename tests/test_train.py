@@ -934,15 +934,10 @@ def test_planned_steps_round_up_to_whole_iterations_in_every_epoch():
     planned = train.planned_steps(rough, done=5_308_416)
     assert 200_000_000 <= planned < 200_000_000 + 2 * iteration, planned
     assert train.training_epochs(rough, done=5_308_416) * 2 * iteration == planned - 5_308_416
-    # The CPU preset's flat run (checkpoints every 42 iterations of 6,144 steps): 10.06 M, as trained.
-    flat = PPOConfig(
-        num_timesteps=10_000_000,
-        num_envs=128,
-        unroll_length=24,
-        batch_size=64,
-        num_minibatches=4,
-        checkpoint_every_steps=258_048,
-    )
+    # The `cpu` preset's flat run (checkpoints every 42 iterations of 6,144 steps): 10.06 M, as trained.
+    from footforge.rl import presets
+
+    _, flat = presets.resolve("flat", "aof", "B", "cpu")
     assert train.planned_steps(flat) == 10_063_872 and train.training_epochs(flat) == 39
 
 
