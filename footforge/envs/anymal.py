@@ -426,12 +426,6 @@ def fit_heightfield_subgrids(mjx_model, model: mujoco.MjModel):
     return mjx_private.with_heightfield_bounds(mjx_model, fitted)
 
 
-def min_solver_iterations(contact_model: str, feet: str, float64_physics: bool = False) -> tuple[int, int] | None:
-    """(Newton, line-search) iterations `contact_model` needs on `feet` in float32 or float64
-    physics, or None (fast: any): envs.contact_physics's row (the same on either ground)."""
-    return resolve(contact_model, feet, float64_physics, on_heightfield=False).min_iterations
-
-
 def check_contact_model(config: EnvConfig, *, on_heightfield: bool = False) -> None:
     """Raises InputError where config.contact_model cannot run stably with config's feet, step and
     solver iterations (EnvConfig.contact_model; the limits are envs.contact_physics's), or is unknown."""

@@ -26,6 +26,7 @@ from typing import Literal, get_args
 
 from footforge.envs.config import ContactModel
 from footforge.errors import InputError
+from footforge.tables import markdown_table
 from footforge.variants import DERIVED
 
 Precision = Literal["float32", "float64"]
@@ -251,31 +252,44 @@ def as_markdown(rows: tuple[ContactPhysics, ...] = CONTACT_PHYSICS) -> str:
             return " / ".join(f"{v:g}" for v in value)
         return f"{value:g}" if isinstance(value, float) else str(value)
 
-    lines = [
-        "| contact model | feet | precision | ground | step | max step | min iterations (Newton / line search) "
-        "| cone | impratio | solimp | solref | integrator | why |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    header = (
+        "contact model",
+        "feet",
+        "precision",
+        "ground",
+        "step",
+        "max step",
+        "min iterations (Newton / line search)",
+        "cone",
+        "impratio",
+        "solimp",
+        "solref",
+        "integrator",
+        "why",
+    )
+    rows_out = []
     for r in rows:
         iterations = (
             "none ({} / {})".format(*DEFAULT_ITERATIONS)
             if r.min_iterations is None
             else "{} / {}".format(*r.min_iterations)
         )
-        cells = [
-            r.contact_model,
-            either(r.feet),
-            either(r.precision),
-            either(r.ground),
-            f"{r.sim_dt_s * 1e3:g} ms",
-            "none" if r.max_sim_dt_s is None else f"{r.max_sim_dt_s * 1e3:g} ms",
-            iterations,
-            build_s(r.cone),
-            build_s(r.impratio),
-            build_s(r.solimp),
-            build_s(r.solref),
-            build_s(r.integrator),
-            r.reason,
-        ]
-        lines.append("| " + " | ".join(cells) + " |")
+        rows_out.append(
+            [
+                r.contact_model,
+                either(r.feet),
+                either(r.precision),
+                either(r.ground),
+                f"{r.sim_dt_s * 1e3:g} ms",
+                "none" if r.max_sim_dt_s is None else f"{r.max_sim_dt_s * 1e3:g} ms",
+                iterations,
+                build_s(r.cone),
+                build_s(r.impratio),
+                build_s(r.solimp),
+                build_s(r.solref),
+                build_s(r.integrator),
+                r.reason,
+            ]
+        )
+    lines = markdown_table(header, rows_out)
     return "\n".join(lines) + "\n"

@@ -367,7 +367,7 @@ def train(
     last: dict = {}
     t0 = time.time()
     this_machine = machine()
-    budget = WallTimeBudget(max_wall_s, ppo.checkpoint_every_steps, t0)
+    budget = WallTimeBudget(max_wall_s, (total - offset) // epochs, t0)  # Brax's epochs: whole iterations
 
     def save(step: int, make_policy, params) -> None:
         global_step = offset + step
