@@ -351,6 +351,46 @@ def test_every_command_s_error_starts_with_its_own_name(capsys, tmp_path, job, a
     assert code == 2 and errors and errors[0].startswith(f"footforge {job}: error: "), text
 
 
+def test_every_command_is_a_module_with_parser_and_run_and_one_error_path():
+    """Each command of `footforge --help` is a module of footforge/cli/ with parser(prog) and run(args)
+    (footforge.cli.command), and only footforge.cli.command turns errors and interrupts into exit
+    codes: no command module catches FootforgeError or KeyboardInterrupt itself."""
+    import inspect
+
+    from footforge.cli.command import COMMANDS, module
+    from footforge.cli.main import _parser
+
+    listed = next(a for a in _parser()._actions if a.dest == "command").choices
+    assert list(listed) == list(COMMANDS)
+    for name in COMMANDS:
+        command = module(name)
+        assert list(inspect.signature(command.run).parameters) == ["args"], name
+        assert next(iter(inspect.signature(command.parser).parameters)) == "prog", name
+    catchers = [
+        path.name
+        for path in (REPO / "footforge" / "cli").glob("*.py")
+        if path.name != "command.py" and re.search(r"except[^:\n]*(FootforgeError|KeyboardInterrupt)", path.read_text())
+    ]
+    assert catchers == []
+
+
+def test_an_interrupted_command_says_what_it_left_and_exits_130(monkeypatch, capsys, tmp_path):
+    """Ctrl-C in a command's work: one line naming what it left (a training run its checkpoints, the
+    viewer nothing: exit 0) and the shell's code for an interrupt."""
+    from footforge.cli import command, export, play
+
+    def interrupt(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(export, "run", interrupt)
+    assert command.run_command(export, [str(tmp_path)], "footforge export") == 130
+    assert capsys.readouterr().err == "footforge export: interrupted; no output was written\n"
+    monkeypatch.setattr(play, "run", interrupt)
+    assert command.run_command(play, [str(tmp_path)], "footforge play") == 0  # leaving the viewer
+    assert command.run_command(play, [str(tmp_path), "--headless"], "footforge play") == 130
+    assert capsys.readouterr().err == "footforge play: interrupted; no video or log was written\n"
+
+
 @pytest.mark.parametrize(
     "script, job",
     [

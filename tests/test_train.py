@@ -707,12 +707,10 @@ def test_build_root_names_the_builds_everywhere_and_build_dir_still_works(built,
     assert main("flat", "", ["--feet", "ball", "--build-dir", str(root / "ball"), "--out", str(tmp_path / "b")]) == 0
     assert seen["env"].build_dir == str(root / "ball")
     assert "--build-dir is deprecated; use --build-root" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        main("flat", "", ["--help"])
-    assert "--build-root" in capsys.readouterr().out
-    with pytest.raises(SystemExit):
-        main("flat", "", ["--help"])
-    assert "--build-dir" not in capsys.readouterr().out  # hidden
+    assert main("flat", "", ["--help"]) == 0  # an exit code, as from every command's main
+    help_text = capsys.readouterr().out
+    assert "--build-root" in help_text
+    assert "--build-dir" not in help_text  # hidden
 
 
 def test_a_missing_policy_folder_is_said_not_to_exist(tmp_path, capsys):

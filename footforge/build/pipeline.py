@@ -38,7 +38,7 @@ from footforge.models.urdf import parse_urdf
 from footforge.outputs import check_output_folder
 from footforge.provenance import json_default, sha256_file, versions
 from footforge.timing import StageTimer
-from footforge.variants import DERIVED, VARIANTS, Variant  # noqa: F401  (VARIANTS, Variant re-exported: footforge.build)
+from footforge.variants import VARIANTS, Variant, foot_variant  # noqa: F401  (VARIANTS, Variant re-exported: footforge.build)
 
 FORMATS = ("mjcf", "usd")
 
@@ -104,16 +104,13 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
 
     foot = full_foot = None
     sidecar = None
-    if options.variant != "ball":
+    kind = foot_variant(options.variant)
+    if kind.adaptive:  # the SoftFoot-Q description builds it
         source = load_foot_source(options, stage, report, params)
         sidecar = source.sidecar
         with stage(f"build {options.variant} foot"):
             full_foot = foot_lib.build_full(source)
-            foot = (
-                full_foot
-                if options.variant == "full"
-                else foot_lib.build_derived(source, options.variant, full=full_foot)
-            )
+            foot = full_foot if kind.closed_chain else foot_lib.build_derived(source, options.variant, full=full_foot)
             report["foot"] = foot.info | {
                 "passive_joints": foot.passive_joints,
                 "reference_qpos_rad": foot.reference_qpos,
@@ -139,7 +136,7 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
     else:
         with stage("build robot"):
             robot_path = Path(options.robot_description or default_robot_description())
-            foot_arg = "ball" if options.variant == "ball" else "none"
+            foot_arg = "none" if kind.adaptive else "ball"  # the robot description's own ball foot
             robot_desc = load_description(robot_path, args={"foot": foot_arg}, package_paths=options.package_paths)
             robot_desc, robot_findings, notes = lint_and_repair(robot_desc, repair=options.repair, what="robot")
             report["repairs"] += [f"{robot_path.name}: {n}" for n in notes]
@@ -157,12 +154,12 @@ def build(options: BuildOptions, *, progress: Callable[[str], None] | None = Non
             report["model"] = model_counts(robot_model)
             report["model"]["home_base_height_m"] = float(robot_model.key("home").qpos[2])
         _export_usd(options, stage, report, stages, "robot", robot_model, "home")
-        if options.variant == "full":
+        if kind.closed_chain:
             with stage("check closures"):
                 data = massprops.at_keyframe(robot_model, "home")
                 gaps = closure_gaps(robot_model, data)
                 report["closure_residual_at_home_m"] = max(gaps.values())
-        elif options.variant in DERIVED:
+        elif kind.derived:
             with stage("compare mass properties"):
                 full_robot = build_robot(
                     robot_parsed, full_foot, variant="full", params=params, friction=friction, stand_keyframe=False

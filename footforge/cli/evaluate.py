@@ -80,26 +80,25 @@ def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = "footforge evaluate") -> int:
     """The `footforge evaluate` command (also `python pipelines/evaluate.py`)."""
-    import footforge
+    from footforge.cli.command import run_command
 
-    footforge.headless_by_default()  # before any import of MuJoCo
-    if footforge.gl_setting_refused(prog):  # before `import mujoco` raises on it
-        return 2
-    args = parser(prog).parse_args(argv)
+    return run_command(sys.modules[__name__], argv, prog)
 
-    from footforge.cli.guard import run_guarded
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluates each policy on each feet and writes the folder; exit 0."""
+    from footforge.errors import InputError
 
     if (
         args.num_envs < 1
         or (args.seconds is not None and args.seconds <= 0)
         or (args.video is not None and args.video <= 0)
     ):
-        print("footforge evaluate: error: --num-envs, --seconds and --video must be positive", file=sys.stderr)
-        return 2
+        raise InputError("--num-envs, --seconds and --video must be positive", fix="e.g. --num-envs 32 --seconds 20")
     from footforge.rl import compile_cache
 
     compile_cache.enable(not args.no_compile_cache)
-    return run_guarded("footforge evaluate", lambda: _run(args))
+    return _run(args)
 
 
 def _run(args) -> int:

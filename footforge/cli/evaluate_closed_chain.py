@@ -60,19 +60,13 @@ def parser(prog: str = "footforge evaluate-closed-chain") -> argparse.ArgumentPa
 
 def main(argv: list[str] | None = None, prog: str = "footforge evaluate-closed-chain") -> int:
     """The `footforge evaluate-closed-chain` command (also `python pipelines/evaluate_closed_chain.py`)."""
-    import footforge
+    from footforge.cli.command import run_command
 
-    footforge.headless_by_default()  # before any import of MuJoCo
-    if footforge.gl_setting_refused(prog):  # before `import mujoco` raises on it
-        return 2
-    args = parser(prog).parse_args(argv)
-
-    from footforge.cli.guard import run_guarded
-
-    return run_guarded("footforge evaluate-closed-chain", lambda: _run(args))
+    return run_command(sys.modules[__name__], argv, prog)
 
 
-def _run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Runs each policy on the closed chain and writes the folder; exit 0."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from footforge.atomic import atomic_directory

@@ -67,28 +67,20 @@ def parser(prog: str = "footforge play") -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = "footforge play") -> int:
     """The `footforge play` command (also `python pipelines/play.py`)."""
-    import footforge
+    from footforge.cli.command import run_command
 
-    footforge.headless_by_default()  # before any import of MuJoCo
-    if footforge.gl_setting_refused(prog):  # before `import mujoco` raises on it
-        return 2
-    args = parser(prog).parse_args(argv)
+    return run_command(sys.modules[__name__], argv, prog)
 
-    from footforge.errors import FootforgeError, interrupt_exit_code, interrupt_word
-    from footforge.processes import sigterm_as_interrupt
 
-    try:
-        with sigterm_as_interrupt():  # a terminated play cleans up (no half-written video) as Ctrl-C does
-            _check_arguments(args)
-            return _run(args)
-    except FootforgeError as e:
-        print(f"{PROG}: error: {e}", file=sys.stderr)
-        return e.exit_code
-    except KeyboardInterrupt as e:
-        if args.headless:
-            print(f"{PROG}: {interrupt_word(e)}; no video or log was written", file=sys.stderr)
-            return interrupt_exit_code(e)
-        return 0  # Ctrl-C is one way to leave the viewer
+def run(args: argparse.Namespace) -> int:
+    """Plays the policy: the viewer, or headless with its summary, GIF and log; exit 0."""
+    _check_arguments(args)
+    return _run(args)
+
+
+def interrupted(args: argparse.Namespace) -> str | None:
+    """A headless run leaves no half-written video or log; Ctrl-C is one way to leave the viewer (exit 0)."""
+    return "no video or log was written" if args.headless else None
 
 
 def _check_arguments(args) -> None:

@@ -13,7 +13,7 @@ import footforge
 
 footforge.headless_by_default()  # before any import of MuJoCo
 
-from footforge.errors import EXIT_INPUT_ERROR, InputError, interrupt_exit_code, interrupt_word  # noqa: E402
+from footforge.errors import EXIT_INPUT_ERROR, InputError  # noqa: E402
 
 DESCRIPTIONS = {
     "flat": "Train an ANYmal C flat-ground policy with Brax PPO on MuJoCo (MJX on a GPU, its C engine on a CPU; "
@@ -24,8 +24,8 @@ DESCRIPTIONS = {
 """Each task's one-line description, the help's first line."""
 
 
-def parser(task: str, description: str, prog: str | None = None) -> argparse.ArgumentParser:
-    """The options of `footforge train TASK`."""
+def parser(prog: str | None = None, task: str = "flat", description: str | None = None) -> argparse.ArgumentParser:
+    """The options of `footforge train TASK` (`description`: the help's first line, by default the task's)."""
     from footforge.cli.help import DefaultsHelpFormatter
     from footforge.envs import FEET, TASKS
     from footforge.envs.config import EnvConfig
@@ -33,7 +33,10 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
 
     # Defaults the help names are read from the configuration dataclasses (tests/test_cli.py checks them).
     env, ppo = EnvConfig(), default_ppo(task)
-    p = argparse.ArgumentParser(prog=prog, description=description, formatter_class=DefaultsHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog=prog, description=description or DESCRIPTIONS[task], formatter_class=DefaultsHelpFormatter
+    )
+    p.set_defaults(task=task)
     from footforge.rl import presets
 
     p.add_argument(
@@ -191,130 +194,137 @@ def parser(task: str, description: str, prog: str | None = None) -> argparse.Arg
     return p
 
 
-def main(task: str, description: str, argv: list[str] | None = None, prog: str | None = None) -> int:
+def main(task: str, description: str | None = None, argv: list[str] | None = None, prog: str | None = None) -> int:
     """`footforge train TASK` (and pipelines/train_TASK.py): one training run of `task`, flat or rough."""
-    if footforge.gl_setting_refused(prog or f"footforge train {task}"):  # before `import mujoco` raises on it
-        return EXIT_INPUT_ERROR
-    args = parser(task, description, prog).parse_args(argv)
+    from footforge.cli.command import run_command
 
-    from footforge.cli.help import console as make_console
-    from footforge.errors import FootforgeError
-    from footforge.processes import sigterm_as_interrupt
-    from footforge.rl import train
+    return run_command(
+        sys.modules[__name__], argv, prog or f"footforge train {task}", task=task, description=description
+    )
 
-    console = make_console()
-    name = f"footforge train {task}"  # messages name the command, whichever way it was started
 
-    try:
-        with sigterm_as_interrupt():  # a terminated run (a batch scheduler's kill) ends as an interrupted one
-            if args.build_dir and args.build_root:
-                raise InputError(
-                    "--build-dir is the old spelling of --build-root's <root>/<feet>: give one of them",
-                    fix="give --build-root",
-                )
-            if args.build_dir:
-                print(
-                    f"{name}: note: --build-dir is deprecated; use --build-root (the folder holding <feet>/, "
-                    f"e.g. --build-root {args.build_dir.parent})",
-                    file=sys.stderr,
-                )
-            if args.resume and args.force:
-                raise InputError(
-                    "--resume and --force exclude each other: --resume continues the run in --out, "
-                    "--force starts it over",
-                    fix="pass one of them",
-                )
-            if args.coordinator:
-                raise InputError(
-                    MULTI_PROCESS_UNSUPPORTED,
-                    fix="train on one machine (Brax splits --num-envs over all its GPUs), or leave out --coordinator",
-                )
-            if args.shorten and not args.resume:
-                raise InputError(
-                    "--shorten goes with --resume (a new run's --timesteps is its total)", fix="leave out --shorten"
-                )
-            if args.resume and args.init_from:
-                raise InputError(
-                    "--init-from starts a new run from another run's parameters; --resume continues the run in --out",
-                    fix="pass one of them",
-                )
-            env_config, ppo = _resumed_configs(task, args) if args.resume else _new_configs(task, args)
-            # Before anything is announced, built or compiled, in the flags' own words.
-            ppo.check(
-                {field: flag for flag, _, (section, field) in _SETTINGS if section == "ppo"}
-                | {"num_timesteps": "--timesteps"}
+def main_with_task(argv: list[str], *, verbose: bool = False) -> int:
+    """`footforge train TASK [options]` from the words after `train`: the task first."""
+    from footforge.cli.command import run_command
+    from footforge.envs import TASKS
+
+    if not argv or argv[0] not in TASKS:
+        usage = f"usage: footforge train {{{','.join(TASKS)}}} [options]   (footforge train flat --help lists them)"
+        if argv and argv[0] in ("-h", "--help"):
+            print(
+                usage + "\n\nTrain a policy with Brax PPO on MuJoCo MJX: flat is the paper's flat-ground task, "
+                "rough its terrain curriculum."
             )
-            # The run folder now, before JAX compiles (train() checks again, and writes).
-            train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
-            from footforge.cli.builds import build_defaults_if_missing
-
-            build_defaults_if_missing(
-                [env_config.feet], Path(env_config.build_dir).parent if env_config.build_dir else None, console
-            )
-            from footforge.envs import enable_float64_physics
-            from footforge.rl import compile_cache
-
-            enable_float64_physics(env_config)  # before any JAX array
-            from footforge.envs.anymal import check_mjx_impl
-
-            check_mjx_impl(env_config)  # before the run folder is written and JAX compiles
-            from footforge.envs import engine
-
-            engine.check(env_config.physics)
-            compile_cache.enable(not args.no_compile_cache)
-            done = 0
-            if args.resume:
-                kept = train.latest_intact_checkpoint(args.out)
-                done = kept[0] if kept else 0
-                if done >= ppo.num_timesteps:
-                    finished = train.finish_run(args.out)  # a run killed after its last checkpoint
-                    if finished:
-                        console.print(
-                            f"{args.out}: {finished[1]}: wrote {args.out / 'policy'} from checkpoint {finished[0]:,}",
-                            markup=False,
-                            highlight=False,
-                            soft_wrap=True,
-                        )
-                    console.print(
-                        f"{args.out}: already complete at step {done:,} (of {ppo.num_timesteps:,}); pass "
-                        f"--timesteps with a larger total to extend it",
-                        markup=False,
-                        highlight=False,
-                        soft_wrap=True,
-                    )
-                    return 0
-            evaluate = _evaluations(args, name)
-            total = train.planned_steps(ppo, done)
-            _announce(console, name, env_config, ppo, done, total, args.recipe)
-            with _Reporter(console, task, total) as report:
-                metrics = train.train(
-                    env_config,
-                    ppo,
-                    args.out,
-                    resume=args.resume,
-                    force=args.force,
-                    progress=report,
-                    max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None,
-                    evaluate=evaluate,
-                    init_from=args.init_from,
-                    recipe=args.recipe,
-                )
-    except FootforgeError as e:
-        print(f"{name}: error: {e}", file=sys.stderr)
-        return e.exit_code
-    except KeyboardInterrupt as e:
-        # Only complete checkpoints (with their manifest) are named: one being written is not.
-        kept = train.latest_intact_checkpoint(args.out) if args.out.is_dir() else None
+            return 0
+        print(usage, file=sys.stderr)
         print(
-            f"{name}: {interrupt_word(e)}; "
-            + (
-                f"{args.out} keeps its checkpoints up to step {kept[0]:,}: continue with --resume"
-                if kept
-                else "no checkpoint was written: the same command starts the run again"
-            ),
+            f"footforge train: error: the first argument is the task, one of {', '.join(TASKS)}"
+            + (f" (got '{argv[0]}')" if argv else ""),
             file=sys.stderr,
         )
-        return interrupt_exit_code(e)
+        return EXIT_INPUT_ERROR
+    task = argv[0]
+    return run_command(sys.modules[__name__], argv[1:], f"footforge train {task}", verbose=verbose, task=task)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Checks the arguments in a second, then trains (or finishes a run killed after its last checkpoint)."""
+    from footforge.cli.help import console as make_console
+    from footforge.rl import train
+
+    task = args.task
+    console = make_console()
+    name = f"footforge train {task}"  # messages name the command, whichever way it was started
+    if args.build_dir and args.build_root:
+        raise InputError(
+            "--build-dir is the old spelling of --build-root's <root>/<feet>: give one of them",
+            fix="give --build-root",
+        )
+    if args.build_dir:
+        print(
+            f"{name}: note: --build-dir is deprecated; use --build-root (the folder holding <feet>/, "
+            f"e.g. --build-root {args.build_dir.parent})",
+            file=sys.stderr,
+        )
+    if args.resume and args.force:
+        raise InputError(
+            "--resume and --force exclude each other: --resume continues the run in --out, --force starts it over",
+            fix="pass one of them",
+        )
+    if args.coordinator:
+        raise InputError(
+            MULTI_PROCESS_UNSUPPORTED,
+            fix="train on one machine (Brax splits --num-envs over all its GPUs), or leave out --coordinator",
+        )
+    if args.shorten and not args.resume:
+        raise InputError(
+            "--shorten goes with --resume (a new run's --timesteps is its total)", fix="leave out --shorten"
+        )
+    if args.resume and args.init_from:
+        raise InputError(
+            "--init-from starts a new run from another run's parameters; --resume continues the run in --out",
+            fix="pass one of them",
+        )
+    env_config, ppo = _resumed_configs(task, args) if args.resume else _new_configs(task, args)
+    # Before anything is announced, built or compiled, in the flags' own words.
+    ppo.check(
+        {field: flag for flag, _, (section, field) in _SETTINGS if section == "ppo"} | {"num_timesteps": "--timesteps"}
+    )
+    # The run folder now, before JAX compiles (train() checks again, and writes).
+    train.prepare_run_dir(args.out, resume=args.resume, force=args.force, write=False)
+    from footforge.cli.builds import build_defaults_if_missing
+
+    build_defaults_if_missing(
+        [env_config.feet], Path(env_config.build_dir).parent if env_config.build_dir else None, console
+    )
+    from footforge.envs import enable_float64_physics
+    from footforge.rl import compile_cache
+
+    enable_float64_physics(env_config)  # before any JAX array
+    from footforge.envs.anymal import check_mjx_impl
+
+    check_mjx_impl(env_config)  # before the run folder is written and JAX compiles
+    from footforge.envs import engine
+
+    engine.check(env_config.physics)
+    compile_cache.enable(not args.no_compile_cache)
+    done = 0
+    if args.resume:
+        kept = train.latest_intact_checkpoint(args.out)
+        done = kept[0] if kept else 0
+        if done >= ppo.num_timesteps:
+            finished = train.finish_run(args.out)  # a run killed after its last checkpoint
+            if finished:
+                console.print(
+                    f"{args.out}: {finished[1]}: wrote {args.out / 'policy'} from checkpoint {finished[0]:,}",
+                    markup=False,
+                    highlight=False,
+                    soft_wrap=True,
+                )
+            console.print(
+                f"{args.out}: already complete at step {done:,} (of {ppo.num_timesteps:,}); pass "
+                f"--timesteps with a larger total to extend it",
+                markup=False,
+                highlight=False,
+                soft_wrap=True,
+            )
+            return 0
+    evaluate = _evaluations(args, name)
+    total = train.planned_steps(ppo, done)
+    _announce(console, name, env_config, ppo, done, total, args.recipe)
+    with _Reporter(console, task, total) as report:
+        metrics = train.train(
+            env_config,
+            ppo,
+            args.out,
+            resume=args.resume,
+            force=args.force,
+            progress=report,
+            max_wall_s=args.max_minutes * 60 if args.max_minutes is not None else None,
+            evaluate=evaluate,
+            init_from=args.init_from,
+            recipe=args.recipe,
+        )
     if metrics.get("stopped_for_time"):
         console.print(
             f"stopped at the wall-time budget ({args.max_minutes:g} min) after a checkpoint; --resume continues"
@@ -329,6 +339,16 @@ def main(task: str, description: str, argv: list[str] | None = None, prog: str |
             f"{args.out / 'policy'} does)"
         )
     return 0
+
+
+def interrupted(args: argparse.Namespace) -> str:
+    """What an interrupted run keeps: its complete checkpoints (with their manifest; one being written is not named)."""
+    from footforge.rl import train
+
+    kept = train.latest_intact_checkpoint(args.out) if args.out.is_dir() else None
+    if kept:
+        return f"{args.out} keeps its checkpoints up to step {kept[0]:,}: continue with --resume"
+    return "no checkpoint was written: the same command starts the run again"
 
 
 CPU_STEPS_PER_S = 3000

@@ -20,7 +20,7 @@ from footforge.envs.config import (
     check_feet_and_policy,
 )
 from footforge.errors import InputError
-from footforge.variants import FEET, HAPTIC, TASKS
+from footforge.variants import FEET, HAPTIC, TASKS, foot_variant
 
 FLAT_FEET_AIR_TIME = 1.0
 """The flat task's scale of RewardConfig.feet_air_time, a term the paper does not list: legged_gym's
@@ -212,8 +212,12 @@ def make(task: str, feet: str, policy: str, **overrides):
 def registry() -> list[tuple[str, str, str]]:
     """Every valid (task, feet, policy) combination."""
     return [
-        (t, f, p) for t, policies in TASKS.items() for f in FEET for p in policies if not (p in HAPTIC and f == "ball")
-    ]  # check_feet_and_policy's rule
+        (t, f, p)
+        for t, policies in TASKS.items()
+        for f in FEET
+        for p in policies
+        if foot_variant(f).adaptive or p not in HAPTIC  # check_feet_and_policy's rule
+    ]
 
 
 def policy_types(task: str, feet: str, requested) -> list[str]:
@@ -222,7 +226,7 @@ def policy_types(task: str, feet: str, requested) -> list[str]:
     joints to sense. For benchmarks that sweep tasks, feet and policy types."""
     kept = []
     for policy in requested:
-        if feet == "ball" and policy in HAPTIC:
+        if policy in HAPTIC and not foot_variant(feet).adaptive:
             policy = policy.replace("H", "")
         if policy in TASKS[task] and policy not in kept:
             kept.append(policy)

@@ -29,7 +29,7 @@ from footforge import constants as C
 from footforge.envs.config import EnvConfig
 from footforge.envs.contact_physics import resolve
 from footforge.errors import InputError
-from footforge.variants import DERIVED
+from footforge.variants import foot_variant
 
 FLOOR_GEOM = "floor"
 GEOM_NONE, GEOM_BASE = 0, 1
@@ -215,7 +215,8 @@ def load_robot(config: EnvConfig, terrain=None, *, for_mjx: bool = True) -> Robo
     stand_qpos = model.key(
         "stand" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "stand") >= 0 else "home"
     ).qpos.copy()
-    if terrain is not None and config.heightfield_soles == "spheres" and config.feet in DERIVED:  # their own rest
+    derived_on_spheres = config.heightfield_soles == "spheres" and foot_variant(config.feet).derived
+    if terrain is not None and derived_on_spheres:  # their own rest on the sole spheres
         on_spheres = _stand_on_sole_spheres(folder, config)
         stand_qpos = stand_qpos if on_spheres is None else on_spheres
     return Robot(
@@ -248,7 +249,8 @@ def _scene_spec(folder: Path, config: EnvConfig, terrain, for_mjx: bool) -> mujo
         add_to_spec(spec, terrain, name=FLOOR_GEOM)
         if for_mjx and config.shank_collisions:
             _shank_tubes_as_capsules(spec)
-        if config.heightfield_soles == "spheres" and config.feet in DERIVED:  # the derived feet's sole boxes only
+        # the derived feet's sole boxes only
+        if config.heightfield_soles == "spheres" and foot_variant(config.feet).derived:
             _sole_boxes_as_spheres(spec, config.heightfield_sole_grid, config.heightfield_sole_radius_m)
     return spec
 

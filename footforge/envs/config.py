@@ -15,7 +15,7 @@ from footforge.envs import observations, rewards
 from footforge.envs.terms import NOT_SAVED, ObservationTerm, RewardTerm  # noqa: F401 (re-exported)
 from footforge.envs.terrain import TerrainConfig
 from footforge.errors import InputError
-from footforge.variants import HAPTIC, PERCEPTIVE, Feet, PolicyType
+from footforge.variants import HAPTIC, PERCEPTIVE, Feet, PolicyType, foot_variant
 
 ContactModel = Literal["stance", "fast", "build"]
 """EnvConfig.contact_model's choices, the default first."""
@@ -404,7 +404,7 @@ def check_policy_on_feet(config: EnvConfig, feet: str, source: str | None = None
     closed chain (`full`) it reads those joints' estimates from the feet's sensors
     (footforge.rl.foot_imu). Blind and perceptive policies run on any feet (zero-shot). `source`:
     the policy's folder or file, named in the error."""
-    if config.haptic and feet not in (config.feet, "full"):
+    if config.haptic and feet != config.feet and not foot_variant(feet).closed_chain:
         raise InputError(
             f"a {config.policy} policy reads the passive joints of the {config.feet} feet it was "
             f"trained on; the {feet} feet have others",
@@ -416,7 +416,7 @@ def check_policy_on_feet(config: EnvConfig, feet: str, source: str | None = None
 
 def check_feet_and_policy(feet: str, policy: str) -> None:
     """Raises InputError for a haptic policy on feet without passive joints."""
-    if policy in HAPTIC and feet == "ball":
+    if policy in HAPTIC and not foot_variant(feet).adaptive:
         raise InputError(
             f"policy type {policy} reads the feet's passive joints; the ball foot has none",
             fix="use B with ball feet, or aff/aof feet",

@@ -12,6 +12,7 @@ from typing import Literal, overload
 
 from footforge.inputs.description import descriptions_dir
 from footforge.inputs.yaml_reader import YamlReader, read_yaml
+from footforge.variants import foot_variant
 
 PARAMS_FORMAT = 1
 """The parameter file's `format:` this footforge reads."""
@@ -115,7 +116,7 @@ class VariantParams:
         return self.aff if variant == "aff" else self.aof
 
     def contact_solref_for(self, variant: str) -> tuple[float, float]:
-        return self.full.contact_solref if variant == "full" else self.contact_solref
+        return self.full.contact_solref if foot_variant(variant).closed_chain else self.contact_solref
 
 
 _JOINTS = {"aff": ("ankle_pitch", "ankle_roll"), "aof": ("ankle_pitch", "ankle_roll", "sole_front", "sole_back")}

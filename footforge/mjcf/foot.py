@@ -33,6 +33,7 @@ from footforge.mjcf.writing import compile_model
 from footforge.models.derivation import DerivedBody, aof_sole_halves, derived_bodies
 from footforge.models.foot_source import FootSource
 from footforge.models.urdf import quat_wxyz
+from footforge.variants import foot_variant
 
 DERIVED_JOINT_CLASS = "foot_passive"
 
@@ -259,7 +260,7 @@ def build_derived(source: FootSource, variant: str, *, name: str = "foot", full:
             fix=f"keep sole_lift_m below {sole_lift + clearance - 0.001:.4f} m so the sole stays the lowest part",
         )
     names = [b.joint for b in bodies]
-    split = aof_sole_halves(source) if variant == "aof" else {}
+    split = aof_sole_halves(source) if foot_variant(variant).split_sole else {}
     info = {
         "replaced_links": {k: [parsed.link_of(j) for j in v] for k, v in split.items()},
         "sole_clearance_m": clearance if np.isfinite(clearance) else None,
@@ -331,7 +332,7 @@ def sole_clearance(root: mjcf.RootElement) -> float:
 def sole_bodies(foot: FootModel) -> list[str]:
     """Names of the bodies whose bottoms form the sole: the closed chain's links (the bodies of its
     `chain` joint family, whatever the description calls them), or a derived foot's sole plates."""
-    if foot.variant == "full":
+    if foot_variant(foot.variant).closed_chain:
         return [j.parent.name for j in foot.mjcf.find_all("joint") if j.dclass == "chain"]
     return [b.name for b in foot.mjcf.find_all("body") if b.name.startswith("sole")]  # footforge's own names
 

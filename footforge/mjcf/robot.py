@@ -21,6 +21,7 @@ from footforge.mjcf.foot import FootModel, clone, collision_points
 from footforge.mjcf.scene import FLOOR_CONTYPE
 from footforge.mjcf.writing import compile_model
 from footforge.models.urdf import FLOATING_JOINT, ParsedURDF, quat_wxyz
+from footforge.variants import foot_variant
 
 
 @dataclass
@@ -37,7 +38,7 @@ def set_options(root: mjcf.RootElement, variant: str, params: VariantParams, *, 
     root.option.integrator = "implicitfast"
     if robot:  # the standing contact model (parameter file, `contact`: cone, impratio, solimp)
         root.option.set_attributes(cone=params.contact_cone, impratio=params.contact_impratio)
-    if variant == "full":
+    if foot_variant(variant).closed_chain:
         full = params.full
         root.option.set_attributes(
             timestep=full.timestep, iterations=full.iterations, tolerance=full.tolerance, solver="Newton"

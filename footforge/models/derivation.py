@@ -23,6 +23,7 @@ import pinocchio as pin
 from footforge.models import kinematics
 from footforge.models.foot_source import FootSource
 from footforge.models.urdf import ParsedURDF, joint_axis
+from footforge.variants import foot_variant
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,7 @@ def derived_bodies(source: FootSource, variant: str) -> list[DerivedBody]:
             [(parsed.link_of(a), [a]) for a in arch],
         )
     ]
-    if variant == "aff":
+    if not foot_variant(variant).split_sole:  # AFF: one sole plate
         bodies.append(
             body(
                 "sole",

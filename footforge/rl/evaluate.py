@@ -23,6 +23,7 @@ from footforge.envs.config import PushConfig, check_policy_on_feet
 from footforge.errors import InputError
 from footforge.rl.verdict import judge
 from footforge.tables import markdown_table
+from footforge.variants import FEET, foot_variant
 
 INDICES = (
     "lin_vel_x_error",
@@ -417,7 +418,8 @@ def falls_cell(r: dict) -> str:
     return f"{r['falls']}/{r['num_envs']}" + (f" ({', '.join(notes)})" if notes else "")
 
 
-FEET_COLOURS = {"ball": "tab:gray", "aff": "tab:blue", "aof": "tab:orange"}
+FEET_COLOURS = {f: foot_variant(f).colour for f in FEET}
+"""Each feet's colour in the comparison plot (footforge.variants)."""
 
 
 def plot(results: list[dict], out_dir: Path) -> list[str]:

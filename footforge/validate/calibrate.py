@@ -25,7 +25,7 @@ from scipy.optimize import minimize
 from footforge.errors import InputError
 from footforge.inputs.params import VariantParams, load_params
 from footforge.validate import fidelity
-from footforge.variants import DERIVED
+from footforge.variants import foot_variant
 
 GROUPS = {
     "aff": (("ankle_pitch",), ("ankle_roll",)),
@@ -92,7 +92,7 @@ def calibrate(models, pool, scenarios, runs, options, advance) -> dict:
     if not train:
         raise InputError("calibration needs scenarios to train on", fix="run --calibrate with --scenarios quick or all")
     out = {}
-    for variant in [v for v in options.variants if v in DERIVED]:
+    for variant in [v for v in options.variants if foot_variant(v).derived]:
         params = models.source.params
         before = variant_params_summary(models, variant)
         cases = models.cases(variant, train)

@@ -15,9 +15,11 @@ from footforge.provenance import json_default
 from footforge.tables import markdown_table
 from footforge.validate import fidelity as fidelity_lib
 from footforge.validate.results import FidelitySummary, ValidationReport
+from footforge.variants import VARIANTS, foot_variant
 
 METRICS = ("force_nrmse", "peak_force_rel", "final_height_mm", "orientation_deg", "cop_mm", "slip_mm")
-COLOURS = {"full": "black", "aof": "tab:blue", "aff": "tab:orange", "ball": "tab:green"}
+COLOURS: dict[str, str] = {v: foot_variant(v).colour for v in VARIANTS}
+"""Each variant's colour in the report's plots (footforge.variants)."""
 
 
 def format_value(value, digits=3) -> str:
@@ -271,7 +273,7 @@ def plot_scenario(report: ValidationReport, scenario: str, path: Path) -> None:
     for v, runs in report.runs.items():
         r = runs[scenario]
         s, c = r["series"], COLOURS.get(v, None)
-        width = 2.0 if v == "full" else 1.0
+        width = 2.0 if foot_variant(v).closed_chain else 1.0  # the reference, drawn heavier
         axes[0].plot(s["time_s"], s["force_z_n"], color=c, lw=width, label=v)
         peaks.plot(s["time_s"], np.maximum(s["force_peak_n"], 1.0), color=c, lw=0.8)
         if np.isfinite(s["pitch_rad"]).any():

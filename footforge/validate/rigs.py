@@ -11,7 +11,7 @@ from footforge.mjcf.rig import build_rig
 from footforge.models.foot_source import FootSource
 from footforge.validate.scenarios import Scenario, SoleExtent, add_obstacle, mount_quat
 from footforge.validate.simulate import RigCase
-from footforge.variants import DERIVED
+from footforge.variants import foot_variant
 
 
 def build_feet(source: FootSource, variants) -> dict[str, foot_lib.FootModel | None]:
@@ -19,9 +19,9 @@ def build_feet(source: FootSource, variants) -> dict[str, foot_lib.FootModel | N
     full = foot_lib.build_full(source)
     feet: dict[str, foot_lib.FootModel | None] = {"full": full}
     for v in variants:
-        if v in DERIVED:
+        if foot_variant(v).derived:
             feet[v] = foot_lib.build_derived(source, v, full=full)
-        elif v == "ball":
+        elif not foot_variant(v).adaptive:
             feet[v] = None
     return feet
 
