@@ -295,8 +295,8 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
     """benchmarks/learning_cpu.py is presets + overrides: the variant that trained flat_ball_B_cpu's last
     stage (policies/README.md: `--preset full --variant today+fast+airtime=0+entropy=0.001`, 258,048 steps
     per checkpoint) gives its config.json, which is the `cpu` preset with commands every 10 s; the command
-    that trained flat_aof_B's first 10 M steps gives that preset exactly; flat_aff_B, trained by `footforge
-    train`, is it too."""
+    that trained flat_aof_B's first 10 M steps gives that preset exactly (its push curriculum then sets two
+    overrides); flat_aff_B, trained by `footforge train`, is it too."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
@@ -326,7 +326,9 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
     )
     assert (env, ppo) == presets.resolve("flat", "aof", "B", "cpu")
     # flat_aof_B is that run resumed to 20 M steps: its recipe records the new total.
-    assert shipped("flat_aof_B") == presets.resolve("flat", "aof", "B", "cpu", ["ppo.num_timesteps=20000000"])
+    # flat_aof_B went on from that preset's 20.13 M steps with a push every 5 s (its push curriculum)
+    pushed = ["env.pushes.interval_s=5", "ppo.num_timesteps=10000000"]
+    assert shipped("flat_aof_B") == presets.resolve("flat", "aof", "B", "cpu", pushed)
 
 
 @pytest.mark.parametrize(
