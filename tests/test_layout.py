@@ -234,3 +234,14 @@ def test_private_mjx_state_is_read_only_in_its_adapter():
     ]
     assert not found, "read MJX's private state through footforge.envs.mjx_private:\n" + "\n".join(found)
     assert private.search("support = mujoco.mjx._src.support") and private.search("data._impl.contact")
+
+
+README_WORDS = 1200
+"""The README's length limit (issue 47: one screen or two; Playground's is about 700 words)."""
+
+
+def test_the_readme_stays_within_its_word_limit():
+    """The README is counted as `wc -w` counts it (whitespace-separated words, tables and commands
+    included): at most README_WORDS; what does not fit goes to docs/."""
+    words = len((REPO / "README.md").read_text().split())
+    assert 300 < words <= README_WORDS, f"README.md has {words} words (limit {README_WORDS}): move detail to docs/"
