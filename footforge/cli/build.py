@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from footforge.cli.command import new_parser
+from footforge.cli.command import add_output_folder, new_parser
 from footforge.cli.foot_options import add_description_options, description_options
 
 
@@ -35,15 +35,7 @@ def parser(prog: str = "footforge build") -> argparse.ArgumentParser:
         metavar="FORMATS",
         help="comma-separated outputs: mjcf (MuJoCo XML), usd (robot.usda/.usd for Isaac Sim); default mjcf,usd",
     )
-    p.add_argument(
-        "--out",
-        type=Path,
-        help="output folder (default build/<variant>); replaced only if footforge "
-        "wrote it (or it is empty), see --force",
-    )
-    p.add_argument(
-        "--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)"
-    )
+    add_output_folder(p, None, "output folder (default build/<variant>)")
     return p
 
 

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from footforge.cli.command import new_parser
+from footforge.cli.foot_options import add_package_paths
 from footforge.errors import EXIT_CHECK_FAILED, EXIT_OK
 
 
@@ -17,14 +18,7 @@ def parser(prog: str = "footforge check") -> argparse.ArgumentParser:
         "the closed chain's closures). Exit 1 when it finds an error.",
     )
     p.add_argument("path", type=Path, help="the URDF or xacro file")
-    p.add_argument(
-        "--package-path",
-        type=Path,
-        action="append",
-        default=[],
-        metavar="DIR",
-        help="folder searched for ROS packages ($(find pkg), package://); repeatable",
-    )
+    add_package_paths(p)
     p.add_argument("--arg", action="append", default=[], metavar="NAME:=VALUE", help="xacro argument; repeatable")
     p.add_argument("--sidecar", type=Path, help="also check that the sidecar's closures close")
     return p

@@ -22,6 +22,7 @@ import argparse
 import importlib
 import sys
 import traceback
+from pathlib import Path
 from types import ModuleType
 
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -82,6 +83,20 @@ def run_command(command: ModuleType, argv: list[str] | None, prog: str, *, verbo
             return EXIT_OK
         print(f"{prog}: {interrupt_word(e)}; {left}", file=sys.stderr)
         return interrupt_exit_code(e)
+
+
+def add_output_folder(p: argparse.ArgumentParser, default: Path | None, what: str) -> None:
+    """--out and --force of a command that writes a folder: replaced only where footforge wrote it
+    (footforge.outputs), so that a user's files are never lost without --force."""
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=default,
+        help=f"{what}; replaced only if footforge wrote it (or it is empty), see --force",
+    )
+    p.add_argument(
+        "--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)"
+    )
 
 
 def new_parser(prog: str, description: str | None, *, docstring: bool = False) -> argparse.ArgumentParser:

@@ -29,10 +29,10 @@ from pathlib import Path
 
 def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
     """The options of `footforge evaluate`."""
-    from footforge.cli.help import DocstringHelpFormatter
+    from footforge.cli.command import add_output_folder, new_parser
     from footforge.envs import FEET
 
-    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
+    p = new_parser(prog, __doc__, docstring=True)
     p.add_argument(
         "--policy",
         type=Path,
@@ -60,15 +60,7 @@ def parser(prog: str = "footforge evaluate") -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="also record one robot this long: video_<i>.gif and strip_<i>.png (needs MUJOCO_GL)",
     )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=Path("evaluation"),
-        help="output folder (default evaluation/); replaced only if footforge wrote it, see --force",
-    )
-    p.add_argument(
-        "--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)"
-    )
+    add_output_folder(p, Path("evaluation"), "output folder (default evaluation/)")
     p.add_argument(
         "--no-compile-cache",
         action="store_true",

@@ -24,9 +24,9 @@ from pathlib import Path
 
 def parser(prog: str = "footforge evaluate-closed-chain") -> argparse.ArgumentParser:
     """The options of `footforge evaluate-closed-chain`."""
-    from footforge.cli.help import DocstringHelpFormatter
+    from footforge.cli.command import add_output_folder, new_parser
 
-    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
+    p = new_parser(prog, __doc__, docstring=True)
     p.add_argument(
         "--policy",
         type=Path,
@@ -46,15 +46,7 @@ def parser(prog: str = "footforge evaluate-closed-chain") -> argparse.ArgumentPa
     p.add_argument(
         "--build-root", type=Path, help="folder holding one footforge build per feet, <root>/<feet>/ (default build/)"
     )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=Path("closed_chain_evaluation"),
-        help="output folder (default closed_chain_evaluation/); replaced only if footforge wrote it, see --force",
-    )
-    p.add_argument(
-        "--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)"
-    )
+    add_output_folder(p, Path("closed_chain_evaluation"), "output folder (default closed_chain_evaluation/)")
     return p
 
 
@@ -67,12 +59,10 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate-closed-c
 
 def run(args: argparse.Namespace) -> int:
     """Runs each policy on the closed chain and writes the folder; exit 0."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from footforge.atomic import atomic_directory
     from footforge.cli.builds import build_defaults_if_missing
     from footforge.cli.guard import policy_in_use
-    from footforge.cli.help import console as make_console
+    from footforge.cli.help import console as make_console, counted_progress
     from footforge.envs import engine
     from footforge.outputs import check_output_folder
     from footforge.rl.evaluate_closed_chain import TERRAIN_TILES, comparison_markdown, evaluate_closed_chain, plot
@@ -85,14 +75,7 @@ def run(args: argparse.Namespace) -> int:
     trained_on = [load_policy_config(policy).feet for policy in args.policy]  # each a policy folder
     build_defaults_if_missing([*trained_on, "full"], args.build_root, console)
     results = []
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    ) as progress:
+    with counted_progress(console) as progress:
         for policy in args.policy:
             tasks: dict = {}
 

@@ -9,12 +9,8 @@ from pathlib import Path
 from footforge.models.mesh_simplify import DEFAULT_FACE_BUDGET
 
 
-def add_description_options(p: argparse.ArgumentParser, params_help: str | None = None) -> None:
-    """The foot description and its derivation, the same for build and validate (a foot that builds
-    with some flags validates with the same flags)."""
-    p.add_argument("--description", type=Path, help="foot xacro/URDF (default: the project's SoftFoot-Q)")
-    p.add_argument("--sidecar", type=Path, help="foot sidecar YAML (default: <stem>.sidecar.yaml beside it)")
-    p.add_argument("--params", type=Path, help=params_help or "variant parameter file (default: the SoftFoot-Q's)")
+def add_package_paths(p: argparse.ArgumentParser) -> None:
+    """--package-path: where xacro's $(find pkg) and package:// URIs look (build, validate, check)."""
     p.add_argument(
         "--package-path",
         type=Path,
@@ -23,6 +19,15 @@ def add_description_options(p: argparse.ArgumentParser, params_help: str | None 
         metavar="DIR",
         help="folder searched for ROS packages ($(find pkg), package://); repeatable",
     )
+
+
+def add_description_options(p: argparse.ArgumentParser, params_help: str | None = None) -> None:
+    """The foot description and its derivation, the same for build and validate (a foot that builds
+    with some flags validates with the same flags)."""
+    p.add_argument("--description", type=Path, help="foot xacro/URDF (default: the project's SoftFoot-Q)")
+    p.add_argument("--sidecar", type=Path, help="foot sidecar YAML (default: <stem>.sidecar.yaml beside it)")
+    p.add_argument("--params", type=Path, help=params_help or "variant parameter file (default: the SoftFoot-Q's)")
+    add_package_paths(p)
     p.add_argument(
         "--arg",
         action="append",

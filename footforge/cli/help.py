@@ -46,3 +46,18 @@ def console(stderr: bool = False):
     if not out.is_terminal and "COLUMNS" not in os.environ:
         out = Console(stderr=stderr, width=PIPED_WIDTH)
     return out
+
+
+def counted_progress(console):
+    """A rich progress display of counted work (a bar, done of total, time elapsed) that vanishes
+    when the work ends, leaving the command's own summary."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    )

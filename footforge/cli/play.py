@@ -26,10 +26,10 @@ PROG = "footforge play"
 
 def parser(prog: str = "footforge play") -> argparse.ArgumentParser:
     """The options of `footforge play`."""
-    from footforge.cli.help import DocstringHelpFormatter
+    from footforge.cli.command import new_parser
     from footforge.rl.play import PlayConfig
 
-    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=DocstringHelpFormatter)
+    p = new_parser(prog, __doc__, docstring=True)
     p.add_argument(
         "policy",
         type=Path,

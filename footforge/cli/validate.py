@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from footforge.cli.command import new_parser
+from footforge.cli.command import add_output_folder, new_parser
 from footforge.cli.foot_options import add_description_options, description_options
 from footforge.errors import EXIT_CHECK_FAILED, EXIT_OK
 
@@ -55,15 +55,7 @@ def parser(prog: str = "footforge validate") -> argparse.ArgumentParser:
     add_description_options(
         p, params_help="variant parameter file (default: the SoftFoot-Q's; read, and written by --calibrate)"
     )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=Path("validation"),
-        help="report folder (default validation/); replaced only if footforge wrote it, see --force",
-    )
-    p.add_argument(
-        "--force", action="store_true", help="replace --out even if footforge did not write it (it may hold your files)"
-    )
+    add_output_folder(p, Path("validation"), "report folder (default validation/)")
     return p
 
 
@@ -72,9 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from footforge.extras import require_build_extra
 
     require_build_extra("footforge validate")
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    from footforge.cli.help import console as make_console
+    from footforge.cli.help import console as make_console, counted_progress
     from footforge.errors import InputError
     from footforge.models.foot_source import FootInputs
     from footforge.outputs import check_output_folder
@@ -101,14 +91,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         foot=FootInputs(**description_options(args)),
     )
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    ) as progress:
+    with counted_progress(console) as progress:
 
         def tracker(description: str, total: int):
             task = progress.add_task(description, total=total)
