@@ -52,9 +52,13 @@ def module(command: str) -> ModuleType:
     return importlib.import_module(f"footforge.cli.{COMMANDS[command][0]}")
 
 
-def run_command(command: ModuleType, argv: list[str] | None, prog: str, *, verbose: bool = False, **options) -> int:
-    """Runs `command` (a module with parser() and run()) on `argv` (sys.argv[1:] when None) as
-    `prog`, the command's words in its messages; `options` go to its parser(). Returns the exit code:
+def run_command(
+    command: ModuleType, argv: list[str] | None, prog: str, *, name: str | None = None, verbose: bool = False, **options
+) -> int:
+    """Runs `command` (a module with parser() and run()) on `argv` (sys.argv[1:] when None). `prog`
+    is how it was started, in its usage line (`python pipelines/play.py`); `name`, the command's words
+    in its messages (`footforge play`; default `prog`), the same whichever way it was started;
+    `options` go to its parser(). Returns the exit code:
     run()'s, argparse's (0 for --help, 2 for a usage error), a FootforgeError's, or 130/143 for
     Ctrl-C/SIGTERM. `verbose` adds the traceback to an error's line."""
     import footforge
@@ -63,7 +67,8 @@ def run_command(command: ModuleType, argv: list[str] | None, prog: str, *, verbo
     from footforge.errors import EXIT_INPUT_ERROR, EXIT_OK, FootforgeError, interrupt_exit_code, interrupt_word
     from footforge.processes import sigterm_as_interrupt
 
-    if footforge.gl_setting_refused(prog):  # before `import mujoco` raises on it
+    name = name or prog
+    if footforge.gl_setting_refused(name):  # before `import mujoco` raises on it
         return EXIT_INPUT_ERROR
     try:
         args = command.parser(prog, **options).parse_args(sys.argv[1:] if argv is None else argv)
@@ -75,13 +80,13 @@ def run_command(command: ModuleType, argv: list[str] | None, prog: str, *, verbo
     except FootforgeError as e:
         if verbose:
             traceback.print_exc()
-        print(f"{prog}: error: {e}", file=sys.stderr)
+        print(f"{name}: error: {e}", file=sys.stderr)
         return e.exit_code
     except KeyboardInterrupt as e:
         left = command.interrupted(args) if hasattr(command, "interrupted") else NOTHING_WRITTEN
         if left is None:
             return EXIT_OK
-        print(f"{prog}: {interrupt_word(e)}; {left}", file=sys.stderr)
+        print(f"{name}: {interrupt_word(e)}; {left}", file=sys.stderr)
         return interrupt_exit_code(e)
 
 

@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate") -> int
     """The `footforge evaluate` command (also `python pipelines/evaluate.py`)."""
     from footforge.cli.command import run_command
 
-    return run_command(sys.modules[__name__], argv, prog)
+    return run_command(sys.modules[__name__], argv, prog, name="footforge evaluate")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None, prog: str = "footforge evaluate-closed-c
     """The `footforge evaluate-closed-chain` command (also `python pipelines/evaluate_closed_chain.py`)."""
     from footforge.cli.command import run_command
 
-    return run_command(sys.modules[__name__], argv, prog)
+    return run_command(sys.modules[__name__], argv, prog, name="footforge evaluate-closed-chain")
 
 
 def run(args: argparse.Namespace) -> int:

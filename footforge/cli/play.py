@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None, prog: str = "footforge play") -> int:
     """The `footforge play` command (also `python pipelines/play.py`)."""
     from footforge.cli.command import run_command
 
-    return run_command(sys.modules[__name__], argv, prog)
+    return run_command(sys.modules[__name__], argv, prog, name=PROG)
 
 
 def run(args: argparse.Namespace) -> int:

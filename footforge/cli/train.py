@@ -198,9 +198,8 @@ def main(task: str, description: str | None = None, argv: list[str] | None = Non
     """`footforge train TASK` (and pipelines/train_TASK.py): one training run of `task`, flat or rough."""
     from footforge.cli.command import run_command
 
-    return run_command(
-        sys.modules[__name__], argv, prog or f"footforge train {task}", task=task, description=description
-    )
+    name = f"footforge train {task}"  # messages name the command, whichever way it was started
+    return run_command(sys.modules[__name__], argv, prog or name, name=name, task=task, description=description)
 
 
 def main_with_task(argv: list[str], *, verbose: bool = False) -> int:
