@@ -32,6 +32,8 @@ import re
 import sys
 from pathlib import Path
 
+from footforge.variants import HAPTIC
+
 REPO = Path(__file__).resolve().parents[1]
 POLICIES = REPO / "policies"
 TABLES = (REPO / "README.md", POLICIES / "README.md")
@@ -52,7 +54,8 @@ def evaluate(run: Path, video: bool) -> int:
 
     meta = json.loads((run / "policy" / "footforge.json").read_text())
     own = meta["env"]["feet"]
-    feet = [own] + [f for f in FEET_ORDER if f != own]
+    # A haptic policy reads its feet's passive joints: it runs on its own feet alone (rl.evaluate).
+    feet = [own] if meta["env"]["policy"] in HAPTIC else [own] + [f for f in FEET_ORDER if f != own]
     argv = [
         "--policy",
         str(run.relative_to(REPO)),
@@ -203,10 +206,10 @@ def row(run: Path) -> str:
     )
     stance = w.get("stance_fraction") or {}
     stance_cell = " / ".join(f"{100 * stance[k]:.0f} %" for k in ("LF", "RF", "LH", "RH")) if stance else "-"
-    zero_shot = [r for r in results if r is not own]
-    others = "; ".join(
-        f"{FEET_NAMES[r['feet']]} {r['walking']['verdict']} ({r['falls']} fell)" for r in zero_shot if "walking" in r
-    )
+    zero_shot = [r for r in results if r is not own and "walking" in r]
+    others = "; ".join(f"{FEET_NAMES[r['feet']]} {r['walking']['verdict']} ({r['falls']} fell)" for r in zero_shot)
+    if meta["env"]["policy"] in HAPTIC:  # evaluate() runs it on its own feet alone
+        others = "none: a haptic policy reads its own feet's passive joints"
     return (
         f"| `policies/{run.name}` | {FEET_NAMES[own['feet']]} | {trained} | {recipe_cell} | **{w['verdict']}** "
         f"({w['gait']}) | {w['forward_error_mps']:.3f} m/s | {own['falls']} | {w['base_height_m']:.3f} m | "
