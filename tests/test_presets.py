@@ -292,11 +292,11 @@ def test_a_resume_with_another_recipe_names_the_differences(built, tmp_path, mon
 
 
 def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_configurations():
-    """benchmarks/learning_cpu.py is presets + overrides: the variant that trained flat_ball_B_cpu's last
-    stage (policies/README.md: `--preset full --variant today+fast+airtime=0+entropy=0.001`, 258,048 steps
-    per checkpoint) gives its config.json, which is the `cpu` preset with commands every 10 s; the command
-    that trained flat_aof_B's first 10 M steps gives that preset exactly (its push curriculum then sets two
-    overrides); flat_aff_B, trained by `footforge train`, is it too."""
+    """benchmarks/learning_cpu.py is presets + overrides: the variant that trained the earlier ball policy's
+    last stage (`--preset full --variant today+fast+airtime=0+resample=10+entropy=0.001`, 258,048 steps per
+    checkpoint) is the `cpu` preset with commands every 10 s; the command that trained flat_aof_B's first 10 M
+    steps gives that preset exactly (its push curriculum then sets two overrides); flat_aff_B and
+    flat_ball_B_cpu, trained by `footforge train --preset cpu` from scratch, are it too."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
@@ -314,10 +314,12 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
         "today+fast+airtime=0+resample=10+entropy=0.001",
         ["ppo.num_timesteps=3870720", "ppo.checkpoint_every_steps=258048"],
     )
-    assert (env, ppo) == shipped("flat_ball_B_cpu")
+    cpu_every_10_s = ["env.commands.resample_s=10", "ppo.num_timesteps=3870720"]
+    assert (env, ppo) == presets.resolve("flat", "ball", "B", "cpu", cpu_every_10_s)
     assert presets.resolve("flat", "ball", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
     assert module.configure("ball", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])[:2] == (env, ppo)
     assert shipped("flat_aff_B") == presets.resolve("flat", "aff", "B", "cpu")
+    assert shipped("flat_ball_B_cpu") == presets.resolve("flat", "ball", "B", "cpu")
     env, ppo, _ = module.configure(
         "aof",
         "full",
