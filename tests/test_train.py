@@ -1296,8 +1296,10 @@ def test_curves_continue_from_the_resumed_step(written_run, monkeypatch, killed)
 
 def test_rough_runs_saved_before_the_sole_spheres_resume_on_boxes():
     """EnvConfig.heightfield_soles: a rough run's config.json from before the setting (the GPU
-    campaign's rough_aof_P and _PH) loads as 'box', as it trained; a new rough config is 'spheres'."""
-    saved = json.loads((Path(__file__).parents[1] / "policies/rough_aof_PH/config.json").read_text())["env"]
+    campaign's rough_aof_P and _PH, the latter's now a record under benchmarks/) loads as 'box', as it
+    trained; a new rough config is 'spheres'."""
+    run = Path(__file__).parents[1] / "benchmarks/gpu_rough_campaign_2026-11-27/rough_aof_PH_run"
+    saved = json.loads((run / "config.json").read_text())["env"]
     assert "heightfield_soles" not in saved and env_config_from_dict(saved).heightfield_soles == "box"
     assert envs.default_config("rough", "aof", "PH").heightfield_soles == "spheres"
     now = to_dict(envs.default_config("rough", "aof", "PH"))
