@@ -401,7 +401,7 @@ def test_a_bad_thread_count_is_refused_before_any_work(command, tmp_path, capsys
 
 def test_a_run_resumes_under_the_other_engine(tmp_path):
     """Checkpoints move between the engines: a run resumes under the other engine than the one its
-    config.json names (rough_aof_P: begun on an H100 in MJX, continued on this CPU under the C engine;
+    config.json names (rough_aof_P, trained on this CPU under the C engine, resumed as a GPU would, in MJX;
     only EnvConfig.physics differs), while any other difference is still refused."""
     from footforge.rl import train
 
