@@ -54,8 +54,7 @@ def evaluate(run: Path, video: bool) -> int:
 
     meta = json.loads((run / "policy" / "footforge.json").read_text())
     own = meta["env"]["feet"]
-    # A haptic policy reads its feet's passive joints: it runs on its own feet alone (rl.evaluate).
-    feet = [own] if meta["env"]["policy"] in HAPTIC else [own] + [f for f in FEET_ORDER if f != own]
+    feet = [own] if _haptic(meta) else [own] + [f for f in FEET_ORDER if f != own]
     argv = [
         "--policy",
         str(run.relative_to(REPO)),
@@ -78,6 +77,11 @@ def evaluate(run: Path, video: bool) -> int:
     if code == 0:
         light(run / "evaluation")
     return code
+
+
+def _haptic(meta: dict) -> bool:
+    """A haptic policy (BH, PH) reads its feet's passive joints: footforge evaluate runs it on those feet only."""
+    return meta["env"]["policy"] in HAPTIC
 
 
 VIDEO_S = 3
@@ -208,7 +212,7 @@ def row(run: Path) -> str:
     stance_cell = " / ".join(f"{100 * stance[k]:.0f} %" for k in ("LF", "RF", "LH", "RH")) if stance else "-"
     zero_shot = [r for r in results if r is not own and "walking" in r]
     others = "; ".join(f"{FEET_NAMES[r['feet']]} {r['walking']['verdict']} ({r['falls']} fell)" for r in zero_shot)
-    if meta["env"]["policy"] in HAPTIC:  # evaluate() runs it on its own feet alone
+    if _haptic(meta):  # evaluate() runs it on its own feet alone
         others = "none: a haptic policy reads its own feet's passive joints"
     return (
         f"| `policies/{run.name}` | {FEET_NAMES[own['feet']]} | {trained} | {recipe_cell} | **{w['verdict']}** "
