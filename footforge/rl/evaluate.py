@@ -422,37 +422,19 @@ FEET_COLOURS = {f: foot_variant(f).colour for f in FEET}
 """Each feet's colour in the comparison plot (footforge.variants)."""
 
 
+def pair_label(r: dict) -> str:
+    """A result's label in the plots: its run folder's name, then the feet walked on."""
+    return f"{Path(r['policy']).parent.name}\non {r['feet']}"
+
+
 def plot(results: list[dict], out_dir: Path) -> list[str]:
-    """comparison.png (indices per policy and feet), contacts_<i>.png (robot 0's feet contact
-    schedule over the first 4 s), push_response_<i>.png (mean forward velocity error over time;
-    pushes at the environment's interval)."""
+    """comparison.png (plot_indices), contacts_<i>.png (robot 0's feet contact schedule over the
+    first 4 s), push_response_<i>.png (mean forward velocity error over time; pushes at the
+    environment's interval)."""
     from matplotlib.figure import Figure  # no pyplot: a library leaves the backend to its user
 
-    files = []
-    # One panel per index; with many (policy, feet) rows the panels widen and wrap (4 a row).
-    cols = len(INDICES) if len(results) <= 4 else 4
-    rows = -(-len(INDICES) // cols)
-    panel_width = max(3.0, 0.3 * len(results) + 1.0)
-    fig = Figure(figsize=(panel_width * cols, 3.6 * rows))
-    axes = fig.subplots(rows, cols, squeeze=False).ravel()
-    labels = [f"{Path(r['policy']).parent.name}\non {r['feet']}" for r in results]
-    for ax, name in zip(axes, INDICES):
-        for k, r in enumerate(results):  # coloured by the feet walked on; hatched when zero-shot
-            ax.bar(
-                k,
-                r["indices"][name]["mean"],
-                yerr=r["indices"][name]["std"],
-                capsize=2,
-                color=FEET_COLOURS.get(r["feet"], "tab:blue"),
-                hatch="//" if r["feet"] != r["trained_on"] else None,
-            )
-        ax.set_title(f"{name} ({INDEX_UNITS[name]})", fontsize=9)
-        ax.set_xticks(range(len(results)), labels, fontsize=6, rotation=90)
-    for ax in axes[len(INDICES) :]:
-        ax.set_visible(False)
-    fig.tight_layout()
-    fig.savefig(out_dir / "comparison.png", dpi=90)
-    files.append("comparison.png")
+    files = plot_indices(results, out_dir)
+    labels = [pair_label(r) for r in results]
     for i, r in enumerate(results):
         dt = r["policy_dt_s"]
         contacts = np.asarray(r["traces"]["contacts_robot0"])[: int(4.0 / dt)]
@@ -480,3 +462,34 @@ def plot(results: list[dict], out_dir: Path) -> list[str]:
         fig.savefig(out_dir / f"push_response_{i}.png", dpi=90)
         files += [f"contacts_{i}.png", f"push_response_{i}.png"]
     return files
+
+
+def plot_indices(results: list[dict], out_dir: Path) -> list[str]:
+    """comparison.png: each index's mean and standard deviation per policy and feet (the paper's
+    Figure 8), from results with or without their traces."""
+    from matplotlib.figure import Figure
+
+    # One panel per index; with many (policy, feet) rows the panels widen and wrap (4 a row).
+    cols = len(INDICES) if len(results) <= 4 else 4
+    rows = -(-len(INDICES) // cols)
+    panel_width = max(3.0, 0.3 * len(results) + 1.0)
+    fig = Figure(figsize=(panel_width * cols, 3.6 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    labels = [pair_label(r) for r in results]
+    for ax, name in zip(axes, INDICES):
+        for k, r in enumerate(results):  # coloured by the feet walked on; hatched when zero-shot
+            ax.bar(
+                k,
+                r["indices"][name]["mean"],
+                yerr=r["indices"][name]["std"],
+                capsize=2,
+                color=FEET_COLOURS.get(r["feet"], "tab:blue"),
+                hatch="//" if r["feet"] != r["trained_on"] else None,
+            )
+        ax.set_title(f"{name} ({INDEX_UNITS[name]})", fontsize=9)
+        ax.set_xticks(range(len(results)), labels, fontsize=6, rotation=90)
+    for ax in axes[len(INDICES) :]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    fig.savefig(out_dir / "comparison.png", dpi=90)
+    return ["comparison.png"]

@@ -1,0 +1,218 @@
+"""The paper's flat comparison (its Figure 8) at its size, 1,024 robots x 60 s per policy and feet, one pair at a time.
+
+The paper compares the ball-feet baseline on ball feet and on AFF with a policy trained on AFF, each over
+1,024 robots for 60 s (commands every 10 s, pushes). On this project's 2-core CPU one such pair is about
+14 minutes (`footforge evaluate` under MuJoCo's C engine), too long to run every pair in one sitting; so
+each pair is its own `footforge evaluate` into its own folder, `OUT/<policy>_on_<feet>/`, kept once done,
+and a later call with the same `--out` goes on with the pairs still missing (`--max-minutes` stops it
+between pairs). Whenever every pair is there, the pairs' metrics are joined into OUT/comparison.md,
+OUT/metrics.json and OUT/comparison.png (footforge.rl.evaluate's table and plot).
+
+    python scripts/paper_comparison.py --out benchmarks/paper_comparison_1024 --max-minutes 60
+    python scripts/paper_comparison.py --out /tmp/cmp --pairs flat_aff_BH:aff --num-envs 32 --seconds 20
+
+A pair is done when its folder's metrics.json was made by the same policy (a digest of its policy/
+files), feet, robots, seconds and seed; a pair whose policy changed is evaluated again. The pairs
+default to the paper's three (PAPER_PAIRS) and the AOF policy and the ball baseline on AOF beside
+them. The builds are the ones `footforge build` made here (build/<feet>/); a rebuilt model is not
+detected, so a comparison spread over several calls should not straddle a rebuild.
+
+Exit codes: 0 every pair done and the table written, 1 pairs left for a later call (or one failed),
+2 bad arguments or an --out folder this script did not write. Last line: a JSON summary.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+POLICIES = REPO / "policies"
+clock = time.monotonic
+"""The wall clock of the budget (a test sets its own)."""
+MARKER_KIND = "paper comparison"
+"""The marker's kind in an --out folder this script made: filled pair by pair, never replaced as a whole."""
+
+PAPER_PAIRS = (
+    ("flat_ball_B_cpu", "ball"),
+    ("flat_ball_B_cpu", "aff"),
+    ("flat_aff_B", "aff"),
+    ("flat_ball_B_cpu", "aof"),
+    ("flat_aof_B", "aof"),
+)
+"""Figure 8's three pairs (the ball baseline on its own feet and on AFF, AFF's own policy on AFF), with
+AOF's own policy and the ball baseline on AOF beside them. The ball baseline is `flat_ball_B_cpu`, trained
+by the same preset as the AFF and AOF policies (the paper's baseline is legged_gym's ANYmal C policy,
+also trained by the recipe of the others)."""
+
+
+def parse_pair(text: str) -> tuple[str, str]:
+    """'POLICY:FEET' -> (POLICY, FEET), POLICY a folder under policies/ or a path."""
+    from footforge.envs import FEET
+
+    policy, sep, feet = text.partition(":")
+    if not sep or not policy or feet not in FEET:
+        raise argparse.ArgumentTypeError(f"{text!r}: give POLICY:FEET, FEET one of {', '.join(FEET)}")
+    return policy, feet
+
+
+def policy_dir(policy: str) -> Path:
+    """The policy/ folder of a name under policies/ or of a given run or policy folder."""
+    path = Path(policy)
+    if not path.exists():
+        path = POLICIES / policy
+    return path / "policy" if (path / "policy").is_dir() else path
+
+
+def digest(policy: Path) -> str:
+    """sha256 over the policy folder's files (names and bytes; the output marker left out)."""
+    h = hashlib.sha256()
+    for f in sorted(p for p in policy.rglob("*") if p.is_file() and p.name != ".footforge-output"):
+        h.update(str(f.relative_to(policy)).encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()
+
+
+def pair_name(policy: str, feet: str) -> str:
+    """The pair's folder name: the run folder's name and the feet."""
+    run = Path(policy)
+    name = run.parent.name if run.name == "policy" else run.name
+    return f"{name}_on_{feet}"
+
+
+def settings(policy: Path, feet: str, args) -> dict:
+    """What makes a pair's result reusable: the policy's digest, the feet, robots, seconds, seed."""
+    return {
+        "policy_sha256": digest(policy),
+        "feet": feet,
+        "num_envs": args.num_envs,
+        "seconds": args.seconds,
+        "seed": args.seed,
+    }
+
+
+def done(folder: Path, wanted: dict) -> bool:
+    """Whether `folder` holds this pair's result made with `wanted` settings."""
+    try:
+        return json.loads((folder / "pair.json").read_text()) == wanted and (folder / "metrics.json").is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def check_out(out: Path) -> None:
+    """--out is new, empty, or a folder this script made before; anything else is the user's.
+
+    Raises:
+      InputError: a file, or a folder this script did not make.
+    """
+    from footforge.errors import InputError
+    from footforge.outputs import marker_kind
+
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: is a file; give a folder")
+    if out.is_dir() and any(out.iterdir()) and marker_kind(out) != MARKER_KIND:
+        raise InputError(f"--out {out}: holds files this script did not write; give a new folder or one it made before")
+
+
+def evaluate_pair(policy: Path, feet: str, folder: Path, wanted: dict, args) -> int:
+    """`footforge evaluate` of one pair into `folder` (written whole or not at all), then pair.json."""
+    from footforge.atomic import write_json
+    from footforge.cli.evaluate import main as evaluate_main
+
+    argv = ["--policy", str(policy), "--feet", feet, "--num-envs", str(args.num_envs)]
+    argv += ["--seconds", f"{args.seconds:g}", "--seed", str(args.seed), "--out", str(folder), "--force"]
+    print("footforge evaluate " + " ".join(argv), flush=True)
+    code = evaluate_main(argv)
+    if code == 0:
+        write_json(folder / "pair.json", wanted)
+    return code
+
+
+def join(out: Path, folders: list[Path]) -> None:
+    """OUT/comparison.md, metrics.json and comparison.png from the pairs' metrics, in the pairs' order."""
+    from footforge.atomic import atomic_file, write_json
+    from footforge.rl.evaluate import comparison_markdown, plot_indices
+
+    results = [r for f in folders for r in json.loads((f / "metrics.json").read_text())]
+    write_json(out / "metrics.json", results)
+    with atomic_file(out / "comparison.md") as tmp:
+        tmp.write_text(comparison_markdown(results))
+    plot_indices(results, out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", type=Path, required=True, help="the comparison's folder (new, or one this script made)")
+    p.add_argument(
+        "--pairs",
+        type=parse_pair,
+        nargs="+",
+        default=list(PAPER_PAIRS),
+        metavar="POLICY:FEET",
+        help="policy (a folder under policies/, or a run or policy folder) and the feet to walk it on "
+        "(default: " + " ".join(f"{p}:{f}" for p, f in PAPER_PAIRS) + ")",
+    )
+    p.add_argument("--num-envs", type=int, default=1024, help="robots per pair (default the paper's 1,024)")
+    p.add_argument("--seconds", type=float, default=60.0, help="simulated time per robot (default the paper's 60 s)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--max-minutes",
+        type=float,
+        help="start no pair after this wall time, nor one the last pair's time says would end after it",
+    )
+    args = p.parse_args(argv)
+
+    from footforge.errors import InputError
+    from footforge.outputs import write_marker
+
+    started = clock()
+    try:
+        if args.num_envs < 1 or args.seconds <= 0 or (args.max_minutes is not None and args.max_minutes <= 0):
+            raise InputError("--num-envs, --seconds and --max-minutes must be positive")
+        check_out(args.out)
+        pairs = []
+        for policy, feet in args.pairs:
+            folder = policy_dir(policy)
+            if not (folder / "footforge.json").is_file():
+                raise InputError(f"--pairs {policy}:{feet}: {folder} is not a policy folder (no footforge.json)")
+            pairs.append((folder, feet, args.out / pair_name(str(folder), feet)))
+    except InputError as e:
+        print(f"paper_comparison: error: {e}", file=sys.stderr)
+        return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_marker(args.out, kind=MARKER_KIND)
+
+    budget_s = None if args.max_minutes is None else 60.0 * args.max_minutes
+    last_s, evaluated, failed = 0.0, [], []
+    for policy, feet, folder in pairs:
+        wanted = settings(policy, feet, args)
+        if done(folder, wanted):
+            continue
+        elapsed = clock() - started
+        if budget_s is not None and elapsed + last_s > budget_s:
+            break
+        t0 = clock()
+        if evaluate_pair(policy, feet, folder, wanted, args) != 0:
+            failed.append(folder.name)
+        else:
+            evaluated.append(folder.name)
+        last_s = clock() - t0
+    left = [f.name for policy, feet, f in pairs if not done(f, settings(policy, feet, args))]
+    if not left:
+        join(args.out, [f for _, _, f in pairs])
+    summary = {
+        "paper_comparison": "done" if not left else "pairs left",
+        "evaluated": evaluated,
+        "failed": failed,
+        "left": left,
+        "wall_s": round(clock() - started, 1),
+    }
+    print(json.dumps(summary))
+    return 0 if not left else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,112 @@
+"""scripts/paper_comparison.py: Figure 8 one pair at a time, done pairs kept, the table joined at the end."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+import time
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("paper_comparison", REPO / "scripts/paper_comparison.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def script(monkeypatch):
+    """The script with footforge evaluate replaced by a recorded fake that writes a shipped result as the pair's."""
+    from footforge.atomic import write_json
+
+    module = _script()
+    calls = []
+    shipped = json.loads((REPO / "policies/flat_aof_B/evaluation/metrics.json").read_text())[0]
+
+    def fake(policy, feet, folder, wanted, args):
+        calls.append((policy.parent.name, feet, args.num_envs, args.seed))
+        folder.mkdir(exist_ok=True)
+        result = shipped | {"policy": str(policy), "feet": feet, "num_envs": args.num_envs, "falls": len(calls)}
+        (folder / "metrics.json").write_text(json.dumps([result]))
+        write_json(folder / "pair.json", wanted)
+        return 0
+
+    monkeypatch.setattr(module, "evaluate_pair", fake)
+    return module, calls
+
+
+def test_pairs_are_evaluated_once_and_joined_in_order(script, tmp_path):
+    module, calls = script
+    out = tmp_path / "cmp"
+    pairs = ["--pairs", "flat_aof_B:aof", "flat_aff_B:aof"]
+    assert module.main(["--out", str(out), *pairs, "--num-envs", "4"]) == 0
+    assert calls == [("flat_aof_B", "aof", 4, 0), ("flat_aff_B", "aof", 4, 0)]
+    rows = [line for line in (out / "comparison.md").read_text().splitlines() if line.startswith("| flat_")]
+    assert [row.split("|")[1].strip() for row in rows] == ["flat_aof_B", "flat_aff_B"]
+    assert [r["falls"] for r in json.loads((out / "metrics.json").read_text())] == [1, 2]
+    assert (out / "comparison.png").stat().st_size > 0
+
+    calls.clear()  # the same pairs and settings again: nothing to evaluate, the table rejoined
+    assert module.main(["--out", str(out), *pairs, "--num-envs", "4"]) == 0
+    assert calls == []
+    assert module.main(["--out", str(out), *pairs, "--num-envs", "4", "--seed", "1"]) == 0  # other settings: again
+    assert calls == [("flat_aof_B", "aof", 4, 1), ("flat_aff_B", "aof", 4, 1)]
+
+
+def test_a_changed_policy_is_evaluated_again(script, tmp_path):
+    module, calls = script
+    policy = tmp_path / "run" / "policy"
+    policy.parent.mkdir()
+    shutil.copytree(REPO / "policies/flat_aof_B/policy", policy)
+    out = tmp_path / "cmp"
+    argv = ["--out", str(out), "--pairs", f"{policy.parent}:aof"]
+    assert module.main(argv) == 0 and len(calls) == 1
+    (policy / "footforge.json").write_text((policy / "footforge.json").read_text() + " ")
+    assert module.main(argv) == 0 and len(calls) == 2
+
+
+def test_a_spent_budget_leaves_pairs_for_the_next_call(script, tmp_path, capsys, monkeypatch):
+    module, calls = script
+    out = tmp_path / "cmp"
+    argv = ["--out", str(out), "--pairs", "flat_aof_B:aof", "flat_aff_B:aff"]
+    clock = iter([0.0, 0.0, 0.0, 600.0, 600.0, 600.0])  # start, pair 1 (starts at 0, takes 10 min), pair 2, end
+    monkeypatch.setattr(module, "clock", lambda: next(clock))
+    assert module.main([*argv, "--max-minutes", "15"]) == 1  # 10 + 10 > 15: the second waits
+    monkeypatch.setattr(module, "clock", time.monotonic)
+    assert calls == [("flat_aof_B", "aof", 1024, 0)]
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["left"] == ["flat_aff_B_on_aff"] and not (out / "comparison.md").exists()
+    assert module.main(argv) == 0 and len(calls) == 2
+
+
+def test_a_users_folder_and_bad_pairs_are_refused_before_any_work(script, tmp_path):
+    module, calls = script
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    assert module.main(["--out", str(mine), "--pairs", "flat_aof_B:aof"]) == 2
+    assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"]
+    assert module.main(["--out", str(tmp_path / "new"), "--pairs", "no_such_policy:aof"]) == 2
+    assert not (tmp_path / "new").exists()
+    with pytest.raises(SystemExit) as e:
+        module.main(["--out", str(tmp_path / "new"), "--pairs", "flat_aof_B:hoof"])
+    assert e.value.code == 2
+    assert calls == []
+
+
+@pytest.mark.slow
+def test_one_real_pair_end_to_end(tmp_path):
+    """The real footforge evaluate of one pair, tiny (4 robots x 0.5 s), then the joined table."""
+    module = _script()
+    out = tmp_path / "cmp"
+    argv = ["--out", str(out), "--pairs", "flat_aff_B:aff", "--num-envs", "4", "--seconds", "0.5"]
+    assert module.main(argv) == 0
+    (result,) = json.loads((out / "metrics.json").read_text())
+    assert (result["feet"], result["num_envs"], result["seconds"]) == ("aff", 4, 0.5)
+    assert json.loads((out / "flat_aff_B_on_aff" / "metrics.json").read_text()) == [result]
