@@ -106,3 +106,30 @@ def test_campaign_takes_a_spec_that_begins_with_an_option_and_refuses_an_unknown
     assert done.returncode == 1 and "the kit did not install" in done.stderr  # it went on to the kit
     done = subprocess.run([campaign, "--minute", "5", "train-flat ball B"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "unknown option --minute" in done.stderr
+
+
+def test_cpu_jobs_get_disjoint_equal_shares_of_the_cores():
+    """campaign.sh --cpu pins job i of n to kit.core_share(cores, n, i): together every core once, sizes
+    within one of each other, consecutive; more jobs than cores share them in turn."""
+    for cpus in (list(range(16)), [0, 2, 4, 6, 8, 10, 12], [3]):
+        for jobs in range(1, len(cpus) + 1):
+            shares = [kit.core_share(cpus, jobs, i) for i in range(jobs)]
+            assert sorted(c for share in shares for c in share) == cpus, (cpus, jobs)
+            assert max(map(len, shares)) - min(map(len, shares)) <= 1
+            assert all(share == cpus[cpus.index(share[0]) : cpus.index(share[0]) + len(share)] for share in shares)
+    assert [kit.core_share([0, 1], 3, i) for i in range(3)] == [[0], [1], [0]]
+    done = subprocess.run(
+        [sys.executable, str(REPO / "scripts/device/kit.py"), "--core-share", "1", "0"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.stdout.strip() == ",".join(map(str, sorted(os.sched_getaffinity(0))))
+
+
+def test_campaign_takes_cpu(tmp_path):
+    campaign = str(REPO / "scripts/device/campaign.sh")
+    common = ["--kit", str(tmp_path / "none"), "--results", str(tmp_path / "out"), "--cpu"]
+    done = subprocess.run([campaign, *common, "train-rough aof P"], capture_output=True, text=True, timeout=120)
+    assert "unknown option" not in done.stderr
+    assert done.returncode == 1 and "the kit did not install" in done.stderr  # it went on to the kit

@@ -71,25 +71,6 @@ def step(name: str, cmd: list[str], **kw) -> subprocess.CompletedProcess:
     return done
 
 
-ROUGH_TINY = [
-    "--no-evaluations",
-    "--num-envs",
-    "8",
-    "--unroll-length",
-    "4",
-    "--batch-size",
-    "8",
-    "--minibatches",
-    "1",
-    "--checkpoint-every",
-    "32",
-    "--physics",
-    "mjx",
-]
-"""The prepared rough call's jobs (docs/training.md: AOF P and PH side by side, no evaluations,
-frequent checkpoints), at a size the CPU compiles and runs in minutes."""
-
-
 def main(argv: list[str]) -> int:
     rough = "--rough" in argv
     argv = [a for a in argv if a != "--rough"]
@@ -224,58 +205,62 @@ def main(argv: list[str]) -> int:
         print(json.dumps(summary))
 
 
+ROUGH_ITERATION = 64 * 4 * 24
+"""Steps of one PPO iteration of the rough `cpu` preset's batch (128 robots x 24-step unrolls, 4
+minibatches of 64 trajectories: 6,144), the unit the dry run's rough runs advance by."""
+
+
 def rough_campaign(work: Path, repo: Path, env: dict) -> dict:
-    """The prepared rough GPU call through campaign.sh, tiny: AOF P and PH trained side by side to
-    64 steps, then, as on a new machine (no runs/, no cache), both resumed from their tarballs to
-    128 with the compilation cache the first call brought back unpacked into .kit-cache/.
-    Returns the figures for the summary line."""
+    """The prepared rough call (docs/training.md) through campaign.sh --cpu, shortened: the committed
+    rough AOF P run resumed for two PPO iterations and PH begun under the rough `cpu` preset for two,
+    side by side on the C engine; then, as on a new machine (no runs/, no cache), both resumed from
+    their tarballs for one more. Returns the figures for the summary line."""
     if " " in str(work):
         raise Failed(f"--rough needs a WORKDIR without spaces (campaign.sh splits its jobs at spaces): {work}")
     campaign = repo / "scripts/device/campaign.sh"
+    committed = repo / "policies" / "rough_aof_P"
+    start = {"P": json.loads((committed / "progress.json").read_text())["global_step"], "PH": 0}
     figures = {}
-    for call, steps in ((1, 64), (2, 128)):
+    for call, iterations in ((1, 2), (2, 3)):
         t = time.time()
         specs = []
         for policy in ("P", "PH"):
-            resume = (
-                f"--resume {work / 'campaign1' / f'train-rough_aof_{policy}' / f'rough_aof_{policy}.tar.gz'} "
-                if call == 2
-                else ""
-            )
-            specs.append(f"{resume}train-rough aof {policy} -- {' '.join(ROUGH_TINY)} --timesteps {steps}")
+            steps = start[policy] + iterations * ROUGH_ITERATION
+            if call == 2:
+                source = work / "campaign1" / f"train-rough_aof_{policy}" / f"rough_aof_{policy}.tar.gz"
+            else:
+                source = committed if policy == "P" else None
+            options = "--no-evaluations" + (" --preset cpu" if source is None else "")
+            shorten = " --shorten" if policy == "P" else ""  # the committed run's total is 30 M steps
+            resume = f"--resume {source} " if source else ""
+            specs.append(f"{resume}train-rough aof {policy} -- {options} --timesteps {steps}{shorten}")
         out = work / f"rough_results{call}"
         shutil.rmtree(out, ignore_errors=True)
         # A fresh machine: only the tarballs come back, and the compilation cache where it is carried
         # (unpacked into .kit-cache/, as docs/training.md says).
         shutil.rmtree(repo / "runs", ignore_errors=True)
         shutil.rmtree(repo / ".kit-cache", ignore_errors=True)
-        if call == 2:
-            cache = work / "rough_results1" / "jax_cache.tar.gz"
-            if not cache.is_file():
-                raise Failed("the first rough call brought back no compilation cache (jax_cache.tar.gz)")
-            with tarfile.open(cache) as tar:
+        if call == 2 and (work / "rough_results1" / "jax_cache.tar.gz").is_file():
+            with tarfile.open(work / "rough_results1" / "jax_cache.tar.gz") as tar:
                 tar.extractall(repo / ".kit-cache", filter="data")
-        step(f"rough campaign {call}", [campaign, "--results", out, *MINUTES, *specs], cwd=repo, env=env)
+        step(f"rough campaign {call}", [campaign, "--cpu", "--results", out, *MINUTES, *specs], cwd=repo, env=env)
         unpacked = work / f"campaign{call}"
         shutil.rmtree(unpacked, ignore_errors=True)
         with tarfile.open(out / "campaign.tar.gz") as tar:
             tar.extractall(unpacked, filter="data")
         for policy in ("P", "PH"):
             run = f"rough_aof_{policy}"
+            steps = start[policy] + iterations * ROUGH_ITERATION
             s = check(unpacked / f"train-rough_aof_{policy}", f"train-rough aof {policy}", min_step=steps, run=run)
-            if call == 2:
-                progress = json.loads(
-                    extract(unpacked / f"train-rough_aof_{policy}" / f"{run}.tar.gz", f"{run}/progress.json")
-                )
-                if progress.get("resumes") != 1:
-                    raise Failed(f"{run} did not resume from the first call's checkpoint: {progress}")
+            progress = json.loads(
+                extract(unpacked / f"train-rough_aof_{policy}" / f"{run}.tar.gz", f"{run}/progress.json")
+            )
+            if progress.get("resumes") != (call if policy == "P" else call - 1):
+                raise Failed(f"{run} did not resume as the call says: {progress.get('resumes')} resumes")
+            if progress.get("physics") != "mujoco":
+                raise Failed(f"{run} ran on {progress.get('physics')}, not MuJoCo's C engine (campaign.sh --cpu)")
             figures[f"{run}_call{call}_step"] = s["global_step"]
         figures[f"rough_call{call}_s"] = round(time.time() - t)
-        figures[f"rough_call{call}_cache_mib"] = (
-            round((out / "jax_cache.tar.gz").stat().st_size / 2**20, 1)
-            if (out / "jax_cache.tar.gz").is_file()
-            else None
-        )
     return figures | {"dryrun": "ok", "jax": s.get("jax", {}).get("version")}
 
 

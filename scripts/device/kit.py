@@ -42,7 +42,21 @@ class UsageError(Exception):
     pass
 
 
+def core_share(cpus: list[int], jobs: int, index: int) -> list[int]:
+    """The CPUs of job `index` of `jobs` side by side on `cpus`: consecutive, equal shares, the
+    first jobs one more where they do not divide; with more jobs than CPUs, one CPU each in turn."""
+    if jobs > len(cpus):
+        return [cpus[index % len(cpus)]]
+    per, extra = divmod(len(cpus), jobs)
+    start = index * per + min(index, extra)
+    return cpus[start : start + per + (index < extra)]
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["--core-share"]:  # campaign.sh --cpu: `kit.py --core-share JOBS INDEX` prints a taskset list
+        jobs, index = int(argv[1]), int(argv[2])
+        print(",".join(str(c) for c in core_share(sorted(os.sched_getaffinity(0)), jobs, index)))
+        return 0
     extra: list[str] = []
     if "--" in argv:
         i = argv.index("--")
