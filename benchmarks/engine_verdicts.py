@@ -24,7 +24,7 @@ from pathlib import Path
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument(
-        "--policy", type=Path, nargs="+", default=[Path("policies/flat_aof_B"), Path("policies/flat_ball_B")]
+        "--policy", type=Path, nargs="+", default=[Path("policies/flat_aof_B"), Path("policies/flat_ball_B_cpu")]
     )
     p.add_argument("--num-envs", type=int, default=32)
     p.add_argument("--seconds", type=float, default=20.0)

@@ -377,7 +377,7 @@ def test_a_bad_thread_count_is_refused_before_any_work(command, tmp_path, capsys
     evaluation, play), exit 2 naming the variable, and write nothing."""
     out = tmp_path / "out"
     monkeypatch.setenv(THREADS_ENV, "two")
-    policy = str(REPO / "policies/flat_ball_B")
+    policy = str(REPO / "policies/flat_ball_B_cpu")
     if command == "train":
         from footforge.cli.train import main
 

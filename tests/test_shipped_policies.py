@@ -66,9 +66,9 @@ def first_rollouts(built, tmp_path_factory):
     return rollout
 
 
-SLOW_ROLLOUTS = {"flat_ball_B"}
-"""Rolled out among the slow tests: test_an_evaluation_repeats_byte_for_byte rolls flat_ball_B out three times
-there, and each rollout is about 17 s of the default run's 6 minutes."""
+SLOW_ROLLOUTS = {"flat_ball_B_cpu"}
+"""Rolled out among the slow tests: test_an_evaluation_repeats_byte_for_byte rolls flat_ball_B_cpu out three
+times there, and each rollout is about 17 s of the default run's 6 minutes."""
 
 
 @pytest.mark.parametrize(
@@ -99,9 +99,9 @@ def test_an_evaluation_repeats_byte_for_byte(built, tmp_path):
     float64, its results independent of its threads; every draw seeded), and another seed gives
     other figures (so the comparison can fail). The issue's differing figures came from code that
     changed between the card and the rerun, not from the rerun."""
-    first = _roll_out("flat_ball_B", built, tmp_path / "first")
-    assert _roll_out("flat_ball_B", built, tmp_path / "again") == first
-    assert _roll_out("flat_ball_B", built, tmp_path / "other", seed=1) != first
+    first = _roll_out("flat_ball_B_cpu", built, tmp_path / "first")
+    assert _roll_out("flat_ball_B_cpu", built, tmp_path / "again") == first
+    assert _roll_out("flat_ball_B_cpu", built, tmp_path / "other", seed=1) != first
 
 
 def test_the_tables_of_shipped_policies_are_their_recorded_evaluations():

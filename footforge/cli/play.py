@@ -1,7 +1,7 @@
 """Watch a trained policy walk in CPU MuJoCo, run through its ONNX file.
 
-    footforge play policies/flat_ball_B/policy                      # MuJoCo's viewer, keyboard commands
-    footforge play policies/flat_ball_B/policy --feet full --terrain
+    footforge play policies/flat_ball_B_cpu/policy                  # MuJoCo's viewer, keyboard commands
+    footforge play policies/flat_ball_B_cpu/policy --feet full --terrain
     MUJOCO_GL=egl footforge play policy.onnx --headless --seconds 5 --command 0.5 0 0 --video walk.gif
 
 POLICY is a policy/ folder of a training run (its ONNX graph is built in memory, as `footforge
