@@ -403,10 +403,14 @@ class LocomotionEnv(Env):
         keep = (jp.hypot(vx, vy) > c.zero_below) & ~standing
         return jp.array([vx, vy, 0.0]) * keep, heading, standing
 
+    def heading_error(self, info, data):
+        """The turn from the base's yaw to the target heading, rad in [-pi, pi)."""
+        return _wrap(info["heading_target"] - _yaw(data.qpos[3:7]))
+
     def heading_command(self, info, data):
         """The yaw-rate command steers the base toward the target heading."""
         c = self.config.commands
-        error = _wrap(info["heading_target"] - _yaw(data.qpos[3:7]))
+        error = self.heading_error(info, data)
         yaw_rate = jp.clip(c.heading_gain * error, -c.yaw_rate_limit, c.yaw_rate_limit) * ~info["standing"]
         return info["command"].at[2].set(yaw_rate.astype(info["command"].dtype))  # float64 physics: f32 command
 

@@ -185,6 +185,8 @@ def evaluate(
             "command_vx": state.info["command"][0],
             "vx": lin[0],
             "command_speed": jp.linalg.norm(state.info["command"][:2]),
+            "command_xy": state.info["command"][:2],
+            "heading_error": env.heading_error(state.info, d),
             # The summed reward before its clip at zero (RewardConfig.clip_total_at_zero).
             "clipped": clip & (sum(m[f"reward/{t}"] for t in reward_terms) < 0),
         }
@@ -237,6 +239,7 @@ def evaluate(
         "falls_after_push": len(falls_after(falls, pushes)),
         "command_times_s": commands,
         "falls_after_command": len(falls_after(falls, commands)),
+        "command_changes": command_changes(rows["command_xy"], rows["heading_error"], alive, env_config.policy_dt),
         "diverged": int(rows["diverged"].any(axis=1).sum()),
         "walking": walking.to_dict() | {"line": walking.line()},
         "clipped_fraction": float(rows["clipped"][alive].mean()) if alive.any() else float("nan"),
@@ -280,6 +283,62 @@ def event_times(every_s: float, policy_dt: float, steps: int) -> list[float]:
 def falls_after(falls: list[float], events: list[float], window_s: float = AFTER_EVENT_S) -> list[float]:
     """The fall times that come at most window_s after one of the events (its own step included)."""
     return [t for t in falls if any(0.0 <= t - e <= window_s + 1e-9 for e in events)]
+
+
+SPEED_CHANGE_BINS_MPS = (0.0, 0.5, 1.0, 1.5, np.inf)
+"""Bins of a new command's change of planar velocity, |v_new - v_old| (m/s): up to 2.2 m/s under commands of
++-1 / +-0.5 m/s, a reversal at full speed 2 m/s."""
+TURN_BINS_RAD = (0.0, np.pi / 4, np.pi / 2, 3 * np.pi / 4, np.pi + 1e-6)
+"""Bins of the turn a new heading asks, |heading target - yaw| just after the change (rad)."""
+
+
+def command_changes(
+    command_xy: np.ndarray,
+    heading_error: np.ndarray,
+    alive: np.ndarray,
+    policy_dt: float,
+    window_s: float = AFTER_EVENT_S,
+) -> dict:
+    """Which new commands the robots fall after: every change of a robot's planar velocity command
+    while it is up, binned by the change of velocity (SPEED_CHANGE_BINS_MPS) and by the turn the new
+    heading asks (TURN_BINS_RAD), with how many of each bin's robots fell within `window_s` of it.
+
+    `command_xy` (robots x steps x 2), the command after each policy step; `heading_error` (robots x
+    steps), the turn left to the heading target; `alive` (robots x steps), up after each step. A change
+    at step s (command s differs from command s-1, the robot up after steps s-1 and s: a robot that goes
+    down restarts with a fresh command in that step) counts a fall at step f (the first step after which
+    the robot is down) when s < f <= s + window_s / policy_dt, the rule of falls_after."""
+    changed = np.zeros(alive.shape, bool)
+    # Up before and after the change: a robot that falls restarts with a fresh command in the same step.
+    changed[:, 1:] = np.any(command_xy[:, 1:] != command_xy[:, :-1], axis=-1) & alive[:, :-1] & alive[:, 1:]
+    robot, step = np.nonzero(changed)
+    down = ~alive[:, -1]
+    first_down = np.argmin(alive, axis=1)  # meaningful where down
+    window = int(round(window_s / policy_dt))
+    fell = down[robot] & (first_down[robot] >= step) & (first_down[robot] <= step + window)
+    speed_change = np.linalg.norm(command_xy[robot, step] - command_xy[robot, step - 1], axis=-1)
+    turn = np.abs(heading_error[robot, step])
+
+    def binned(values, edges):
+        which = np.digitize(values, edges[1:-1])
+        return (
+            np.bincount(which, minlength=len(edges) - 1).tolist(),
+            np.bincount(which[fell], minlength=len(edges) - 1).tolist(),
+        )
+
+    speed_changes, speed_falls = binned(speed_change, SPEED_CHANGE_BINS_MPS)
+    turn_changes, turn_falls = binned(turn, TURN_BINS_RAD)
+    return {
+        "changes": int(len(step)),
+        "fell_within_s": window_s,
+        "fell": int(fell.sum()),
+        "speed_change_from_mps": [float(e) for e in SPEED_CHANGE_BINS_MPS[:-1]],
+        "speed_change_changes": speed_changes,
+        "speed_change_falls": speed_falls,
+        "turn_from_rad": [round(float(e), 4) for e in TURN_BINS_RAD[:-1]],
+        "turn_changes": turn_changes,
+        "turn_falls": turn_falls,
+    }
 
 
 def _mean_over_standing(values: np.ndarray) -> np.ndarray:
@@ -416,6 +475,17 @@ def falls_cell(r: dict) -> str:
         if after:
             notes.append(f"within {AFTER_EVENT_S:g} s of: " + ", ".join(after))
     return f"{r['falls']}/{r['num_envs']}" + (f" ({', '.join(notes)})" if notes else "")
+
+
+def command_falls_cell(r: dict) -> str:
+    """'fell/changes' per bin of the new commands' change of velocity (command_changes), e.g.
+    '<0.5 m/s 0/40, 0.5-1 1/60, 1-1.5 2/50, >=1.5 4/20'; '-' for results from before it was recorded."""
+    c = r.get("command_changes")
+    if not c:
+        return "-"
+    edges = c["speed_change_from_mps"]
+    names = [f"<{edges[1]:g} m/s"] + [f"{a:g}-{b:g}" for a, b in zip(edges[1:-1], edges[2:])] + [f">={edges[-1]:g}"]
+    return ", ".join(f"{n} {f}/{k}" for n, f, k in zip(names, c["speed_change_falls"], c["speed_change_changes"]))
 
 
 FEET_COLOURS = {f: foot_variant(f).colour for f in FEET}

@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 
 from footforge.envs import engine
-from footforge.rl.evaluate import INDEX_UNITS, INDICES, falls_cell
+from footforge.rl.evaluate import AFTER_EVENT_S, INDEX_UNITS, INDICES, command_falls_cell, falls_cell
 from footforge.tables import markdown_table
 
 
@@ -67,6 +67,11 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
     ]
     rows.append(["slippage (-)"] + [f"{r['slippage']:.4g}" for _, r in evaluations])
     rows.append(["falls"] + [falls_cell(r) for _, r in evaluations])
+    if any("command_changes" in r for _, r in evaluations):
+        rows.append(
+            [f"new commands fallen after within {AFTER_EVENT_S:g} s, by change of velocity"]
+            + [command_falls_cell(r) for _, r in evaluations]
+        )
     rows.append(["verdict"] + [r["walking"]["line"] if "walking" in r else "not judged" for _, r in evaluations])
     lines += [""] + markdown_table(["index"] + [f"on {r['feet']}" for _, r in evaluations], rows)
     lines += [
