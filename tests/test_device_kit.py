@@ -127,9 +127,18 @@ def test_cpu_jobs_get_disjoint_equal_shares_of_the_cores():
     assert done.stdout.strip() == ",".join(map(str, sorted(os.sched_getaffinity(0))))
 
 
-def test_campaign_takes_cpu(tmp_path):
+def test_campaign_takes_cpu_and_leaves_no_temporary_folder(tmp_path):
     campaign = str(REPO / "scripts/device/campaign.sh")
     common = ["--kit", str(tmp_path / "none"), "--results", str(tmp_path / "out"), "--cpu"]
-    done = subprocess.run([campaign, *common, "train-rough aof P"], capture_output=True, text=True, timeout=120)
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    done = subprocess.run(
+        [campaign, *common, "train-rough aof P"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=os.environ | {"TMPDIR": str(temporary)},
+    )
     assert "unknown option" not in done.stderr
     assert done.returncode == 1 and "the kit did not install" in done.stderr  # it went on to the kit
+    assert list(temporary.iterdir()) == []
