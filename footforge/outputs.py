@@ -29,6 +29,17 @@ TRAINING_RUN = "training run"
 --resume), so it is never replaced as a whole unless forced (footforge.rl.run_folder.prepare_run_dir)."""
 
 
+ACCUMULATING = "accumulating"
+"""The marker's `kind` in a folder filled over many calls, each adding to what earlier ones left
+(scripts/paper_comparison.py's pairs): never replaced as a whole unless forced, like a training run."""
+
+KEPT_WHOLE = {
+    TRAINING_RUN: "a training run folder (checkpoints, metrics)",
+    ACCUMULATING: "a folder filled over many calls (such as scripts/paper_comparison.py's pairs)",
+}
+"""Marker kinds whose folders check_output_folder refuses to replace without force, and what they are."""
+
+
 def write_marker(folder: Path, command: str | None = None, *, kind: str | None = None) -> None:
     """Writes the marker into `folder` (a folder footforge is writing), so a later run may replace
     it; `kind` (e.g. TRAINING_RUN) is recorded for folders that need more care."""
@@ -87,8 +98,8 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
     Refused always: the current folder or one above it (it cannot be replaced by a rename), an
     existing file (footforge writes folders; a file is the user's), a path under a file, and a
     parent folder this process cannot write in (the output is made beside it, then renamed).
-    Refused unless `force`: an existing non-empty folder without footforge's marker, and a training
-    run's folder (its marker's kind is TRAINING_RUN).
+    Refused unless `force`: an existing non-empty folder without footforge's marker, and a folder
+    whose marker's kind is in KEPT_WHOLE (a training run's folder, an accumulating one).
 
     Raises:
       InputError: one line naming the path and what to change; exit 2.
@@ -120,9 +131,9 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
         raise InputError(
             f"{flag} {given}: cannot write in {parent} (permission denied); give a {flag} folder in a writable place"
         )
-    if target.is_dir() and not force and marker_kind(target) == TRAINING_RUN:
+    if target.is_dir() and not force and marker_kind(target) in KEPT_WHOLE:
         raise InputError(
-            f"{flag} {given}: is a training run folder (checkpoints, metrics), which footforge "
+            f"{flag} {given}: is {KEPT_WHOLE[marker_kind(target)]}, which footforge "
             f"does not replace as a whole; give another {flag} folder, e.g. {flag} {given}/evaluation"
         )
     if target.is_dir() and not force and not written_by_footforge(target) and any(target.iterdir()):

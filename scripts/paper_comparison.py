@@ -1,12 +1,13 @@
 """The paper's flat comparison (its Figure 8) at its size, 1,024 robots x 60 s per policy and feet, one pair at a time.
 
 The paper compares the ball-feet baseline on ball feet and on AFF with a policy trained on AFF, each over
-1,024 robots for 60 s (commands every 10 s, pushes). On this project's 2-core CPU one such pair is about
-14 minutes (`footforge evaluate` under MuJoCo's C engine), too long to run every pair in one sitting; so
-each pair is its own `footforge evaluate` into its own folder, `OUT/<policy>_on_<feet>/`, kept once done,
-and a later call with the same `--out` goes on with the pairs still missing (`--max-minutes` stops it
-between pairs). Whenever every pair is there, the pairs' metrics are joined into OUT/comparison.md,
-OUT/metrics.json and OUT/comparison.png (footforge.rl.evaluate's table and plot).
+1,024 robots for 60 s (commands every 10 s, pushes). On this project's 2-core CPU one such pair is an estimated
+14 minutes (`footforge evaluate` under MuJoCo's C engine; four times a 256-robot evaluation's 3.5), too long to
+run every pair in one sitting; so each pair is its own `footforge evaluate` into its own folder,
+`OUT/<policy>_on_<feet>/`, kept once done, and a later call with the same `--out` goes on with the pairs still
+missing (`--max-minutes` stops it between pairs). Whenever every pair is there, the pairs' metrics are joined into
+OUT/comparison.md, OUT/metrics.json and OUT/comparison.png (footforge.rl.evaluate's table and plot). OUT is marked
+as accumulating (footforge.outputs): footforge's commands do not replace it without --force.
 
     python scripts/paper_comparison.py --out benchmarks/paper_comparison_1024 --max-minutes 60
     python scripts/paper_comparison.py --out /tmp/cmp --pairs flat_aff_BH:aff --num-envs 32 --seconds 20
@@ -34,8 +35,6 @@ REPO = Path(__file__).resolve().parents[1]
 POLICIES = REPO / "policies"
 clock = time.monotonic
 """The wall clock of the budget (a test sets its own)."""
-MARKER_KIND = "paper comparison"
-"""The marker's kind in an --out folder this script made: filled pair by pair, never replaced as a whole."""
 
 PAPER_PAIRS = (
     ("flat_ball_B_cpu", "ball"),
@@ -109,11 +108,11 @@ def check_out(out: Path) -> None:
       InputError: a file, or a folder this script did not make.
     """
     from footforge.errors import InputError
-    from footforge.outputs import marker_kind
+    from footforge.outputs import ACCUMULATING, marker_kind
 
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: is a file; give a folder")
-    if out.is_dir() and any(out.iterdir()) and marker_kind(out) != MARKER_KIND:
+    if out.is_dir() and any(out.iterdir()) and marker_kind(out) != ACCUMULATING:
         raise InputError(f"--out {out}: holds files this script did not write; give a new folder or one it made before")
 
 
@@ -123,7 +122,7 @@ def evaluate_pair(policy: Path, feet: str, folder: Path, wanted: dict, args) -> 
     from footforge.cli.evaluate import main as evaluate_main
 
     argv = ["--policy", str(policy), "--feet", feet, "--num-envs", str(args.num_envs)]
-    argv += ["--seconds", f"{args.seconds:g}", "--seed", str(args.seed), "--out", str(folder), "--force"]
+    argv += ["--seconds", repr(args.seconds), "--seed", str(args.seed), "--out", str(folder)]
     print("footforge evaluate " + " ".join(argv), flush=True)
     code = evaluate_main(argv)
     if code == 0:
@@ -161,12 +160,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--max-minutes",
         type=float,
-        help="start no pair after this wall time, nor one the last pair's time says would end after it",
+        help="start no pair after this wall time, nor one the longest pair so far says would end after it",
     )
     args = p.parse_args(argv)
 
     from footforge.errors import InputError
-    from footforge.outputs import write_marker
+    from footforge.outputs import ACCUMULATING, write_marker
 
     started = clock()
     try:
@@ -179,27 +178,34 @@ def main(argv: list[str] | None = None) -> int:
             if not (folder / "footforge.json").is_file():
                 raise InputError(f"--pairs {policy}:{feet}: {folder} is not a policy folder (no footforge.json)")
             pairs.append((folder, feet, args.out / pair_name(str(folder), feet)))
+        names = [f.name for _, _, f in pairs]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise InputError(
+                f"--pairs: {', '.join(twice)} named twice (two policies from run folders of one name, or a pair "
+                "given twice); each pair needs its own folder: compare such policies in separate --out folders"
+            )
     except InputError as e:
         print(f"paper_comparison: error: {e}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
-    write_marker(args.out, kind=MARKER_KIND)
+    write_marker(args.out, kind=ACCUMULATING)  # footforge's commands then refuse to replace it
 
     budget_s = None if args.max_minutes is None else 60.0 * args.max_minutes
-    last_s, evaluated, failed = 0.0, [], []
+    longest_s, evaluated, failed = 0.0, [], []
     for policy, feet, folder in pairs:
         wanted = settings(policy, feet, args)
         if done(folder, wanted):
             continue
         elapsed = clock() - started
-        if budget_s is not None and elapsed + last_s > budget_s:
+        if budget_s is not None and elapsed + longest_s > budget_s:
             break
         t0 = clock()
         if evaluate_pair(policy, feet, folder, wanted, args) != 0:
-            failed.append(folder.name)
+            failed.append(folder.name)  # a quick failure says nothing of a pair's time
         else:
             evaluated.append(folder.name)
-        last_s = clock() - t0
+            longest_s = max(longest_s, clock() - t0)
     left = [f.name for policy, feet, f in pairs if not done(f, settings(policy, feet, args))]
     if not left:
         join(args.out, [f for _, _, f in pairs])

@@ -58,7 +58,7 @@ def test_command_changes_bin_each_new_command_and_the_falls_that_follow_it():
     assert result["speed_change_from_mps"] == [0.0, 0.5, 1.0, 1.5]
     assert result["speed_change_changes"] == [2, 2, 0, 1] and result["speed_change_falls"] == [0, 1, 0, 1]
     assert result["turn_changes"] == [2, 1, 1, 1] and result["turn_falls"] == [1, 0, 0, 1]
-    # The same rule as the falls-after-command count: falls at (step + 1) dt, events at (change step + 1) dt.
+    # falls_after's window (falls at (step + 1) dt, events at (change step + 1) dt), here without same-step falls.
     events = [(s + 1) * 0.5 for s in (3, 8)]
     assert len(falls_after(fall_times(alive, 0.5), events, 2.0)) == result["fell"]
     assert command_falls_cell({"command_changes": result}) == "<0.5 m/s 0/2, 0.5-1 1/2, 1-1.5 0/0, >=1.5 1/1"

@@ -97,7 +97,24 @@ def test_a_users_folder_and_bad_pairs_are_refused_before_any_work(script, tmp_pa
     with pytest.raises(SystemExit) as e:
         module.main(["--out", str(tmp_path / "new"), "--pairs", "flat_aof_B:hoof"])
     assert e.value.code == 2
+    other = tmp_path / "runs" / "flat_aof_B"  # a run folder of the shipped policy's name: one pair folder for two
+    shutil.copytree(REPO / "policies/flat_aof_B/policy", other / "policy")
+    assert module.main(["--out", str(tmp_path / "new"), "--pairs", "flat_aof_B:aof", f"{other}:aof"]) == 2
+    assert not (tmp_path / "new").exists()
     assert calls == []
+
+
+def test_footforge_does_not_replace_the_comparison_folder_unforced(script, tmp_path):
+    """A comparison's folder holds pairs of many calls: footforge's commands refuse to replace it, as a run folder."""
+    from footforge.errors import InputError
+    from footforge.outputs import check_output_folder
+
+    module, _ = script
+    out = tmp_path / "cmp"
+    assert module.main(["--out", str(out), "--pairs", "flat_aof_B:aof"]) == 0
+    with pytest.raises(InputError, match="filled over many calls"):
+        check_output_folder(out)
+    assert check_output_folder(out, force=True) == out
 
 
 @pytest.mark.slow

@@ -307,7 +307,9 @@ def command_changes(
     steps), the turn left to the heading target; `alive` (robots x steps), up after each step. A change
     at step s (command s differs from command s-1, the robot up after steps s-1 and s: a robot that goes
     down restarts with a fresh command in that step) counts a fall at step f (the first step after which
-    the robot is down) when s < f <= s + window_s / policy_dt, the rule of falls_after."""
+    the robot is down) when s < f <= s + window_s / policy_dt: falls_after's window, but for a fall in the
+    very step of the new command, which falls_after counts and this leaves out (the policy never saw
+    that command), so `fell` may be below falls_after_command by such falls."""
     changed = np.zeros(alive.shape, bool)
     # Up before and after the change: a robot that falls restarts with a fresh command in the same step.
     changed[:, 1:] = np.any(command_xy[:, 1:] != command_xy[:, :-1], axis=-1) & alive[:, :-1] & alive[:, 1:]

@@ -47,7 +47,7 @@ mkdir -p "$results" || exit 2
 # Install the wheels once (run.sh installs before the job starts; kit.py --help then exits 0).
 "$here/run.sh" "${kit_args[@]}" --help >/dev/null || { echo "campaign: error: the kit did not install" >&2; exit 1; }
 # The jobs' results folders, bundled into campaign.tar.gz at the end and then removed.
-work="$(mktemp -d "${TMPDIR:-/tmp}/footforge-campaign-XXXXXX")"
+work="$(mktemp -d "${TMPDIR:-/tmp}/footforge-campaign-XXXXXX")" || { echo "campaign: error: no temporary folder" >&2; exit 1; }
 trap 'rm -rf "$work"' EXIT
 trap 'kill $(jobs -p) 2>/dev/null' INT TERM
 export XLA_PYTHON_CLIENT_MEM_FRACTION="${XLA_PYTHON_CLIENT_MEM_FRACTION:-$(python3 -c "print(round(0.9 / $#, 3))")}"

@@ -243,7 +243,10 @@ def rough_campaign(work: Path, repo: Path, env: dict) -> dict:
         if call == 2 and (work / "rough_results1" / "jax_cache.tar.gz").is_file():
             with tarfile.open(work / "rough_results1" / "jax_cache.tar.gz") as tar:
                 tar.extractall(repo / ".kit-cache", filter="data")
-        step(f"rough campaign {call}", [campaign, "--cpu", "--results", out, *MINUTES, *specs], cwd=repo, env=env)
+        cmd = [campaign, "--cpu", "--results", out, *MINUTES, *specs]
+        done = step(f"rough campaign {call}", cmd, cwd=repo, env=env)
+        if shutil.which("taskset") and done.stdout.count("taskset -c ") != 2:
+            raise Failed("campaign.sh --cpu did not pin each job to its cores (taskset -c)")
         unpacked = work / f"campaign{call}"
         shutil.rmtree(unpacked, ignore_errors=True)
         with tarfile.open(out / "campaign.tar.gz") as tar:
