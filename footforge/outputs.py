@@ -131,9 +131,10 @@ def check_output_folder(path: Path, *, force: bool = False, flag: str = "--out",
         raise InputError(
             f"{flag} {given}: cannot write in {parent} (permission denied); give a {flag} folder in a writable place"
         )
-    if target.is_dir() and not force and marker_kind(target) in KEPT_WHOLE:
+    kind = marker_kind(target) if target.is_dir() else None
+    if kind in KEPT_WHOLE and not force:
         raise InputError(
-            f"{flag} {given}: is {KEPT_WHOLE[marker_kind(target)]}, which footforge "
+            f"{flag} {given}: is {KEPT_WHOLE[kind]}, which footforge "
             f"does not replace as a whole; give another {flag} folder, e.g. {flag} {given}/evaluation"
         )
     if target.is_dir() and not force and not written_by_footforge(target) and any(target.iterdir()):
