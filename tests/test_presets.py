@@ -296,7 +296,7 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
     last stage (`--preset full --variant today+fast+airtime=0+resample=10+entropy=0.001`, 258,048 steps per
     checkpoint) is the `cpu` preset with commands every 10 s; the command that trained flat_aof_B's first 10 M
     steps gives that preset exactly (its push curriculum then sets two overrides); flat_aff_B and
-    flat_ball_B_cpu, trained by `footforge train --preset cpu` from scratch, are it too."""
+    flat_ball_B_cpu, trained by `footforge train --preset cpu` from scratch, are it too (the ball to 20 M)."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
@@ -319,7 +319,8 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
     assert presets.resolve("flat", "ball", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
     assert module.configure("ball", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])[:2] == (env, ppo)
     assert shipped("flat_aff_B") == presets.resolve("flat", "aff", "B", "cpu")
-    assert shipped("flat_ball_B_cpu") == presets.resolve("flat", "ball", "B", "cpu")
+    # flat_ball_B_cpu is the preset from scratch resumed to 20 M steps: its recipe records the new total.
+    assert shipped("flat_ball_B_cpu") == presets.resolve("flat", "ball", "B", "cpu", ["ppo.num_timesteps=20000000"])
     env, ppo, _ = module.configure(
         "aof",
         "full",
