@@ -300,6 +300,7 @@ def test_engines_agree_in_float32(built, task, feet, policy):
     assert np.all(c_rows[0]["contacts"]), "a robot at its start has every foot down"
 
 
+@pytest.mark.slow  # about 24 s of the default run; the byte-for-byte evaluation (slow) repeats a whole rollout too
 def test_c_engine_results_do_not_depend_on_its_threads(built, monkeypatch):
     """The same seed gives the same bytes with one thread and with two (each robot's warm start is
     its own, never a thread's leftover)."""

@@ -66,9 +66,10 @@ def first_rollouts(built, tmp_path_factory):
     return rollout
 
 
-SLOW_ROLLOUTS = {"flat_ball_B_cpu"}
-"""Rolled out among the slow tests: test_an_evaluation_repeats_byte_for_byte rolls flat_ball_B_cpu out three
-times there, and each rollout is about 17 s of the default run's 6 minutes."""
+SLOW_ROLLOUTS = {"flat_ball_B_cpu", "flat_aff_BH", "flat_aof_BH"}
+"""Rolled out among the slow tests, each about 20-26 s of the default run's 6 minutes: flat_ball_B_cpu, which
+test_an_evaluation_repeats_byte_for_byte rolls out three times there, and the haptic policies (the default run
+keeps a rollout of each adaptive feet's B policy)."""
 
 
 @pytest.mark.parametrize(
