@@ -32,6 +32,7 @@ import re
 import sys
 from pathlib import Path
 
+from footforge.rl.config import steps_before
 from footforge.variants import HAPTIC
 
 REPO = Path(__file__).resolve().parents[1]
@@ -198,7 +199,7 @@ def row(run: Path) -> str:
     origin = config.get("initialised_from")
     if origin:
         trained = (
-            f"{_steps(step + int(origin['step']))} steps: {_steps(int(origin['step']))} of an earlier run "
+            f"{_steps(step + steps_before(origin))} steps: {_steps(steps_before(origin))} of earlier runs "
             f"(`--init-from`), then {trained}"
         )
     recipe = config.get("recipe")

@@ -114,6 +114,11 @@ def test_card_of_a_fine_tuned_run_counts_the_source_s_steps(tmp_path):
     )
     card = policy_card(policy, [(0, _result(policy, "aof", 0.0))], [])
     assert "| started from | step 10,027,008 of /runs/aof (--init-from): 13,553,664 steps in all |" in card
+    # A source that had itself been initialised from another run: the steps before this run are the lineage's.
+    origin = {"run": "/runs/aof", "step": 10_027_008, "steps_before": 30_000_000}
+    (run / "config.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo), "initialised_from": origin}))
+    card = policy_card(policy, [(0, _result(policy, "aof", 0.0))], [])
+    assert "| started from | step 10,027,008 of /runs/aof (--init-from): 33,526,656 steps in all |" in card
     (run / "config.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(ppo)}))
     assert "started from" not in policy_card(policy, [(0, _result(policy, "aof", 0.0))], [])
 

@@ -47,6 +47,19 @@ def test_the_cpu_preset_is_what_the_shipped_cpu_policies_trained_on():
     assert env.commands.resample_s == envs.FLAT_COMMAND_RESAMPLE_S
 
 
+def test_cpu_robust_is_cpu_with_denser_pushes_and_commands():
+    """`cpu-robust` (the second stage) changes only the push and command schedules of `cpu`: a push
+    every 5 s and a new command every 2.5 s, three and seven per 20-s episode."""
+    cpu_env, cpu_ppo = presets.resolve("flat", "aff", "B", "cpu")
+    env, ppo = presets.resolve("flat", "aff", "B", "cpu-robust")
+    assert ppo == cpu_ppo
+    assert env.pushes.interval_s == 5.0 and env.commands.resample_s == 2.5
+    assert env == replace(
+        cpu_env, pushes=replace(cpu_env.pushes, interval_s=5.0), commands=replace(cpu_env.commands, resample_s=2.5)
+    )
+    assert env.episode_length_s / env.commands.resample_s - 1 == 7
+
+
 @pytest.mark.parametrize(
     "override, read",
     [

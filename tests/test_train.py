@@ -599,7 +599,14 @@ def test_init_from_hands_the_source_s_newest_parameters_to_brax(written_run, tmp
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert seen["entropy_cost"] == 0.001 and seen["learning_rate"] == 1e-4
     config = json.loads((tmp_path / "tuned" / "config.json").read_text())
-    assert config["initialised_from"] == {"run": str(run), "step": 64}
+    assert config["initialised_from"] == {"run": str(run), "step": 64, "steps_before": 64}
+    # A source that was itself initialised from another run passes its own steps on: the lineage's count.
+    saved = json.loads((run / "config.json").read_text())
+    (run / "config.json").write_text(json.dumps(saved | {"initialised_from": {"run": "/r", "step": 1000}}))
+    train.train(cfg, tuned, tmp_path / "tuned_again", init_from=run, notice=lambda text: None)
+    again = json.loads((tmp_path / "tuned_again" / "config.json").read_text())["initialised_from"]
+    assert again == {"run": str(run), "step": 64, "steps_before": 1064}
+    assert train.steps_before(again) == 1064 and train.steps_before({"run": "/r", "step": 1000}) == 1000
     assert config["ppo"]["entropy_cost"] == 0.001
     with pytest.raises(InputError, match=r"policy_hidden_layers \(8,\) there, \(16,\) here"):
         train.train(cfg, replace(ppo, policy_hidden_layers=(16,)), tmp_path / "other", init_from=run)

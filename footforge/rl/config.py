@@ -196,3 +196,9 @@ def config_differences(saved: dict, now: dict, prefix: str = "") -> list[str]:
         elif a != b:
             out.append(f"{prefix}{key}: {a!r} in the run, {b!r} now")
     return out
+
+
+def steps_before(origin: dict) -> int:
+    """Steps trained before a run whose config.json says it was initialised from `origin`, every
+    earlier source included (a record from before "steps_before" was kept gives its checkpoint's step)."""
+    return int(origin.get("steps_before", origin["step"]))

@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 from footforge.envs import engine
+from footforge.rl.config import steps_before
 from footforge.rl.evaluate import AFTER_EVENT_S, INDEX_UNITS, INDICES, command_falls_cell, falls_cell
 from footforge.tables import markdown_table
 
@@ -118,7 +119,7 @@ def _training_rows(meta: dict, progress: dict) -> list[tuple[str, str]]:
             (
                 "started from",
                 f"step {int(origin['step']):,} of {origin['run']} (--init-from): "
-                f"{int(origin['step']) + step:,} steps in all",
+                f"{steps_before(origin) + step:,} steps in all",
             )
         )
     wall_s = meta.get("wall_s") or progress.get("wall_s_total")

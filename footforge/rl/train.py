@@ -61,6 +61,7 @@ from footforge.rl.config import (  # noqa: F401 (re-exported)
     env_config_from_dict,
     from_dict,
     planned_steps,
+    steps_before,
     steps_per_iteration,
     to_dict,
     training_epochs,
@@ -223,6 +224,15 @@ def _initialisation(source: Path, env_config: EnvConfig, ppo: PPOConfig, notice)
     return step, params
 
 
+def _origin(source: Path, step: int) -> dict:
+    """config.json's "initialised_from" of a run started from checkpoint `step` of run `source`: the
+    source, that step, and "steps_before", the steps trained before this run in all (the step, plus
+    the steps the source had started from where it was itself initialised from another run)."""
+    earlier = json.loads((source / "config.json").read_text()).get("initialised_from")
+    before = step + (steps_before(earlier) if earlier else 0)
+    return {"run": os.path.abspath(source), "step": step, "steps_before": before}
+
+
 def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, primary: bool):
     """(steps done, the checkpoint to restore, the number of this resume, training seconds so far)
     of the run in run_dir, refused where it was started with other settings."""
@@ -322,7 +332,7 @@ def train(
                 fix="give one of them",
             )
         step, restore = _initialisation(Path(init_from), env_config, ppo, notice)
-        origin = {"initialised_from": {"run": os.path.abspath(init_from), "step": step}}
+        origin = {"initialised_from": _origin(Path(init_from), step)}
     run_dir = (
         prepare_run_dir(run_dir, resume=resume, force=force, notice=notice)
         if primary
