@@ -199,7 +199,7 @@ def row(run: Path) -> str:
     origin = config.get("initialised_from")
     if origin:
         trained = (
-            f"{_steps(step + steps_before(origin))} steps: {_steps(steps_before(origin))} of earlier runs "
+            f"{_steps(step + steps_before(origin))} steps: {_steps(steps_before(origin))} before "
             f"(`--init-from`), then {trained}"
         )
     recipe = config.get("recipe")

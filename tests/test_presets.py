@@ -308,8 +308,9 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
     """benchmarks/learning_cpu.py is presets + overrides: the variant that trained the earlier ball policy's
     last stage (`--preset full --variant today+fast+airtime=0+resample=10+entropy=0.001`, 258,048 steps per
     checkpoint) is the `cpu` preset with commands every 10 s; the command that trained flat_aof_B's first 10 M
-    steps gives that preset exactly (its push curriculum then sets two overrides); flat_aff_B and
-    flat_ball_B_cpu, trained by `footforge train --preset cpu` from scratch, are it too (the ball to 20 M)."""
+    steps gives that preset exactly (its later stages are `cpu-robust`'s); flat_ball_B_cpu, trained by
+    `footforge train --preset cpu` from scratch, is it too (to 20 M), and flat_aff_B went on from it through
+    `cpu-robust`."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("learning_cpu", REPO / "benchmarks/learning_cpu.py")
@@ -331,7 +332,8 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
     assert (env, ppo) == presets.resolve("flat", "ball", "B", "cpu", cpu_every_10_s)
     assert presets.resolve("flat", "ball", "B", recipe["preset"], recipe["overrides"]) == (env, ppo)
     assert module.configure("ball", "cpu", "resample=10", ["ppo.num_timesteps=3870720"])[:2] == (env, ppo)
-    assert shipped("flat_aff_B") == presets.resolve("flat", "aff", "B", "cpu")
+    # flat_aff_B went on from that preset's 10 M steps through the `cpu-robust` stage.
+    assert shipped("flat_aff_B") == presets.resolve("flat", "aff", "B", "cpu-robust")
     # flat_ball_B_cpu is the preset from scratch resumed to 20 M steps: its recipe records the new total.
     assert shipped("flat_ball_B_cpu") == presets.resolve("flat", "ball", "B", "cpu", ["ppo.num_timesteps=20000000"])
     env, ppo, _ = module.configure(
@@ -342,9 +344,9 @@ def test_the_learning_benchmark_s_recorded_commands_resolve_to_the_shipped_confi
     )
     assert (env, ppo) == presets.resolve("flat", "aof", "B", "cpu")
     # flat_aof_B is that run resumed to 20 M steps: its recipe records the new total.
-    # flat_aof_B went on from that preset's 20.13 M steps with a push every 5 s (its push curriculum)
-    pushed = ["env.pushes.interval_s=5", "ppo.num_timesteps=10000000"]
-    assert shipped("flat_aof_B") == presets.resolve("flat", "aof", "B", "cpu", pushed)
+    # flat_aof_B went on from that preset's 20.13 M steps with a push every 5 s (10 M steps), then 5 M steps of
+    # the `cpu-robust` stage.
+    assert shipped("flat_aof_B") == presets.resolve("flat", "aof", "B", "cpu-robust", ["ppo.num_timesteps=5000000"])
 
 
 @pytest.mark.parametrize(
