@@ -225,6 +225,21 @@ def test_train_resolves_preset_flags_and_sets_in_order_and_records_them(built, t
     assert seen["ppo"].seed == 2
 
 
+def test_a_second_stage_preset_from_scratch_is_noted_not_refused(built, tmp_path, monkeypatch, capsys):
+    """`cpu-robust` goes on from a `cpu` policy (--init-from); started from scratch, footforge train says so
+    and trains (what it asked for); a first-stage preset says nothing of the kind."""
+    from footforge.cli.train import main
+
+    seen = _capture_train(monkeypatch)
+    root = ["--feet", "ball", "--build-root", str(built["ball"][0].parent), "--num-envs", "16", "--batch-size", "8"]
+    assert main("flat", "", [*root, "--out", str(tmp_path / "a"), "--preset", "cpu-robust"]) == 0
+    out = capsys.readouterr().out
+    assert "--preset cpu-robust is a second stage" in out and "--preset cpu (--init-from RUN)" in out
+    assert seen["kwargs"]["recipe"]["preset"] == "cpu-robust"
+    assert main("flat", "", [*root, "--out", str(tmp_path / "b"), "--preset", "cpu"]) == 0
+    assert "second stage" not in capsys.readouterr().out
+
+
 def test_a_bad_set_is_refused_before_anything_is_announced(built, tmp_path, monkeypatch, capsys):
     from footforge.cli.train import main
 

@@ -309,6 +309,7 @@ def run(args: argparse.Namespace) -> int:
             )
             return 0
     evaluate = _evaluations(args, name)
+    _second_stage_notice(console, task, args)
     total = train.planned_steps(ppo, done)
     _announce(console, name, env_config, ppo, done, total, args.recipe)
     with _Reporter(console, task, total) as report:
@@ -454,6 +455,23 @@ def _flag_overrides(task: str, args) -> list[str]:
     if task == "rough":
         out += [f"env.terrain.{text.strip()}" for text in args.terrain]
     return out
+
+
+def _second_stage_notice(console, task: str, args) -> None:
+    """A new run of a second-stage preset (presets.Preset.after) without --init-from: said, not refused."""
+    from footforge.rl import presets
+
+    if args.resume or args.init_from or not args.preset:
+        return
+    first = presets.preset(task, args.preset).after
+    if first:
+        console.print(
+            f"note: --preset {args.preset} is a second stage, for a policy that walks under --preset {first} "
+            f"(--init-from RUN); from scratch it is untried",
+            markup=False,
+            highlight=False,
+            soft_wrap=True,
+        )
 
 
 def _recipe(task: str, args, feet: str, policy: str, preset_name: str | None = None) -> tuple[str, list[str]]:

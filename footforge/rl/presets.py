@@ -62,6 +62,9 @@ class Preset:
     overrides: tuple[str, ...] = ()
     """`section.field=value` assignments over the task's defaults, applied in order (the module's
     docstring); `env.contact_model` first where a preset changes it."""
+    after: str | None = None
+    """A second stage: the preset whose walking policy this one goes on from (`--init-from`); None: from
+    scratch. `footforge train` says so where a run of it starts from scratch (untried)."""
 
 
 FLAT_PRESETS = (
@@ -89,6 +92,7 @@ FLAT_PRESETS = (
         + CPU_FLAT_COMMANDS
         + ("env.rewards.feet_air_time.scale=0", "ppo.entropy_cost=0.001", "ppo.num_timesteps=10000000")
         + ("env.pushes.interval_s=5", "env.commands.resample_s=2.5"),
+        after="cpu",
     ),
     Preset(
         "paper",
