@@ -52,6 +52,15 @@ MuJoCo Playground's Go1: +-1.5 / +-0.8), where the paper's baseline draws +-2 / 
 that walked on this CPU so far was trained on these."""
 
 
+CPU_FLAT = (
+    ("env.contact_model=fast",)
+    + CPU_SIZE
+    + CPU_FLAT_COMMANDS
+    + ("env.rewards.feet_air_time.scale=0", "ppo.entropy_cost=0.001", "ppo.num_timesteps=10000000")
+)
+"""The flat `cpu` preset's overrides, which its second stage `cpu-robust` extends."""
+
+
 @dataclass(frozen=True)
 class Preset:
     """A named training configuration: the task's defaults, a contact model and overrides."""
@@ -77,21 +86,14 @@ FLAT_PRESETS = (
         "cpu",
         "sized for a 2-core CPU under MuJoCo's C engine: 128 robots x 24 steps, 10 M steps, the `fast` "
         "contact, commands +-1 / +-0.5 m/s, no feet-air-time term, PPO entropy 0.001",
-        ("env.contact_model=fast",)
-        + CPU_SIZE
-        + CPU_FLAT_COMMANDS
-        + ("env.rewards.feet_air_time.scale=0", "ppo.entropy_cost=0.001", "ppo.num_timesteps=10000000"),
+        CPU_FLAT,
     ),
     Preset(
         "cpu-robust",
         "the `cpu` preset's second stage, for a policy that walks (--init-from): a push every 5 s and a new "
         "command every 2.5 s (3 pushes and 7 changes of command per 20-s episode, where `cpu` has 1 and 3), "
         "10 M steps",
-        ("env.contact_model=fast",)
-        + CPU_SIZE
-        + CPU_FLAT_COMMANDS
-        + ("env.rewards.feet_air_time.scale=0", "ppo.entropy_cost=0.001", "ppo.num_timesteps=10000000")
-        + ("env.pushes.interval_s=5", "env.commands.resample_s=2.5"),
+        CPU_FLAT + ("env.pushes.interval_s=5", "env.commands.resample_s=2.5"),
         after="cpu",
     ),
     Preset(
