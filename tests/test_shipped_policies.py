@@ -120,3 +120,21 @@ def test_the_tables_of_shipped_policies_are_their_recorded_evaluations():
         assert block.strip() == expected.strip(), f"{path}: run python scripts/shipped_evaluations.py --tables-only"
     for name in SHIPPED:
         assert f"`policies/{name}`" in expected
+
+
+def test_a_fine_tuned_policy_counts_the_steps_it_went_on_from(tmp_path):
+    """`footforge play` names a policy's steps in all: flat_aof_B's own 5.04 M steps plus the 30.2 M of the runs
+    it went on from (config.json's "initialised_from"); a policy trained from scratch, or a copy outside its
+    run, has only its own."""
+    from footforge.rl.policy_files import steps_in_all
+
+    aof = REPO / "policies/flat_aof_B"
+    own = json.loads((aof / "policy/footforge.json").read_text())["global_step"]
+    before = json.loads((aof / "config.json").read_text())["initialised_from"]["steps_before"]
+    assert before > 0 and steps_in_all(aof / "policy", own) == own + before
+    ball = REPO / "policies/flat_ball_B_cpu/policy"
+    assert steps_in_all(ball, 123) == 123
+    import shutil
+
+    shutil.copytree(aof / "policy", tmp_path / "policy")  # outside its run: no config.json beside it
+    assert steps_in_all(tmp_path / "policy", own) == own

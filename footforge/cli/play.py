@@ -163,14 +163,18 @@ def _run(args) -> int:
 
     from footforge.cli.builds import build_defaults_if_missing
     from footforge.rl.play import PlayConfig, Player, check_feet, key_map_text, load_policy, play_headless
+    from footforge.rl.policy_files import policy_folder, steps_in_all
 
     started = time.perf_counter()
     policy = load_policy(args.policy)
     feet = check_feet(policy, args.feet)
     meta = policy.metadata
+    steps = meta["global_step"]
+    if Path(args.policy).is_dir():  # a run's policy: its steps with those of the runs it went on from
+        steps = steps_in_all(policy_folder(Path(args.policy)), steps)
     print(
         f"{PROG}: {meta['policy_type']} policy trained on {meta['feet']} ({meta['task']}, "
-        f"{meta['global_step'] / 1e6:.1f} M steps), on {feet} feet, "
+        f"{steps / 1e6:.1f} M steps), on {feet} feet, "
         f"{'terrain tiles' if args.terrain else 'flat ground'}, "
         f"stepped by MuJoCo's C engine"
     )

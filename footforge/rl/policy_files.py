@@ -167,6 +167,23 @@ def _checkpoint_run(folder: Path) -> Path | None:
     return None
 
 
+def steps_in_all(policy_dir: Path, global_step: int) -> int:
+    """`global_step` of the policy in `policy_dir` (a run's policy/ or checkpoint folder) plus the steps of
+    the runs its run went on from (config.json's "initialised_from", rl.config.steps_before): what the
+    policy trained for in all. A folder outside a run (an exported copy) has only its own steps."""
+    from footforge.rl.config import steps_before
+
+    folder = Path(policy_dir).resolve()
+    run = _checkpoint_run(folder) or (folder.parent if is_run_folder(folder.parent) else None)
+    if run is None:
+        return global_step
+    try:
+        origin = json.loads((run / "config.json").read_text()).get("initialised_from")
+    except (OSError, ValueError):  # the run's own loaders report a damaged config.json
+        return global_step
+    return global_step + (steps_before(origin) if origin else 0)
+
+
 def policy_meta(policy_dir: Path) -> dict:
     """A policy folder's footforge.json: "env" and "ppo" (the configurations as dicts),
     "global_step", and from training runs "wall_s" and "machine" (absent in older ones).
