@@ -632,8 +632,11 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
         robots_of_kind = SMALL.num_levels * column_kinds(SMALL).count(kind)
         assert sum(cell["robots"] for cell in levels.values()) == robots_of_kind
         assert sorted(levels) == [str(level) for level in range(SMALL.num_levels)]
+        # 0.2 s: no robot gets half a tile (4 m) from its start.
+        assert all(cell["crossed"] == 0 for cell in levels.values())
+    assert result["crossed"] == 0
     table = (report / "comparison.md").read_text()
-    assert "stepping_stones: vx error / falls" in table and "| P | ball | ball |" in table
+    assert "stepping_stones: vx error / crossed / fell" in table and "| P | ball | ball |" in table
     card = (report / "policy_card.md").read_text()  # this evaluation's indices, its plots linked
     assert "freshly initialised" in card and "[contacts_0.png](contacts_0.png)" in card
     for name in INDICES:
@@ -708,3 +711,19 @@ def test_rough_step_returns_the_types_it_takes(rough):
                 (x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(states[0])
             ], feet
         assert step._cache_size() == 1, feet
+
+
+def test_a_robot_crosses_its_tile_when_it_reaches_the_edge_while_up():
+    """crossed_tile applies the curriculum's promotion distance to an evaluation's walk: a base that gets
+    4 m from its start (half an 8-m tile) while up has crossed; one that stays short of it, or gets there
+    only after it fell, has not; the direction does not matter."""
+    from footforge.rl.evaluate import crossed_tile
+
+    t = np.linspace(0.0, 1.0, 50)[:, None]
+    start = np.array([[10.0, 20.0], [10.0, 20.0], [10.0, 20.0], [-3.0, 5.0]])
+    heading = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [-0.6, 0.8]])
+    reach_m = np.array([4.2, 3.8, 4.2, 4.1])
+    base_xy = start[:, None, :] + t[None] * (reach_m[:, None, None] * heading[:, None, :])
+    alive = np.ones((4, 50), bool)
+    alive[2, 40:] = False  # fell at 80 % of its way: 3.36 m
+    assert crossed_tile(base_xy, start, alive, 4.0).tolist() == [True, False, False, True]

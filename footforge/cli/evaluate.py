@@ -13,7 +13,9 @@ which need an OpenGL backend: MUJOCO_GL=egl or osmesa.
 
 Rough-terrain policies are evaluated for 17.5 s (flat: 60 s) on the terrain they trained on, robots
 spread over every tile; comparison.md then adds a table per terrain kind (like the paper's
-Figure 9) and metrics.json each kind's and level's indices. Their --video adds a robot walking
+Figure 9: forward error, robots that crossed their tile, robots that fell) and metrics.json each kind's and
+level's indices, falls and crossings (a robot crosses when it gets half a tile from its start while up, the
+curriculum's promotion distance). Their --video adds a robot walking
 straight across the middle level's stairs and stepping stones: strip_<i>_stairs_up.png,
 strip_<i>_stepping_stones.png (and their GIFs).
 """

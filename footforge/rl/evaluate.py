@@ -179,6 +179,7 @@ def evaluate(
             "alive": alive,
             "slip": foot_slip(feet_xy, xy, touched, touching),
             "travel": jp.linalg.norm(new_base_xy - base_xy),
+            "base_xy": new_base_xy,
             "contacts": touching,
             "base_vx_error": state.info["command"][0] - lin[0],
             "diverged": diverged,
@@ -205,11 +206,18 @@ def evaluate(
             env.foot_contacts(d),
         )
         _, rows = jax.lax.scan(one_step, carry, jax.random.split(k_run, steps))
-        return rows
+        return rows | {"start_xy": d.qpos[:2]}
 
     rows = jax.jit(jax.vmap(rollout))(jax.random.split(jax.random.PRNGKey(seed), num_envs), levels, columns)
     rows = jax.tree.map(np.asarray, rows)
     alive = rows["alive"]
+    if rough:
+        rows["crossed"] = crossed_tile(
+            rows["base_xy"],
+            rows.pop("start_xy"),
+            alive,
+            config.curriculum.promote_fraction_of_tile * config.terrain.tile_size_m,
+        )
     indices = {
         name: {"mean": float(rows[name][alive].mean()), "std": float(rows[name][alive].std())} for name in INDICES
     }
@@ -246,6 +254,7 @@ def evaluate(
         **(
             {
                 "by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns),
+                "crossed": int(rows["crossed"].sum()),
                 "kinds_covered": sorted(set(np.array(env.terrain.column_kinds)[columns])),
                 "kinds_not_covered": sorted(
                     set(env.terrain.column_kinds) - set(np.array(env.terrain.column_kinds)[columns])
@@ -367,8 +376,19 @@ def spawn_tiles(num_robots: int, column_kinds, num_levels: int) -> tuple[np.ndar
     return levels, columns
 
 
+def crossed_tile(base_xy: np.ndarray, start_xy: np.ndarray, alive: np.ndarray, edge_m: float) -> np.ndarray:
+    """Per robot, whether its base got `edge_m` or farther from where it started, in the plane, while it was
+    up: the terrain curriculum's promotion rule (distance > promote_fraction_of_tile x tile side, half a tile:
+    from the tile's centre to its edge), applied to an evaluation's walk instead of a training episode's end.
+
+    base_xy: (robots, steps, 2) base positions, m; start_xy: (robots, 2), m; alive: (robots, steps)."""
+    distance = np.linalg.norm(base_xy - start_xy[:, None, :], axis=-1)
+    return ((distance >= edge_m) & alive).any(axis=1)
+
+
 def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarray) -> dict:
-    """{kind: {level: {"robots", "falls", "diverged", index: mean over the standing steps}}}."""
+    """{kind: {level: {"robots", "falls", "diverged", "crossed", index: mean over the standing steps}}}:
+    "crossed", the robots that reached their tile's edge while up (crossed_tile)."""
     out: dict = {}
     kinds = np.array(column_kinds)[columns]
     for kind in sorted(set(kinds)):
@@ -379,6 +399,7 @@ def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarra
                 "robots": int(robots.sum()),
                 "falls": int((~alive[:, -1]).sum()),
                 "diverged": int(rows["diverged"][robots].any(axis=1).sum()),
+                "crossed": int(rows["crossed"][robots].sum()),
             }
             cell |= {name: float(rows[name][robots][alive].mean()) if alive.any() else float("nan") for name in INDICES}
             out.setdefault(kind, {})[int(level)] = cell
@@ -392,7 +413,7 @@ def terrain_markdown(results: list[dict]) -> str:
     if not rough:
         return ""
     kinds = sorted({k for r in rough for k in r["by_terrain"]})
-    head = ["policy", "type", "trained on", "feet", *[f"{k}: vx error / falls" for k in kinds]]
+    head = ["policy", "type", "trained on", "feet", *[f"{k}: vx error / crossed / fell" for k in kinds]]
     rows = []
     for r in rough:
         cells = [Path(r["policy"]).parent.name or r["policy"], r["policy_type"], r["trained_on"], r["feet"]]
@@ -400,7 +421,8 @@ def terrain_markdown(results: list[dict]) -> str:
             tiles = r["by_terrain"].get(kind, {}).values()
             robots = sum(t["robots"] for t in tiles)
             error = np.nanmean([t["lin_vel_x_error"] for t in tiles]) if tiles else float("nan")
-            cells.append(f"{error:.3f} / {sum(t['falls'] for t in tiles)}/{robots}")
+            crossed = sum(t.get("crossed", 0) for t in tiles)  # evaluations from before it was counted: 0
+            cells.append(f"{error:.3f} / {crossed}/{robots} / {sum(t['falls'] for t in tiles)}/{robots}")
         rows.append(cells)
     return "\n".join(markdown_table(head, rows)) + "\n"
 
