@@ -4,6 +4,10 @@ return against environment steps, and for rough-terrain runs the mean terrain le
 run; prints one JSON line with each run's last figures.
 
 Usage: python benchmarks/campaign_curves.py RUN.metrics.jsonl [...] --out curves.png
+
+Rough-terrain runs also get <out>_levels.png: per run, the share of its robots on each terrain level
+(stacked, from the training episodes' `terrain/at_level_<k>_per_step`) against environment steps, the
+curriculum's progress beside its mean.
 """
 
 import argparse
@@ -53,7 +57,34 @@ def main() -> None:
     axes[0].legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(args.out, dpi=110)
+    plt.close(fig)
+    shares = {name: logs for name, logs in runs.items() if logs and LEVEL[0] in logs[-1]}
+    if shares:
+        level_shares(shares, args.out.with_name(args.out.stem + "_levels.png"))
     print(json.dumps(last))
+
+
+def level_shares(runs: dict, out: Path) -> None:
+    """One stacked-area panel per rough run: the share of robots on each terrain level against steps."""
+    fig, axes = plt.subplots(1, len(runs), figsize=(4.6 * len(runs), 3.4), squeeze=False)
+    for ax, (name, logs) in zip(axes[0], runs.items()):
+        levels = sorted(
+            int(k.split("_")[2]) for k in logs[-1] if k.startswith("episode/terrain/at_level_") and k.endswith("_per_step")
+        )
+        steps = [m["global_step"] / 1e6 for m in logs]
+        ax.stackplot(
+            steps,
+            [[m.get(f"episode/terrain/at_level_{k}_per_step", 0.0) for m in logs] for k in levels],
+            labels=[str(k) for k in levels],
+            colors=plt.cm.viridis([k / max(1, len(levels) - 1) for k in levels]),
+        )
+        ax.set_ylim(0, 1)
+        ax.set_xlabel("environment steps (M)")
+        ax.set_title(f"{name}: share of robots per terrain level", fontsize=9)
+    axes[0][-1].legend(title="level", fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
 
 
 if __name__ == "__main__":
