@@ -68,9 +68,8 @@ def level_shares(runs: dict, out: Path) -> None:
     """One stacked-area panel per rough run: the share of robots on each terrain level against steps."""
     fig, axes = plt.subplots(1, len(runs), figsize=(4.6 * len(runs), 3.4), squeeze=False)
     for ax, (name, logs) in zip(axes[0], runs.items()):
-        levels = sorted(
-            int(k.split("_")[2]) for k in logs[-1] if k.startswith("episode/terrain/at_level_") and k.endswith("_per_step")
-        )
+        prefix = "episode/terrain/at_level_"
+        levels = sorted(int(k[len(prefix) :].split("_")[0]) for k in logs[-1] if k.startswith(prefix))
         steps = [m["global_step"] / 1e6 for m in logs]
         ax.stackplot(
             steps,
