@@ -414,7 +414,9 @@ def test_a_run_resumes_under_the_other_engine(tmp_path):
     offset, restore, _, _ = train._resume_state(run, replace(env_config, physics=other), ppo, print, False)
     assert offset == json.loads((run / "progress.json").read_text())["global_step"] and restore is not None
     with pytest.raises(InputError, match="other settings"):
-        train._resume_state(run, replace(env_config, physics=other, decimation=4), ppo, print, False)
+        train._resume_state(
+            run, replace(env_config, physics=other, decimation=2 * env_config.decimation), ppo, print, False
+        )
 
 
 def test_a_blown_up_c_simulation_ends_as_diverged(c_envs):

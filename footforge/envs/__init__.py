@@ -33,6 +33,12 @@ Go1 weighs tracking 3 and 1.5) and base height -2 where -10 was a guess. Chosen 
 which the tuning kept more robots up through 20 s, with either PPO settings
 (docs/defaults.md)."""
 
+FLAT_REWARD_SCALES = {"lin_vel_z": -0.03, "joint_acc": -3e-4, "action_rate": -0.006, **FLAT_TUNED_REWARDS}
+"""The flat task's scales of the paper's terms where they differ from RewardConfig's (the rough baseline's,
+OmniIsaacGymEnvs' AnymalTerrain): the flat baseline's published lin_vel_z, joint_acc and action_rate
+(OmniIsaacGymEnvs' Anymal) and the tuned FLAT_TUNED_REWARDS. The rough `cpu` preset takes them too
+(footforge.rl.presets.ROUGH_PRESETS says why)."""
+
 FLAT_COMMAND_RESAMPLE_S = 5.0
 """The flat task's CommandConfig.resample_s, s: a new command every 5 s, three changes per 20-s
 training episode where legged_gym's 10 s gives one. New commands are what walking policies fail
@@ -68,9 +74,7 @@ def default_config(task: str, feet: str, policy: str, contact_model: str | None 
         # (FLAT_TUNED_REWARDS). Its reset puts the joints at the defaults (only their velocities
         # are drawn). Position actions, default + 0.5 a, as the rough baseline, legged_gym and
         # Playground (EnvConfig.action says why not the flat baseline's velocity actions).
-        flat_rewards = RewardConfig().with_scales(
-            lin_vel_z=-0.03, joint_acc=-3e-4, action_rate=-0.006, **FLAT_TUNED_REWARDS, feet_air_time=FLAT_FEET_AIR_TIME
-        )
+        flat_rewards = RewardConfig().with_scales(**FLAT_REWARD_SCALES, feet_air_time=FLAT_FEET_AIR_TIME)
         config = EnvConfig(
             task="flat",
             feet=feet,

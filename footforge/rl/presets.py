@@ -32,6 +32,7 @@ import types
 import typing
 from dataclasses import dataclass, fields, is_dataclass, replace
 
+from footforge.envs import FLAT_REWARD_SCALES
 from footforge.errors import InputError
 
 CPU_SIZE = (
@@ -151,16 +152,31 @@ ROUGH_PRESETS = (
     ),
     Preset(
         "cpu",
-        "the rough task sized for a 2-core CPU under MuJoCo's C engine: 128 robots x 24 steps, 30 M steps "
-        "(the rough issue's target for terrain level 5), PPO entropy 0.001",
-        CPU_SIZE + ("ppo.entropy_cost=0.001", "ppo.num_timesteps=30000000"),
+        "the flat `cpu` preset's recipe on the rough task: 128 robots x 24 steps, 30 M steps (the rough issue's "
+        "target for terrain level 5), the `fast` contact, commands +-1 / +-0.5 m/s, the flat task's reward "
+        "scales, PPO entropy 0.001",
+        ("env.contact_model=fast",)
+        + CPU_SIZE
+        + CPU_FLAT_COMMANDS
+        + tuple(f"env.rewards.{term}.scale={scale}" for term, scale in FLAT_REWARD_SCALES.items())
+        + ("ppo.entropy_cost=0.001", "ppo.num_timesteps=30000000"),
     ),
 )
-"""The rough task's presets. `cpu` takes the flat `cpu` preset's entropy cost of 0.001 where the task's default
-(legged_gym's 0.01) stays for a GPU's batch: at 0.01 the rough AOF P run (rough_aof_P, 2048 x 48, 135 PPO
-iterations) drove its Gaussian's standard deviation from 1.0 to 3.1 in 13 M steps while its forward error stayed
-at 0.50-0.55 m/s, and on flat ground the same cost kept AOF from walking until it was lowered to 0.001
-(benchmarks/RESULTS.md, "Learning")."""
+"""The rough task's presets. `cpu` is the flat `cpu` preset's recipe (the one that walks on this CPU) on the rough
+task, where the task's defaults stay for a GPU's batch:
+- PPO entropy 0.001, not the task's 0.01 (legged_gym's): at 0.01 the rough AOF P run (2048 x 48, 135 PPO
+  iterations) drove its Gaussian's standard deviation from 1.0 to 3.1 in 13 M steps while its forward error stayed
+  at 0.50-0.55 m/s, and on flat ground the same cost kept AOF from walking until it was lowered to 0.001.
+- The flat task's reward scales (envs.FLAT_REWARD_SCALES: tracking doubled, lin_vel_z -0.03 not -4, base height
+  -2 not -10, joint_acc and action_rate the flat baseline's), the `fast` contact (2.5 ms x 8 -> 5 ms x 4) and
+  commands +-1 / +-0.5 m/s. Under the rough baseline's scales (OmniIsaacGymEnvs' AnymalTerrain, the task's
+  defaults) and the `stance` contact, entropy 0.001, AOF P stood still for 5.68 M steps (forward error 0.49-0.51
+  m/s from 2.8 M on, 99 % of robots on level 0): its penalties summed to about twice its tracking reward, so the
+  total, clipped at zero each step as the baseline does, was near zero (0.4 per episode) and gave PPO little to
+  follow. With these scales the same run's forward error fell to 0.34 m/s by 1.8 M steps, as flat AOF's does
+  under the flat `cpu` preset (0.45 at 1.7 M), at 3,100 policy steps/s against 2,150 (benchmarks/RESULTS.md,
+  "Learning"). legged_gym's rough ANYmal weighs vertical velocity -2 against tracking 1; here -0.03, the flat
+  baseline's, so that climbing a stair costs nearly nothing."""
 
 PRESETS: dict[str, dict[str, Preset]] = {
     "flat": {p.name: p for p in FLAT_PRESETS},
