@@ -3,7 +3,7 @@ runs with --no-evaluations also have): episode length, forward-velocity tracking
 return against environment steps, and for rough-terrain runs the mean terrain level, one line per
 run; prints one JSON line with each run's last figures.
 
-Usage: python benchmarks/campaign_curves.py RUN.metrics.jsonl [...] --out curves.png
+Usage: python benchmarks/campaign_curves.py RUN.metrics.jsonl[.gz] [...] --out curves.png
 
 Rough-terrain runs also get <out>_levels.png: per run, the share of its robots on each terrain level
 (stacked, from the training episodes' `terrain/at_level_<k>_per_step`) against environment steps, the
@@ -11,6 +11,7 @@ curriculum's progress beside its mean.
 """
 
 import argparse
+import gzip
 import json
 from pathlib import Path
 
@@ -34,8 +35,11 @@ def main() -> None:
     args = p.parse_args()
     runs = {}
     for path in args.metrics:
-        logs = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-        name = path.parent.name if path.name == "metrics.jsonl" else path.name.split(".")[0]  # a run's own file
+        # Records kept in the tree are gzipped (metrics.jsonl.gz): the tree's size limit, scripts/check_tree_size.py.
+        text = gzip.decompress(path.read_bytes()).decode() if path.suffix == ".gz" else path.read_text()
+        logs = [json.loads(line) for line in text.splitlines() if line.strip()]
+        own = path.name in ("metrics.jsonl", "metrics.jsonl.gz")  # a run's own file
+        name = path.parent.name if own else path.name.split(".")[0]
         runs[name] = [m for m in logs if "episode/length" in m]
     panels = PANELS + ((LEVEL,) if any(LEVEL[0] in m for logs in runs.values() for m in logs) else ())
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4))
