@@ -77,7 +77,7 @@ def level_shares(runs: dict, out: Path) -> None:
         steps = [m["global_step"] / 1e6 for m in logs]
         ax.stackplot(
             steps,
-            [[m.get(f"episode/terrain/at_level_{k}_per_step", 0.0) for m in logs] for k in levels],
+            [[m.get(f"{prefix}{k}_per_step", 0.0) for m in logs] for k in levels],
             labels=[str(k) for k in levels],
             colors=plt.cm.viridis([k / max(1, len(levels) - 1) for k in levels]),
         )

@@ -53,12 +53,10 @@ MuJoCo Playground's Go1: +-1.5 / +-0.8), where the paper's baseline draws +-2 / 
 that walked on this CPU so far was trained on these."""
 
 
-CPU_FLAT = (
-    ("env.contact_model=fast",)
-    + CPU_SIZE
-    + CPU_FLAT_COMMANDS
-    + ("env.rewards.feet_air_time.scale=0", "ppo.entropy_cost=0.001", "ppo.num_timesteps=10000000")
-)
+CPU_RECIPE = ("env.contact_model=fast",) + CPU_SIZE + CPU_FLAT_COMMANDS + ("ppo.entropy_cost=0.001",)
+"""What every `cpu` preset shares: the `fast` contact, the CPU's batch, the CPU's commands, PPO entropy 0.001."""
+
+CPU_FLAT = CPU_RECIPE + ("env.rewards.feet_air_time.scale=0", "ppo.num_timesteps=10000000")
 """The flat `cpu` preset's overrides, which its second stage `cpu-robust` extends."""
 
 
@@ -155,11 +153,9 @@ ROUGH_PRESETS = (
         "the flat `cpu` preset's recipe on the rough task: 128 robots x 24 steps, 30 M steps (the rough issue's "
         "target for terrain level 5), the `fast` contact, commands +-1 / +-0.5 m/s, the flat task's reward "
         "scales, PPO entropy 0.001",
-        ("env.contact_model=fast",)
-        + CPU_SIZE
-        + CPU_FLAT_COMMANDS
+        CPU_RECIPE
         + tuple(f"env.rewards.{term}.scale={scale}" for term, scale in FLAT_REWARD_SCALES.items())
-        + ("ppo.entropy_cost=0.001", "ppo.num_timesteps=30000000"),
+        + ("ppo.num_timesteps=30000000",),
     ),
 )
 """The rough task's presets. `cpu` is the flat `cpu` preset's recipe (the one that walks on this CPU) on the rough
@@ -175,8 +171,9 @@ task, where the task's defaults stay for a GPU's batch:
   total, clipped at zero each step as the baseline does, was near zero (0.4 per episode) and gave PPO little to
   follow. With these scales the same run's forward error fell to 0.34 m/s by 1.8 M steps, as flat AOF's does
   under the flat `cpu` preset (0.45 at 1.7 M), at 3,100 policy steps/s against 2,150, and its robots climbed the
-  curriculum: mean level 0.9 at 10 M steps, 2.2 at 21.4 M (benchmarks/RESULTS.md, "Learning"). legged_gym's rough ANYmal weighs vertical velocity -2 against tracking 1; here -0.03, the flat
-  baseline's, so that climbing a stair costs nearly nothing."""
+  curriculum: mean level 0.9 at 10 M steps, 2.2 at 21.4 M (benchmarks/RESULTS.md, "Learning"). legged_gym's
+  rough ANYmal weighs vertical velocity -2 against tracking 1; here -0.03, the flat baseline's, so that climbing a
+  stair costs nearly nothing."""
 
 PRESETS: dict[str, dict[str, Preset]] = {
     "flat": {p.name: p for p in FLAT_PRESETS},
