@@ -3,7 +3,7 @@
 For each `policies/<name>/` with a `policy/`: `footforge evaluate` on its own feet and zero-shot on
 the others (32 robots x 20 s, seed 0, the deterministic policy; with MUJOCO_GL set, a 3-s video per
 feet) into `policies/<name>/evaluation/` (policy card, metrics, plots), then lightened as the repository
-keeps it: the video on the policy's own feet alone, shrunk to at most 300 KB (footforge.rl.render's
+keeps it: the video on the policy's own feet alone, shrunk to at most 200 KB (footforge.rl.render's
 shrink_gif), no frame strips (light()); then the table of
 shipped policies between the `<!-- shipped-policies -->` markers of README.md and policies/README.md,
 written from those metrics (footforge/rl/verdict.py's verdict, falls, base height, each foot's share
@@ -44,8 +44,13 @@ FEET_NAMES = {"ball": "ball", "aff": "AFF", "aof": "AOF"}
 
 
 def shipped() -> list[Path]:
-    """The shipped policies' run folders (those with a policy/), by name."""
-    return sorted(p.parent for p in POLICIES.glob("*/policy") if p.is_dir())
+    """The shipped flat policies' run folders (those with a policy/ whose config.json is the flat task), by
+    name. A finished rough policy keeps its rough evaluation over the terrain's tiles instead (policies/README.md)."""
+    return sorted(
+        p.parent
+        for p in POLICIES.glob("*/policy")
+        if p.is_dir() and json.loads((p.parent / "config.json").read_text())["env"]["task"] == "flat"
+    )
 
 
 def evaluate(run: Path, video: bool) -> int:
@@ -92,9 +97,9 @@ VIDEO_S = 3
 def light(folder: Path) -> None:
     """An evaluation folder as a policy folder keeps it: the metrics, the card, the comparison and
     the small plots, and one GIF, the policy on its own feet (video_0.gif, within
-    footforge.rl.render.GIF_MAX_BYTES); the frame strips and the zero-shot videos are removed
+    footforge.rl.render.POLICY_GIF_MAX_BYTES); the frame strips and the zero-shot videos are removed
     (`footforge evaluate --video` writes them again) and the card's links to them with them."""
-    from footforge.rl.render import shrink_gif
+    from footforge.rl.render import POLICY_GIF_MAX_BYTES, shrink_gif
 
     removed = sorted(p.name for p in folder.glob("strip_*.png")) + sorted(
         p.name for p in folder.glob("video_*.gif") if p.name != "video_0.gif"
@@ -105,7 +110,7 @@ def light(folder: Path) -> None:
     lines = card.read_text().splitlines(keepends=True)
     card.write_text("".join(line for line in lines if not any(f"]({name})" in line for name in removed)))
     if (folder / "video_0.gif").exists():
-        width, colours, size = shrink_gif(folder / "video_0.gif")
+        width, colours, size = shrink_gif(folder / "video_0.gif", max_bytes=POLICY_GIF_MAX_BYTES)
         print(f"{folder.relative_to(REPO)}/video_0.gif: {width} px, {colours} colours, {size / 1e3:.0f} KB")
 
 

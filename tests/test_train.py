@@ -1301,6 +1301,83 @@ def test_curves_continue_from_the_resumed_step(written_run, monkeypatch, killed)
     assert len(evaluations) == len(set(evaluations))  # no step evaluated twice
 
 
+def test_a_kept_run_holds_its_newest_checkpoint_and_gzipped_curve_and_resumes_from_them(written_run, monkeypatch):
+    """keep_run (scripts/keep_run.py) copies a run still in training into a policy folder as git keeps
+    it: the newest intact checkpoint alone (the one kept before goes), the curve gzipped to the same
+    rows, the folder's own evaluation/ untouched. `--resume` from that folder unpacks the curve and
+    continues it: the kept rows, then the resumed call's, and no gzipped copy left beside them."""
+    import gzip
+    import shutil
+
+    from footforge.rl import train
+    from footforge.rl.checkpoints import checkpoint_problem
+    from footforge.rl.run_folder import keep_run
+
+    run, cfg, ppo = written_run
+    rows = [{"global_step": s, "wall_s": 1.0 + s, "episode/length": 2.0 + s} for s in (0, 16, 32, 48, 64)]
+    _write_curve(run, rows)
+    dest = run.parent / "kept"
+    (dest / "checkpoints").mkdir(parents=True)
+    shutil.copytree(run / "checkpoints" / f"{32:012d}", dest / "checkpoints" / f"{32:012d}")  # kept last time
+    (dest / "config.json").write_text((run / "config.json").read_text())
+    (dest / "evaluation").mkdir()
+    (dest / "evaluation" / "metrics.json").write_text("{}")
+    written = keep_run(run, dest)
+    assert written[-1] == f"checkpoints/{64:012d}" and "metrics.jsonl.gz" in written
+    assert sorted(p.name for p in (dest / "checkpoints").iterdir()) == [f"{64:012d}"]
+    assert not (dest / "metrics.jsonl").exists() and not (dest / "tensorboard").exists()
+    assert gzip.decompress((dest / "metrics.jsonl.gz").read_bytes()) == (run / "metrics.jsonl").read_bytes()
+    assert (dest / "evaluation" / "metrics.json").read_text() == "{}"
+    assert checkpoint_problem(dest / "checkpoints" / f"{64:012d}") is None
+    calls = []
+    monkeypatch.setattr(train, "_run_ppo", _resumed_ppo(calls))
+    train.train(cfg, ppo, dest, resume=True, notice=lambda text: None)
+    assert not (dest / "metrics.jsonl.gz").exists()
+    curve = _curve_rows(dest)
+    assert curve[: len(rows)] == rows and [r["global_step"] for r in curve[len(rows) :]] == [64, 80, 96]
+    assert calls == [ppo.num_timesteps - 64]
+
+
+def test_a_finished_run_is_kept_with_its_policy_in_place_of_the_checkpoint(written_run):
+    """Once a run reached its total steps, keep_run keeps its policy/ and removes the checkpoint the
+    folder kept while it trained: the weights once."""
+    import shutil
+
+    from footforge.rl import train
+    from footforge.rl.run_folder import keep_run
+
+    run, cfg, ppo = written_run
+    dest = run.parent / "kept"
+    keep_run(run, dest)  # in training: progress at 64 of 96 steps
+    assert (dest / "checkpoints" / f"{64:012d}").is_dir() and not (dest / "policy").exists()
+    (run / "progress.json").write_text(json.dumps({"global_step": ppo.num_timesteps, "resumes": 0, "metrics": {}}))
+    shutil.rmtree(run / "policy", ignore_errors=True)
+    assert train.finish_run(run) is not None  # policy/ from the newest checkpoint
+    assert keep_run(run, dest)[-1] == "policy"
+    assert (dest / "policy" / "footforge.json").is_file() and not (dest / "checkpoints").exists()
+
+
+def test_a_kept_curve_that_cannot_be_continued_is_refused_naming_the_file(written_run):
+    """Two copies of the curve (metrics.jsonl and metrics.jsonl.gz) are refused before any work, and a
+    gzipped curve that is not gzip is an input error naming the file, not a traceback."""
+    from footforge.rl import train
+    from footforge.rl.run_folder import keep_run
+
+    run, cfg, ppo = written_run
+    (run / "metrics.jsonl.gz").write_bytes(b"not gzip")
+    with pytest.raises(InputError, match="two copies of the learning curve"):
+        train.prepare_run_dir(run, resume=True)
+    (run / "metrics.jsonl").unlink()
+    with pytest.raises(InputError, match="gzipped learning curve cannot be read") as caught:
+        train.continue_curve(run, 64, 1)
+    assert caught.value.file == str(run / "metrics.jsonl.gz")
+    (run.parent / "theirs").mkdir()
+    (run.parent / "theirs" / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match="not a footforge run's"):
+        keep_run(run, run.parent / "theirs")
+    assert (run.parent / "theirs" / "notes.txt").read_text() == "mine"
+
+
 def test_rough_runs_saved_before_the_sole_spheres_resume_on_boxes():
     """EnvConfig.heightfield_soles: a rough run's config.json from before the setting (the GPU
     campaign's rough_aof_P and _PH, the latter's now a record under benchmarks/) loads as 'box', as it

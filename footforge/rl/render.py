@@ -140,7 +140,11 @@ def write_strip(frames: Sequence[np.ndarray], path: Path, count: int = 6) -> Non
 
 
 GIF_MAX_BYTES = 300_000
-"""A committed GIF's budget (the repository's size rule): 300 KB."""
+"""A committed GIF's budget (the repository's size rule): 300 KB, the README's walking GIFs."""
+POLICY_GIF_MAX_BYTES = 200_000
+"""The budget of the one GIF a policy folder keeps (its evaluation's video_0.gif): 200 KB, 192-224 px
+wide for a 3-s clip. Each rough policy adds about 2 MB of weights to the tree, so its record's GIF is
+smaller than the README's."""
 
 
 def shrink_gif(

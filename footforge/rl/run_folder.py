@@ -9,22 +9,35 @@ environment and PPO configs the run was started with (load_run_config).
 
 from __future__ import annotations
 
+import gzip
 import json
+import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
 
+from footforge.atomic import atomic_file
 from footforge.envs.config import EnvConfig
 from footforge.errors import InputError
 from footforge.outputs import MARKER, TRAINING_RUN, check_output_folder, marker_kind, write_marker
-from footforge.rl.checkpoints import latest_checkpoint
+from footforge.rl.checkpoints import checkpoints, latest_checkpoint, latest_intact_checkpoint
 from footforge.rl.config import PPOConfig, env_config_from_dict, from_dict
+
+CURVE = "metrics.jsonl"
+"""The learning curve: one JSON row per evaluation or training-episodes log, appended as the run goes."""
+CURVE_KEPT = "metrics.jsonl.gz"
+"""The same curve gzipped, as a run folder kept in git holds it (policies/README.md): about a sixth of the
+bytes (the tracked tree's size limit, scripts/check_tree_size.py). A resume unpacks it into CURVE."""
+CURVE_SET_ASIDE = "metrics.set_aside.jsonl"
+"""Rows of the curve that a resume left behind (logged after the checkpoint it restored), each
+with "set_aside_by_resume": the number of that resume."""
 
 RUN_ENTRIES = (
     "config.json",
     "progress.json",
-    "metrics.jsonl",
-    "metrics.set_aside.jsonl",
+    CURVE,
+    CURVE_KEPT,
+    CURVE_SET_ASIDE,
     "tensorboard",
     "checkpoints",
     "policy",
@@ -94,6 +107,13 @@ def prepare_run_dir(
                 file=str(run_dir),
                 fix="start without --resume, or give the folder of an earlier run",
             )
+        if (run_dir / CURVE).exists() and (run_dir / CURVE_KEPT).exists():
+            raise InputError(
+                f"--out {given}: holds both {CURVE} and {CURVE_KEPT}, two copies of the learning curve, and a "
+                "resume continues one",
+                file=str(run_dir / CURVE_KEPT),
+                fix=f"keep the one to continue: remove the other (or gunzip {CURVE_KEPT} into {CURVE} yourself)",
+            )
         return run_dir
     if run_dir.is_dir() and any(run_dir.iterdir()):
         if is_run_folder(run_dir):
@@ -156,3 +176,79 @@ def load_run_config(run_dir: Path) -> tuple[EnvConfig, PPOConfig]:
             file=str(path),
             fix="start the run over with --force, or give another run",
         ) from None
+
+
+def keep_run(run_dir: Path, dest: Path) -> list[str]:
+    """Copies into `dest` what git keeps of the run in `run_dir` (policies/README.md): config.json,
+    progress.json, the marker, the learning curve gzipped (CURVE_KEPT: a sixth of its bytes; a
+    resume unpacks it), and the run's weights once. A run that reached its total keeps policy/ (and
+    dest's checkpoints/ go); a run still in training keeps its newest intact checkpoint under
+    checkpoints/ (the older checkpoints in dest go). dest's other files (evaluation/, closed_chain/)
+    stay. Each entry is written beside its place and renamed in, so a kill leaves dest as it was or
+    with whole entries. Returns what it wrote.
+
+    Raises:
+      InputError: run_dir is not a training run, has no intact checkpoint, or dest holds files that
+        are not a run's.
+    """
+    run_dir, dest = Path(run_dir).resolve(), Path(dest).resolve()
+    if not is_run_folder(run_dir) or not (run_dir / "progress.json").is_file():
+        raise InputError(
+            "not a training run (no config.json or progress.json)", file=str(run_dir), fix="give a run's --out"
+        )
+    if dest == run_dir:
+        raise InputError("the run and where to keep it are the same folder", file=str(dest), fix="give another folder")
+    if dest.exists() and any(dest.iterdir()) and not is_run_folder(dest):
+        raise InputError(
+            "holds files that are not a footforge run's, which keeping a run there could mix with its own",
+            file=str(dest),
+            fix="give a new folder or the folder this run was kept in before",
+        )
+    saved = json.loads((run_dir / "config.json").read_text())
+    step = int(json.loads((run_dir / "progress.json").read_text()).get("global_step", 0))
+    finished = step >= int(saved["ppo"]["num_timesteps"]) and (run_dir / "policy").is_dir()
+    newest = None if finished else latest_intact_checkpoint(run_dir)
+    if not finished and newest is None:
+        raise InputError(
+            "has no intact checkpoint to keep", file=str(run_dir / "checkpoints"), fix="resume the run first"
+        )
+    dest.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name in ("config.json", "progress.json", MARKER):
+        if (run_dir / name).is_file():
+            with atomic_file(dest / name) as tmp:
+                shutil.copyfile(run_dir / name, tmp)
+            written.append(name)
+    if (run_dir / CURVE).is_file():
+        with atomic_file(dest / CURVE_KEPT) as tmp:
+            tmp.write_bytes(gzip.compress((run_dir / CURVE).read_bytes(), mtime=0))  # mtime 0: the same bytes each time
+        (dest / CURVE).unlink(missing_ok=True)  # the gzipped copy replaces it (prepare_run_dir refuses both)
+        written.append(CURVE_KEPT)
+    if finished:
+        _replace_tree(run_dir / "policy", dest / "policy")
+        shutil.rmtree(dest / "checkpoints", ignore_errors=True)
+        written.append("policy")
+    else:
+        assert newest is not None
+        target = dest / "checkpoints" / newest[1].name
+        target.parent.mkdir(exist_ok=True)
+        _replace_tree(newest[1], target)
+        for _, older in checkpoints(dest):
+            if older != target:
+                shutil.rmtree(older)
+        written.append(f"checkpoints/{newest[1].name}")
+    return written
+
+
+def _replace_tree(source: Path, target: Path) -> None:
+    """Copies the folder `source` to `target`, replacing it whole: a copy beside it, renamed in."""
+    tmp = target.with_name(f".{target.name}.tmp-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copytree(source, tmp)
+    if target.exists():
+        old = target.with_name(f".{target.name}.old-{os.getpid()}")
+        os.replace(target, old)
+        os.replace(tmp, target)
+        shutil.rmtree(old)
+    else:
+        os.replace(tmp, target)

@@ -34,6 +34,7 @@ found them (PPOConfig, load_policy, prepare_run_dir, ...).
 
 from __future__ import annotations
 
+import gzip
 import json
 import os
 import sys
@@ -78,24 +79,43 @@ from footforge.rl.policy_files import (  # noqa: F401 (re-exported)
     policy_problem,
     write_policy,
 )
-from footforge.rl.run_folder import RUN_ENTRIES, is_run_folder, load_run_config, prepare_run_dir  # noqa: F401
-
-CURVE = "metrics.jsonl"
-CURVE_SET_ASIDE = "metrics.set_aside.jsonl"
-"""Rows of the curve that a resume left behind (logged after the checkpoint it restored), each
-with "set_aside_by_resume": the number of that resume."""
+from footforge.rl.run_folder import (  # noqa: F401 (re-exported)
+    CURVE,
+    CURVE_KEPT,
+    CURVE_SET_ASIDE,
+    RUN_ENTRIES,
+    is_run_folder,
+    load_run_config,
+    prepare_run_dir,
+)
 
 
 def continue_curve(run_dir: Path, step: int, resume: int) -> bool:
     """Before resume number `resume` continues the run from its checkpoint at `step`: the curve's rows
     past `step` move to CURVE_SET_ASIDE (appended), the others stay in order. Returns whether a kept
     row at `step` holds an evaluation: then the resumed call's first evaluation, of the same
-    parameters, is not written again."""
-    path = Path(run_dir) / CURVE
-    if not path.is_file():
+    parameters, is not written again. A curve kept gzipped (CURVE_KEPT, a folder from git) is
+    unpacked into CURVE, which the run then appends to; the gzipped copy goes once CURVE is written
+    (prepare_run_dir refused a folder holding both)."""
+    path, packed = Path(run_dir) / CURVE, Path(run_dir) / CURVE_KEPT
+    unpacking = not path.is_file() and packed.is_file()
+    if path.is_file():
+        text = path.read_text()
+    elif unpacking:
+        try:
+            with gzip.open(packed, "rt") as f:
+                text = f.read()
+        except (OSError, EOFError, UnicodeDecodeError) as e:  # gzip.BadGzipFile is an OSError
+            raise InputError(
+                f"{packed}: the run's gzipped learning curve cannot be read ({e})",
+                file=str(packed),
+                fix=f"restore it (git checkout -- {packed.name} in its folder), or remove it to continue "
+                "without the earlier curve",
+            ) from e
+    else:
         return False
     kept, aside, evaluated = [], [], False
-    for line in path.read_text().splitlines():
+    for line in text.splitlines():
         try:
             row = json.loads(line)
             row_step = int(row["global_step"])
@@ -111,6 +131,8 @@ def continue_curve(run_dir: Path, step: int, resume: int) -> bool:
             f.write("\n".join(aside) + "\n")
     with atomic_file(path) as tmp:
         Path(tmp).write_text("".join(line + "\n" for line in kept))
+    if unpacking:
+        packed.unlink()
     return evaluated
 
 
