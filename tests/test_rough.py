@@ -635,10 +635,18 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
         # 0.2 s: no robot gets half a tile (4 m) from its start.
         assert all(cell["crossed"] == 0 for cell in levels.values())
     assert result["crossed"] == 0
+    # Each kind's walking verdict, over that kind's robots.
+    assert sorted(result["walking_by_terrain"]) == sorted(by_terrain)
+    assert all(v["verdict"] in ("walks", "stands", "falls") for v in result["walking_by_terrain"].values())
     table = (report / "comparison.md").read_text()
     assert "stepping_stones: vx error / crossed / fell" in table and "| P | ball | ball |" in table
+    assert "Walking verdict per terrain kind" in table
     card = (report / "policy_card.md").read_text()  # this evaluation's indices, its plots linked
     assert "freshly initialised" in card and "[contacts_0.png](contacts_0.png)" in card
+    for kind in ("stairs_up", "stepping_stones"):  # the two kinds' contact schedules (GAIT_KINDS)
+        if kind in by_terrain:
+            assert (report / f"contacts_0_{kind}.png").is_file(), kind
+            assert f"[contacts_0_{kind}.png](contacts_0_{kind}.png)" in card, kind
     for name in INDICES:
         index = result["indices"][name]
         assert f"| {name} (" in card and f"{index['mean']:.4g} ± {index['std']:.4g}" in card, name
@@ -711,6 +719,23 @@ def test_rough_step_returns_the_types_it_takes(rough):
                 (x.shape, x.dtype, x.weak_type) for x in jax.tree_util.tree_leaves(states[0])
             ], feet
         assert step._cache_size() == 1, feet
+
+
+def test_the_gait_robot_of_a_kind_is_the_one_up_longest_then_the_highest_level():
+    """gait_robot picks the contact schedule to plot for a terrain kind: among that kind's robots the one
+    that stayed up the most steps, the highest level among equals; another kind's robots never; none on a
+    kind no robot walked."""
+    from footforge.rl.evaluate import gait_robot
+
+    kinds = np.array(["stairs_up", "stairs_up", "stairs_up", "discrete", "stairs_up"])
+    levels = np.array([0, 3, 5, 9, 4])
+    alive = np.ones((5, 10), bool)
+    alive[2, 6:] = False  # level 5 fell
+    assert gait_robot(alive, levels, kinds, "stairs_up") == 4  # up throughout, level 4 (level 5 fell)
+    alive[4, 9:] = False  # level 4 falls at the last step: level 3's robot is up longest
+    assert gait_robot(alive, levels, kinds, "stairs_up") == 1
+    assert gait_robot(alive, levels, kinds, "discrete") == 3
+    assert gait_robot(alive, levels, kinds, "stepping_stones") is None
 
 
 def test_a_robot_crosses_its_tile_when_it_reaches_the_edge_while_up():

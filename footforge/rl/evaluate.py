@@ -224,6 +224,7 @@ def evaluate(
     slippage = slippage_index(rows["slip"], rows["travel"], alive)
     vx_error = np.where(alive, rows["base_vx_error"], np.nan)
     walking = judge(rows["contacts"], alive, rows["base_height"], rows["command_vx"], rows["vx"], rows["command_speed"])
+    robot_kinds = np.array(env.terrain.column_kinds if rough else ("flat",))[columns]  # each robot's terrain kind
     falls = fall_times(alive, env_config.policy_dt)
     pushes = event_times(config.pushes.interval_s, config.policy_dt, steps) if config.pushes.enabled else []
     commands = event_times(config.commands.resample_s, config.policy_dt, steps)
@@ -254,17 +255,85 @@ def evaluate(
         **(
             {
                 "by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns),
+                "walking_by_terrain": _walking_by_terrain(rows, robot_kinds),
                 "crossed": int(rows["crossed"].sum()),
-                "kinds_covered": sorted(set(np.array(env.terrain.column_kinds)[columns])),
-                "kinds_not_covered": sorted(
-                    set(env.terrain.column_kinds) - set(np.array(env.terrain.column_kinds)[columns])
-                ),
+                "kinds_covered": sorted(set(robot_kinds)),
+                "kinds_not_covered": sorted(set(env.terrain.column_kinds) - set(robot_kinds)),
             }
             if rough
             else {}
         ),
-        "traces": {"contacts_robot0": rows["contacts"][0], "base_vx_error_mean": _mean_over_standing(vx_error)},
+        "traces": {
+            "contacts_robot0": rows["contacts"][0],
+            "base_vx_error_mean": _mean_over_standing(vx_error),
+            **({"contacts_by_terrain": _gait_traces(rows, robot_kinds, levels)} if rough else {}),
+        },
     }
+
+
+GAIT_KINDS = ("stairs_up", "stepping_stones")
+"""The terrain kinds whose contact schedule a rough evaluation plots (the paper's Figures 11-14 show two
+kinds; these two are also the ones `footforge evaluate --video` records): a climb and a gap-crossing."""
+GAIT_WINDOW_S = 4.0
+"""The contact schedules' length, s (the first seconds of the rollout)."""
+
+
+def gait_robot(alive: np.ndarray, levels: np.ndarray, robot_kinds: np.ndarray, kind: str) -> int | None:
+    """The robot whose contact schedule shows the gait on `kind`: of the robots on that kind's tiles, the one
+    that stayed up longest, the highest level among those (its steps are the hardest that policy still walks).
+    None when no robot is on that kind."""
+    on = np.flatnonzero(robot_kinds == kind)
+    if on.size == 0:
+        return None
+    steps_up = alive[on].sum(axis=1)
+    return int(on[np.lexsort((-on, levels[on], steps_up))[-1]])  # the most steps up, then the highest level
+
+
+def _walking_by_terrain(rows: dict, robot_kinds: np.ndarray) -> dict:
+    """{kind: the walking verdict (footforge.rl.verdict.judge) of the robots on that kind's tiles, as a dict
+    with its "line"}."""
+    out = {}
+    for kind in sorted(set(robot_kinds)):
+        on = robot_kinds == kind
+        v = judge(
+            rows["contacts"][on],
+            rows["alive"][on],
+            rows["base_height"][on],
+            rows["command_vx"][on],
+            rows["vx"][on],
+            rows["command_speed"][on],
+        )
+        out[str(kind)] = v.to_dict() | {"line": v.line()}
+    return out
+
+
+def _gait_traces(rows: dict, robot_kinds: np.ndarray, levels: np.ndarray) -> dict:
+    """{kind: {"robot", "level", "up_s", "gait", "contacts"}} for GAIT_KINDS (gait_robot's robot; its gait by
+    footforge.rl.verdict over the whole rollout)."""
+    out = {}
+    steps = rows["alive"].shape[1]
+    for kind in GAIT_KINDS:
+        robot = gait_robot(rows["alive"], levels, robot_kinds, kind)
+        if robot is None:
+            continue
+        one = slice(robot, robot + 1)
+        v = judge(
+            rows["contacts"][one],
+            rows["alive"][one],
+            rows["base_height"][one],
+            rows["command_vx"][one],
+            rows["vx"][one],
+            rows["command_speed"][one],
+        )
+        out[kind] = {
+            "robot": robot,
+            "level": int(levels[robot]),
+            "up_steps": int(rows["alive"][robot].sum()),
+            "steps": int(steps),
+            "gait": v.gait,
+            "contacts": rows["contacts"][robot],
+        }
+    return out
 
 
 AFTER_EVENT_S = 2.0
@@ -408,7 +477,8 @@ def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarra
 
 def terrain_markdown(results: list[dict]) -> str:
     """Rough-terrain results side by side (the paper's Figure 9 as a table): per terrain kind, the
-    forward tracking error (m/s) over every level and the share of robots that fell."""
+    forward tracking error (m/s) over every level, the robots that crossed their tile and those that fell;
+    then each kind's walking verdict."""
     rough = [r for r in results if r.get("by_terrain")]
     if not rough:
         return ""
@@ -424,7 +494,29 @@ def terrain_markdown(results: list[dict]) -> str:
             crossed = sum(t.get("crossed", 0) for t in tiles)  # evaluations from before it was counted: 0
             cells.append(f"{error:.3f} / {crossed}/{robots} / {sum(t['falls'] for t in tiles)}/{robots}")
         rows.append(cells)
-    return "\n".join(markdown_table(head, rows)) + "\n"
+    table = "\n".join(markdown_table(head, rows)) + "\n"
+    judged = [r for r in rough if r.get("walking_by_terrain")]  # evaluations from before it was judged: none
+    if not judged:
+        return table
+    head = ["policy", "feet", *kinds]
+    rows = []
+    for r in judged:
+        cells = [Path(r["policy"]).parent.name or r["policy"], r["feet"]]
+        for kind in kinds:
+            v = r["walking_by_terrain"].get(kind)
+            cells.append(
+                f"{v['verdict']}"
+                + (f" ({v['gait']})" if v["verdict"] == "walks" else "")
+                + f": up {v['uptime']:.0%}, vx error {v['forward_error_mps']:.2f}"
+                if v
+                else "-"
+            )
+        rows.append(cells)
+    return (
+        table
+        + "\nWalking verdict per terrain kind (footforge/rl/verdict.py, over that kind's robots):\n\n"
+        + ("\n".join(markdown_table(head, rows)) + "\n")
+    )
 
 
 def record(
@@ -521,30 +613,44 @@ def pair_label(r: dict) -> str:
     return f"{Path(r['policy']).parent.name}\non {r['feet']}"
 
 
+def _plot_contacts(contacts, dt: float, title: str, path: Path) -> None:
+    """One robot's feet contact schedule over its first GAIT_WINDOW_S: a black bar while a foot is on the
+    ground."""
+    from matplotlib.figure import Figure
+
+    contacts = np.asarray(contacts)[: int(GAIT_WINDOW_S / dt)]
+    fig = Figure(figsize=(8, 2.2))
+    ax = fig.subplots()
+    for leg in range(4):
+        on = np.flatnonzero(contacts[:, leg])
+        ax.broken_barh([(k * dt, dt) for k in on], (leg - 0.4, 0.8), color="k")
+    ax.set(yticks=range(4), yticklabels=["LF", "RF", "LH", "RH"], xlabel="time (s)", title=title)
+    ax.title.set_fontsize(9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
 def plot(results: list[dict], out_dir: Path) -> list[str]:
     """comparison.png (plot_indices), contacts_<i>.png (robot 0's feet contact schedule over the
-    first 4 s), push_response_<i>.png (mean forward velocity error over time; pushes at the
-    environment's interval)."""
+    first 4 s; on rough terrain also contacts_<i>_<kind>.png for GAIT_KINDS), push_response_<i>.png
+    (mean forward velocity error over time; pushes at the environment's interval)."""
     from matplotlib.figure import Figure  # no pyplot: a library leaves the backend to its user
 
     files = plot_indices(results, out_dir)
     labels = [pair_label(r) for r in results]
     for i, r in enumerate(results):
         dt = r["policy_dt_s"]
-        contacts = np.asarray(r["traces"]["contacts_robot0"])[: int(4.0 / dt)]
-        fig = Figure(figsize=(8, 2.2))
-        ax = fig.subplots()
-        for leg in range(4):
-            on = np.flatnonzero(contacts[:, leg])
-            ax.broken_barh([(k * dt, dt) for k in on], (leg - 0.4, 0.8), color="k")
-        ax.set(
-            yticks=range(4),
-            yticklabels=["LF", "RF", "LH", "RH"],
-            xlabel="time (s)",
-            title=f"feet contact schedule: {labels[i].replace(chr(10), ' ')}",
+        label = labels[i].replace(chr(10), " ")
+        _plot_contacts(
+            r["traces"]["contacts_robot0"], dt, f"feet contact schedule: {label}", out_dir / f"contacts_{i}.png"
         )
-        fig.tight_layout()
-        fig.savefig(out_dir / f"contacts_{i}.png", dpi=90)
+        for kind, trace in r["traces"].get("contacts_by_terrain", {}).items():
+            title = (
+                f"{label}, {kind.replace('_', ' ')} level {trace['level']} (robot {trace['robot']}, up "
+                f"{trace['up_steps'] * dt:.1f} of {trace['steps'] * dt:.1f} s): {trace['gait']}"
+            )
+            _plot_contacts(trace["contacts"], dt, title, out_dir / f"contacts_{i}_{kind}.png")
+            files.append(f"contacts_{i}_{kind}.png")
         err = np.asarray(r["traces"]["base_vx_error_mean"])
         fig = Figure(figsize=(8, 2.5))
         ax = fig.subplots()

@@ -208,6 +208,9 @@ def _plots(evaluations: list[tuple[int, dict]], files: list[str]) -> list[tuple[
             stem = f.rsplit(".", 1)[0]
             if stem == f"contacts_{i}":
                 out.append((f"feet contact schedule on {r['feet']}", f))
+            elif stem.startswith(f"contacts_{i}_") and stem.split("_")[1] == str(i):
+                kind = stem.split("_", 2)[2].replace("_", " ")
+                out.append((f"feet contact schedule on {r['feet']}, {kind}", f))
             elif stem == f"push_response_{i}":
                 out.append((f"push response on {r['feet']}", f))
             elif stem.startswith((f"video_{i}", f"strip_{i}")) and stem.split("_")[1] == str(i):
