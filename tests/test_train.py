@@ -1357,6 +1357,70 @@ def test_a_finished_run_is_kept_with_its_policy_in_place_of_the_checkpoint(writt
     assert (dest / "policy" / "footforge.json").is_file() and not (dest / "checkpoints").exists()
 
 
+def test_a_resumed_rough_run_starts_its_robots_where_its_curriculum_stood(written_run, monkeypatch):
+    """A rough run resumed from its checkpoint at step 64 draws its robots' first levels from the level
+    shares its curve last logged at or before 64 (CurriculumConfig.initial_level_shares), not from
+    0..initial_max_level again; rows of other kinds, rows past the checkpoint and cut lines are passed
+    over; config.json keeps the configuration the run began with."""
+    from dataclasses import replace
+
+    from footforge.rl import train
+
+    run, cfg, ppo = written_run
+    rough = replace(envs.default_config("rough", "ball", "P"), build_dir=cfg.build_dir)
+    (run / "config.json").write_text(json.dumps({"env": to_dict(rough), "ppo": to_dict(ppo)}))
+
+    def shares(**at):
+        return {f"episode/terrain/at_level_{k}_per_step": at.get(f"l{k}", 0.0) for k in range(10)}
+
+    _write_curve(
+        run,
+        [
+            {"global_step": 16, **shares(l1=1.0)},
+            {"global_step": 48, **shares(l2=0.25, l3=0.75)},
+            {"global_step": 56, "eval/episode_reward": 1.0},
+            {"global_step": 80, **shares(l9=1.0)},  # logged after the checkpoint: set aside
+        ],
+    )
+    with open(run / "metrics.jsonl", "a") as f:
+        f.write('{"global_step": 60, "episode/terrain/at_lev')  # cut short by a kill
+    made, notes = [], []
+
+    class Made(Exception):
+        pass
+
+    def capture(config):
+        made.append(config)
+        raise Made
+
+    monkeypatch.setattr(envs, "from_config", capture)
+    with pytest.raises(Made):
+        train.train(rough, ppo, run, resume=True, notice=notes.append)
+    assert made[0].curriculum.initial_level_shares == (0.0, 0.0, 0.25, 0.75, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    assert any("mean level 2.75" in n for n in notes), notes
+    assert json.loads((run / "config.json").read_text())["env"]["curriculum"]["initial_level_shares"] is None
+    assert train.logged_level_shares(run, 40, 10) == (0.0, 1.0) + (0.0,) * 8
+    assert train.logged_level_shares(run, 8, 10) is None and train.logged_level_shares(run, 64, 6) is None
+
+
+def test_first_levels_follow_the_shares_a_resume_gives():
+    """curriculum.first_levels draws from initial_level_shares where given: the levels' frequencies over
+    20,000 robots within 1.5 % of the shares, none on a level of share 0."""
+    from dataclasses import replace
+
+    from footforge.envs import curriculum
+    from footforge.envs.config import CurriculumConfig
+    from footforge.envs.terrain import TerrainConfig
+
+    t = TerrainConfig()
+    shares = (0.1, 0.0, 0.4, 0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 0.2)
+    c = replace(CurriculumConfig(), initial_level_shares=shares)
+    level, _ = curriculum.first_levels(jax.random.PRNGKey(3), c, t, (20_000,))
+    counts = np.bincount(np.asarray(level), minlength=t.num_levels) / 20_000
+    np.testing.assert_allclose(counts, shares, atol=0.015)
+    assert counts[1] == counts[3] == counts[8] == 0.0
+
+
 def test_a_kept_curve_that_cannot_be_continued_is_refused_naming_the_file(written_run):
     """Two copies of the curve (metrics.jsonl and metrics.jsonl.gz) are refused before any work, and a
     gzipped curve that is not gzip is an input error naming the file, not a traceback."""

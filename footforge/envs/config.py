@@ -220,7 +220,14 @@ class CurriculumConfig:
     """The game-inspired curriculum: each robot owns a terrain level and a column."""
 
     initial_max_level: int = 5
-    """Robots start on a level drawn from 0..initial_max_level."""
+    """Robots start on a level drawn from 0..initial_max_level (legged_gym's max_init_terrain_level)."""
+    initial_level_shares: tuple[float, ...] | None = None
+    """Instead, the share of robots starting on each level (one per level, normalised). A resumed rough run
+    sets it in its environment from the level shares its curve last logged (footforge.rl.train's
+    logged_level_shares), so the curriculum goes on where it stood rather than back to 0..initial_max_level: a
+    departure from legged_gym, which trains in one call and keeps no levels across a restart, for training
+    that a 2-core CPU does in many calls. Not written to config.json: a run's configuration stays the one
+    it began with."""
     promote_fraction_of_tile: float = 0.5
     """Promoted when the episode took it farther than this fraction of a tile from its spawn."""
     demote_fraction_of_command: float = 0.25

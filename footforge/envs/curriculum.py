@@ -16,11 +16,16 @@ from footforge.envs.terrain import TerrainConfig
 
 
 def first_levels(key, curriculum: CurriculumConfig, terrain: TerrainConfig, shape=()):
-    """(level, column) of robots at the start of training: a level in 0..initial_max_level and a
-    uniformly drawn column (so every kind of terrain gets robots)."""
+    """(level, column) of robots at the start of training: a level in 0..initial_max_level, or drawn
+    from initial_level_shares where given (a resumed run), and a uniformly drawn column (so every
+    kind of terrain gets robots)."""
     k_level, k_column = jax.random.split(key)
-    top = min(curriculum.initial_max_level, terrain.num_levels - 1)
-    level = jax.random.randint(k_level, shape, 0, top + 1)
+    if curriculum.initial_level_shares is not None:
+        shares = jp.asarray(curriculum.initial_level_shares, jp.float32)
+        level = jax.random.choice(k_level, terrain.num_levels, shape, p=shares / shares.sum())
+    else:
+        top = min(curriculum.initial_max_level, terrain.num_levels - 1)
+        level = jax.random.randint(k_level, shape, 0, top + 1)
     column = jax.random.randint(k_column, shape, 0, terrain.num_columns)
     return level, column
 

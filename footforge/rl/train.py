@@ -40,6 +40,7 @@ import os
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 from footforge.atomic import atomic_file, write_json
@@ -134,6 +135,30 @@ def continue_curve(run_dir: Path, step: int, resume: int) -> bool:
     if unpacking:
         packed.unlink()
     return evaluated
+
+
+LEVEL_SHARE = "episode/terrain/at_level_{}_per_step"
+"""The curve's key of the share of ended episodes on a level (the rough environment's metrics)."""
+
+
+def logged_level_shares(run_dir: Path, step: int, num_levels: int) -> tuple[float, ...] | None:
+    """The share of robots on each of `num_levels` levels in the run's curve's last row at or before
+    `step` that logged them (a rough run's training episodes), normalised; None where no row did (a
+    flat run, a rough run resumed before its first log, a curve of another level count)."""
+    path = Path(run_dir) / CURVE
+    if not path.is_file():
+        return None
+    found = None
+    for line in path.read_text().splitlines():
+        try:
+            row = json.loads(line)
+            shares = [float(row[LEVEL_SHARE.format(k)]) for k in range(num_levels)]
+            row_step = int(row["global_step"])
+        except (ValueError, KeyError, TypeError):  # another row kind, or a line cut short by a kill
+            continue
+        if LEVEL_SHARE.format(num_levels) not in row and row_step <= step and min(shares) >= 0 and sum(shares) > 0:
+            found = tuple(round(x / sum(shares), 6) for x in shares)
+    return found
 
 
 def finish_run(run_dir: Path) -> tuple[int, str] | None:
@@ -386,7 +411,22 @@ def train(
     # The curve continues from the restored checkpoint (module docstring).
     evaluated_at_offset = continue_curve(run_dir, offset, resumes) if resume and primary else False
 
-    env = from_config(env_config)  # Brax evaluates on the same environment
+    # A resumed rough run's robots start on the levels where its curriculum stood (CurriculumConfig.
+    # initial_level_shares); config.json keeps the configuration the run began with.
+    shares = (
+        logged_level_shares(run_dir, offset, env_config.terrain.num_levels)
+        if resume and env_config.task == "rough"
+        else None
+    )
+    if shares is not None:
+        notice(
+            f"the curriculum goes on from the level shares logged at or before step {offset:,} (mean level "
+            f"{sum(k * x for k, x in enumerate(shares)):.2f})"
+        )
+        curriculum = replace(env_config.curriculum, initial_level_shares=shares)
+        env = from_config(replace(env_config, curriculum=curriculum))
+    else:
+        env = from_config(env_config)  # Brax evaluates on the same environment
     if primary and env_config.task == "rough":  # the terrain this run walks
         from footforge.envs.terrain import preview
 
