@@ -1352,6 +1352,8 @@ def test_a_finished_run_is_kept_with_its_policy_in_place_of_the_checkpoint(writt
     assert (dest / "checkpoints" / f"{64:012d}").is_dir() and not (dest / "policy").exists()
     (run / "progress.json").write_text(json.dumps({"global_step": ppo.num_timesteps, "resumes": 0, "metrics": {}}))
     shutil.rmtree(run / "policy", ignore_errors=True)
+    with pytest.raises(InputError, match="policy/ is not the final one"):
+        keep_run(run, dest)  # finished but never wrote policy/: refused, naming the resume that writes it
     assert train.finish_run(run) is not None  # policy/ from the newest checkpoint
     assert keep_run(run, dest)[-1] == "policy"
     assert (dest / "policy" / "footforge.json").is_file() and not (dest / "checkpoints").exists()

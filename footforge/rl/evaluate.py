@@ -308,8 +308,8 @@ def _walking_by_terrain(rows: dict, robot_kinds: np.ndarray) -> dict:
 
 
 def _gait_traces(rows: dict, robot_kinds: np.ndarray, levels: np.ndarray) -> dict:
-    """{kind: {"robot", "level", "up_s", "gait", "contacts"}} for GAIT_KINDS (gait_robot's robot; its gait by
-    footforge.rl.verdict over the whole rollout)."""
+    """{kind: {"robot", "level", "up_steps", "steps", "gait", "contacts"}} for GAIT_KINDS (gait_robot's
+    robot; its gait by footforge.rl.verdict over the whole rollout)."""
     out = {}
     steps = rows["alive"].shape[1]
     for kind in GAIT_KINDS:

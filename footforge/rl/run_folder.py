@@ -206,7 +206,17 @@ def keep_run(run_dir: Path, dest: Path) -> list[str]:
         )
     saved = json.loads((run_dir / "config.json").read_text())
     step = int(json.loads((run_dir / "progress.json").read_text()).get("global_step", 0))
-    finished = step >= int(saved["ppo"]["num_timesteps"]) and (run_dir / "policy").is_dir()
+    finished = step >= int(saved["ppo"]["num_timesteps"])
+    if finished:
+        from footforge.rl.policy_files import policy_problem  # it imports this module
+
+        problem = "missing" if not (run_dir / "policy").is_dir() else policy_problem(run_dir)
+        if problem:
+            raise InputError(
+                f"reached its total steps but its policy/ is not the final one ({problem})",
+                file=str(run_dir / "policy"),
+                fix=f"footforge train {saved['env'].get('task', 'flat')} --out {run_dir} --resume writes it",
+            )
     newest = None if finished else latest_intact_checkpoint(run_dir)
     if not finished and newest is None:
         raise InputError(
