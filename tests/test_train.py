@@ -1405,6 +1405,43 @@ def test_a_resumed_rough_run_starts_its_robots_where_its_curriculum_stood(writte
     assert train.logged_level_shares(run, 8, 10) is None and train.logged_level_shares(run, 64, 6) is None
 
 
+def test_a_resume_goes_on_with_the_adaptive_learning_rate_it_had(written_run, monkeypatch):
+    """Brax cannot restore its optimiser state, so the adaptive-KL learning rate would restart at
+    PPOConfig.learning_rate on each resume; it goes on from the rate the curve last logged at or before
+    the restored checkpoint instead (rows past it, rows without a rate and cut lines passed over), and
+    config.json keeps the run's own. Without adaptive KL the configured rate stays."""
+    from dataclasses import replace
+
+    from footforge.rl import train
+
+    run, cfg, ppo = written_run
+    _write_curve(
+        run,
+        [
+            {"global_step": 16, "training/learning_rate": 4e-4},
+            {"global_step": 48, "training/learning_rate": 5e-5, "episode/length": 3.0},
+            {"global_step": 56, "eval/episode_reward": 1.0},
+            {"global_step": 80, "training/learning_rate": 2e-3},  # after the checkpoint: set aside
+        ],
+    )
+    given = []
+
+    def run_ppo(ppo_train, env, env_config, ppo_used, *rest):
+        given.append(ppo_used.learning_rate)
+
+    monkeypatch.setattr(train, "_run_ppo", run_ppo)
+    notes = []
+    train.train(cfg, ppo, run, resume=True, notice=notes.append)
+    assert ppo.adaptive_kl and given == [5e-5], given
+    assert any("learning rate goes on from 5e-05" in n for n in notes), notes
+    assert json.loads((run / "config.json").read_text())["ppo"]["learning_rate"] == ppo.learning_rate
+    assert train.logged_learning_rate(run, 20) == 4e-4 and train.logged_learning_rate(run, 8) is None
+    fixed = replace(ppo, adaptive_kl=0.0)
+    (run / "config.json").write_text(json.dumps({"env": to_dict(cfg), "ppo": to_dict(fixed)}))
+    train.train(cfg, fixed, run, resume=True, notice=notes.append)
+    assert given[-1] == fixed.learning_rate
+
+
 def test_first_levels_follow_the_shares_a_resume_gives():
     """curriculum.first_levels draws from initial_level_shares where given: the levels' frequencies over
     20,000 robots within 1.5 % of the shares, none on a level of share 0."""

@@ -20,8 +20,12 @@ the adaptive-KL learning rate, which lives in the same optax state) with `optimi
 the function, passes only (normaliser, policy, value) parameters to `policy_params_fn` and
 returns only those, and its restore paths (`restore_params`, `restore_checkpoint_path`) set
 parameters alone. Keeping the optimiser state would mean re-implementing Brax's PPO loop, so a
-resumed run continues from the same policy, value and normaliser, with Adam's moments and the
-learning rate restarting from `PPOConfig.learning_rate`.
+resumed run continues from the same policy, value and normaliser, with Adam's moments restarting.
+The adaptive-KL learning rate goes on from the one the curve last logged before the checkpoint
+(logged_learning_rate; config.json keeps the run's own `learning_rate`): restarting it at
+`PPOConfig.learning_rate` (1e-3, where the schedule had brought it to about 5e-5) made the first
+updates after each resume of rough AOF P overshoot (KL 0.19-0.45 against the 0.01 sought) and lose
+about a level of the curriculum for a million steps.
 
 `max_wall_s` bounds a call's wall-clock time for machines whose jobs have a time limit
 (WallTimeBudget): after each checkpoint and its evaluation, training stops when the next epoch
@@ -158,6 +162,24 @@ def logged_level_shares(run_dir: Path, step: int, num_levels: int) -> tuple[floa
             continue
         if LEVEL_SHARE.format(num_levels) not in row and row_step <= step and min(shares) >= 0 and sum(shares) > 0:
             found = tuple(round(x / sum(shares), 6) for x in shares)
+    return found
+
+
+def logged_learning_rate(run_dir: Path, step: int) -> float | None:
+    """The learning rate in the run's curve's last row at or before `step` that logged one (Brax's
+    "training/learning_rate": the adaptive-KL schedule's), or None where none did."""
+    path = Path(run_dir) / CURVE
+    if not path.is_file():
+        return None
+    found = None
+    for line in path.read_text().splitlines():
+        try:
+            row = json.loads(line)
+            rate, row_step = float(row["training/learning_rate"]), int(row["global_step"])
+        except (ValueError, KeyError, TypeError):  # another row kind, or a line cut short by a kill
+            continue
+        if row_step <= step and 0.0 < rate < float("inf"):
+            found = rate
     return found
 
 
@@ -490,12 +512,16 @@ def train(
             if budget.out_of_time(time.time(), float(metrics.get("eval/epoch_eval_time", 0.0))):
                 raise _OutOfTime()
 
+    # A resume's adaptive learning rate goes on where it stood (module docstring).
+    resumed_rate = logged_learning_rate(run_dir, offset) if resume and ppo.adaptive_kl else None
+    if resumed_rate is not None:
+        notice(f"the adaptive learning rate goes on from {resumed_rate:.3g} (logged at or before step {offset:,})")
     try:
         _run_ppo(
             ppo_train,
             env,
             env_config,
-            ppo,
+            ppo if resumed_rate is None else replace(ppo, learning_rate=resumed_rate),
             remaining,
             epochs,
             restore,
