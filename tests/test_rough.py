@@ -641,6 +641,9 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
     table = (report / "comparison.md").read_text()
     assert "stepping_stones: vx error / crossed / fell" in table and "| P | ball | ball |" in table
     assert "Walking verdict per terrain kind" in table
+    for kind, gait in result["gait_by_terrain"].items():  # the robot each kind's contact schedule shows
+        assert kind in ("stairs_up", "stepping_stones") and gait["steps"] == 10 and 0 <= gait["up_steps"] <= 10
+        assert gait["reach_m"] < 4.0 and 0 <= gait["level"] < SMALL.num_levels
     card = (report / "policy_card.md").read_text()  # this evaluation's indices, its plots linked
     assert "freshly initialised" in card and "[contacts_0.png](contacts_0.png)" in card
     for kind in ("stairs_up", "stepping_stones"):  # the two kinds' contact schedules (GAIT_KINDS)
@@ -721,21 +724,28 @@ def test_rough_step_returns_the_types_it_takes(rough):
         assert step._cache_size() == 1, feet
 
 
-def test_the_gait_robot_of_a_kind_is_the_one_up_longest_then_the_highest_level():
+def test_the_gait_robot_of_a_kind_is_the_one_that_got_farthest_while_up():
     """gait_robot picks the contact schedule to plot for a terrain kind: among that kind's robots the one
-    that stayed up the most steps, the highest level among equals; another kind's robots never; none on a
-    kind no robot walked."""
-    from footforge.rl.evaluate import gait_robot
+    whose base got farthest from its start while up (reach_m: a robot that walks 3 m and then falls beats one
+    standing on its platform throughout, and what a robot does after its fall does not count), the highest
+    level among equals; another kind's robots never; none on a kind no robot walked."""
+    from footforge.rl.evaluate import gait_robot, reach_m
 
     kinds = np.array(["stairs_up", "stairs_up", "stairs_up", "discrete", "stairs_up"])
     levels = np.array([0, 3, 5, 9, 4])
+    steps = np.linspace(0.0, 1.0, 10)[None, :, None]
+    start = np.zeros((5, 2))
+    walked_m = np.array([0.1, 2.0, 6.0, 5.0, 2.0])  # straight along x over the rollout
+    base_xy = steps * np.stack([walked_m, np.zeros(5)], axis=1)[:, None, :]
     alive = np.ones((5, 10), bool)
-    alive[2, 6:] = False  # level 5 fell
-    assert gait_robot(alive, levels, kinds, "stairs_up") == 4  # up throughout, level 4 (level 5 fell)
-    alive[4, 9:] = False  # level 4 falls at the last step: level 3's robot is up longest
-    assert gait_robot(alive, levels, kinds, "stairs_up") == 1
-    assert gait_robot(alive, levels, kinds, "discrete") == 3
-    assert gait_robot(alive, levels, kinds, "stepping_stones") is None
+    alive[2, 5:] = False  # level 5 fell halfway: 6 m x 4/9 = 2.67 m while up
+    reach = reach_m(base_xy, start, alive)
+    np.testing.assert_allclose(reach, [0.1, 2.0, 6.0 * 4 / 9, 5.0, 2.0])
+    assert gait_robot(reach, levels, kinds, "stairs_up") == 2  # 2.67 m before its fall
+    reach[2] = 0.0
+    assert gait_robot(reach, levels, kinds, "stairs_up") == 4  # 2 m like level 3's, on a higher level
+    assert gait_robot(reach, levels, kinds, "discrete") == 3
+    assert gait_robot(reach, levels, kinds, "stepping_stones") is None
 
 
 def test_a_robot_crosses_its_tile_when_it_reaches_the_edge_while_up():

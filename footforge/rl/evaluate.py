@@ -212,12 +212,8 @@ def evaluate(
     rows = jax.tree.map(np.asarray, rows)
     alive = rows["alive"]
     if rough:
-        rows["crossed"] = crossed_tile(
-            rows["base_xy"],
-            rows.pop("start_xy"),
-            alive,
-            config.curriculum.promote_fraction_of_tile * config.terrain.tile_size_m,
-        )
+        rows["reach_m"] = reach_m(rows["base_xy"], rows.pop("start_xy"), alive)
+        rows["crossed"] = rows["reach_m"] >= config.curriculum.promote_fraction_of_tile * config.terrain.tile_size_m
     indices = {
         name: {"mean": float(rows[name][alive].mean()), "std": float(rows[name][alive].std())} for name in INDICES
     }
@@ -225,6 +221,7 @@ def evaluate(
     vx_error = np.where(alive, rows["base_vx_error"], np.nan)
     walking = judge(rows["contacts"], alive, rows["base_height"], rows["command_vx"], rows["vx"], rows["command_speed"])
     robot_kinds = np.array(env.terrain.column_kinds if rough else ("flat",))[columns]  # each robot's terrain kind
+    gaits = _gait_traces(rows, robot_kinds, levels) if rough else {}  # the contact schedules per kind (GAIT_KINDS)
     falls = fall_times(alive, env_config.policy_dt)
     pushes = event_times(config.pushes.interval_s, config.policy_dt, steps) if config.pushes.enabled else []
     commands = event_times(config.commands.resample_s, config.policy_dt, steps)
@@ -256,6 +253,7 @@ def evaluate(
             {
                 "by_terrain": _by_terrain(rows, env.terrain.column_kinds, levels, columns),
                 "walking_by_terrain": _walking_by_terrain(rows, robot_kinds),
+                "gait_by_terrain": {k: {n: v for n, v in g.items() if n != "contacts"} for k, g in gaits.items()},
                 "crossed": int(rows["crossed"].sum()),
                 "kinds_covered": sorted(set(robot_kinds)),
                 "kinds_not_covered": sorted(set(env.terrain.column_kinds) - set(robot_kinds)),
@@ -266,7 +264,7 @@ def evaluate(
         "traces": {
             "contacts_robot0": rows["contacts"][0],
             "base_vx_error_mean": _mean_over_standing(vx_error),
-            **({"contacts_by_terrain": _gait_traces(rows, robot_kinds, levels)} if rough else {}),
+            **({"contacts_by_terrain": gaits} if rough else {}),
         },
     }
 
@@ -278,15 +276,15 @@ GAIT_WINDOW_S = 4.0
 """The contact schedules' length, s (the first seconds of the rollout)."""
 
 
-def gait_robot(alive: np.ndarray, levels: np.ndarray, robot_kinds: np.ndarray, kind: str) -> int | None:
+def gait_robot(reach: np.ndarray, levels: np.ndarray, robot_kinds: np.ndarray, kind: str) -> int | None:
     """The robot whose contact schedule shows the gait on `kind`: of the robots on that kind's tiles, the one
-    that stayed up longest, the highest level among those (its steps are the hardest that policy still walks).
-    None when no robot is on that kind."""
+    that got farthest from its start while up (`reach`, m: reach_m), the highest level among equals. A robot
+    that stays up by standing on its spawn platform shows no gait; the one that went farthest walked the
+    kind's obstacles most. None when no robot is on that kind."""
     on = np.flatnonzero(robot_kinds == kind)
     if on.size == 0:
         return None
-    steps_up = alive[on].sum(axis=1)
-    return int(on[np.lexsort((-on, levels[on], steps_up))[-1]])  # the most steps up, then the highest level
+    return int(on[np.lexsort((-on, levels[on], reach[on]))[-1]])  # the farthest, then the highest level
 
 
 def _walking_by_terrain(rows: dict, robot_kinds: np.ndarray) -> dict:
@@ -308,12 +306,12 @@ def _walking_by_terrain(rows: dict, robot_kinds: np.ndarray) -> dict:
 
 
 def _gait_traces(rows: dict, robot_kinds: np.ndarray, levels: np.ndarray) -> dict:
-    """{kind: {"robot", "level", "up_steps", "steps", "gait", "contacts"}} for GAIT_KINDS (gait_robot's
-    robot; its gait by footforge.rl.verdict over the whole rollout)."""
+    """{kind: {"robot", "level", "reach_m", "up_steps", "steps", "gait", "contacts"}} for GAIT_KINDS
+    (gait_robot's robot; its gait by footforge.rl.verdict over the whole rollout)."""
     out = {}
     steps = rows["alive"].shape[1]
     for kind in GAIT_KINDS:
-        robot = gait_robot(rows["alive"], levels, robot_kinds, kind)
+        robot = gait_robot(rows["reach_m"], levels, robot_kinds, kind)
         if robot is None:
             continue
         one = slice(robot, robot + 1)
@@ -328,6 +326,7 @@ def _gait_traces(rows: dict, robot_kinds: np.ndarray, levels: np.ndarray) -> dic
         out[kind] = {
             "robot": robot,
             "level": int(levels[robot]),
+            "reach_m": round(float(rows["reach_m"][robot]), 2),
             "up_steps": int(rows["alive"][robot].sum()),
             "steps": int(steps),
             "gait": v.gait,
@@ -451,8 +450,14 @@ def crossed_tile(base_xy: np.ndarray, start_xy: np.ndarray, alive: np.ndarray, e
     from the tile's centre to its edge), applied to an evaluation's walk instead of a training episode's end.
 
     base_xy: (robots, steps, 2) base positions, m; start_xy: (robots, 2), m; alive: (robots, steps)."""
+    return reach_m(base_xy, start_xy, alive) >= edge_m
+
+
+def reach_m(base_xy: np.ndarray, start_xy: np.ndarray, alive: np.ndarray) -> np.ndarray:
+    """Per robot, the farthest its base got from where it started, in the plane, while it was up, m (0 for a
+    robot down from its first step). Arguments as crossed_tile's."""
     distance = np.linalg.norm(base_xy - start_xy[:, None, :], axis=-1)
-    return ((distance >= edge_m) & alive).any(axis=1)
+    return np.where(alive, distance, 0.0).max(axis=1)
 
 
 def _by_terrain(rows: dict, column_kinds, levels: np.ndarray, columns: np.ndarray) -> dict:
@@ -646,8 +651,9 @@ def plot(results: list[dict], out_dir: Path) -> list[str]:
         )
         for kind, trace in r["traces"].get("contacts_by_terrain", {}).items():
             title = (
-                f"{label}, {kind.replace('_', ' ')} level {trace['level']} (robot {trace['robot']}, up "
-                f"{trace['up_steps'] * dt:.1f} of {trace['steps'] * dt:.1f} s): {trace['gait']}"
+                f"{label}, {kind.replace('_', ' ')} level {trace['level']} (robot {trace['robot']}: "
+                f"{trace['reach_m']:.1f} m from its start, up {trace['up_steps'] * dt:.1f} of "
+                f"{trace['steps'] * dt:.1f} s): {trace['gait']}"
             )
             _plot_contacts(trace["contacts"], dt, title, out_dir / f"contacts_{i}_{kind}.png")
             files.append(f"contacts_{i}_{kind}.png")
