@@ -210,30 +210,39 @@ ROUGH_ITERATION = 64 * 4 * 24
 minibatches of 64 trajectories: 6,144), the unit the dry run's rough runs advance by."""
 
 
+ROUGH_JOBS = (("aof", "PH", "policies/rough_aof_PH"), ("ball", "P", None))
+"""The prepared rough call's jobs (docs/training.md): feet, policy type, and the committed run each resumes
+(None: begun under the rough `cpu` preset)."""
+
+
 def rough_campaign(work: Path, repo: Path, env: dict) -> dict:
     """The prepared rough call (docs/training.md) through campaign.sh --cpu, shortened: the committed
-    rough AOF P run resumed for two PPO iterations and PH begun under the rough `cpu` preset for two,
-    side by side on the C engine; then, as on a new machine (no runs/, no cache), both resumed from
+    rough AOF PH run resumed for two PPO iterations beside ball P begun under the rough `cpu` preset for
+    two, side by side on the C engine; then, as on a new machine (no runs/, no cache), both resumed from
     their tarballs for one more. Returns the figures for the summary line."""
     if " " in str(work):
         raise Failed(f"--rough needs a WORKDIR without spaces (campaign.sh splits its jobs at spaces): {work}")
     campaign = repo / "scripts/device/campaign.sh"
-    committed = repo / "policies" / "rough_aof_P"
-    start = {"P": json.loads((committed / "progress.json").read_text())["global_step"], "PH": 0}
+    start = {
+        (feet, policy): json.loads((repo / committed / "progress.json").read_text())["global_step"] if committed else 0
+        for feet, policy, committed in ROUGH_JOBS
+    }
     figures = {}
+    s: dict = {}
     for call, iterations in ((1, 2), (2, 3)):
         t = time.time()
         specs = []
-        for policy in ("P", "PH"):
-            steps = start[policy] + iterations * ROUGH_ITERATION
+        for feet, policy, committed in ROUGH_JOBS:
+            run = f"rough_{feet}_{policy}"
+            steps = start[feet, policy] + iterations * ROUGH_ITERATION
             if call == 2:
-                source = work / "campaign1" / f"train-rough_aof_{policy}" / f"rough_aof_{policy}.tar.gz"
+                source = work / "campaign1" / f"train-{run}" / f"{run}.tar.gz"
             else:
-                source = committed if policy == "P" else None
+                source = repo / committed if committed else None
             options = "--no-evaluations" + (" --preset cpu" if source is None else "")
-            shorten = " --shorten" if policy == "P" else ""  # the committed run's total is 30 M steps
+            shorten = " --shorten" if committed else ""  # the committed run's total is 30 M steps
             resume = f"--resume {source} " if source else ""
-            specs.append(f"{resume}train-rough aof {policy} -- {options} --timesteps {steps}{shorten}")
+            specs.append(f"{resume}train-rough {feet} {policy} -- {options} --timesteps {steps}{shorten}")
         out = work / f"rough_results{call}"
         shutil.rmtree(out, ignore_errors=True)
         # A fresh machine: only the tarballs come back, and the compilation cache where it is carried
@@ -251,15 +260,19 @@ def rough_campaign(work: Path, repo: Path, env: dict) -> dict:
         shutil.rmtree(unpacked, ignore_errors=True)
         with tarfile.open(out / "campaign.tar.gz") as tar:
             tar.extractall(unpacked, filter="data")
-        for policy in ("P", "PH"):
-            run = f"rough_aof_{policy}"
-            steps = start[policy] + iterations * ROUGH_ITERATION
-            s = check(unpacked / f"train-rough_aof_{policy}", f"train-rough aof {policy}", min_step=steps, run=run)
-            progress = json.loads(
-                extract(unpacked / f"train-rough_aof_{policy}" / f"{run}.tar.gz", f"{run}/progress.json")
+        for feet, policy, committed in ROUGH_JOBS:
+            run = f"rough_{feet}_{policy}"
+            steps = start[feet, policy] + iterations * ROUGH_ITERATION
+            s = check(unpacked / f"train-{run}", f"train-rough {feet} {policy}", min_step=steps, run=run)
+            progress = json.loads(extract(unpacked / f"train-{run}" / f"{run}.tar.gz", f"{run}/progress.json"))
+            resumes_before = (
+                json.loads((repo / committed / "progress.json").read_text()).get("resumes", 0) if committed else 0
             )
-            if progress.get("resumes") != (call if policy == "P" else call - 1):
-                raise Failed(f"{run} did not resume as the call says: {progress.get('resumes')} resumes")
+            expected = resumes_before + (call if committed else call - 1)
+            if progress.get("resumes") != expected:
+                raise Failed(
+                    f"{run} did not resume as the call says: {progress.get('resumes')} resumes, {expected} expected"
+                )
             if progress.get("physics") != "mujoco":
                 raise Failed(f"{run} ran on {progress.get('physics')}, not MuJoCo's C engine (campaign.sh --cpu)")
             figures[f"{run}_call{call}_step"] = s["global_step"]
