@@ -292,17 +292,15 @@ def _walking_by_terrain(rows: dict, robot_kinds: np.ndarray) -> dict:
     with its "line"}."""
     out = {}
     for kind in sorted(set(robot_kinds)):
-        on = robot_kinds == kind
-        v = judge(
-            rows["contacts"][on],
-            rows["alive"][on],
-            rows["base_height"][on],
-            rows["command_vx"][on],
-            rows["vx"][on],
-            rows["command_speed"][on],
-        )
+        v = _judge_robots(rows, robot_kinds == kind)
         out[str(kind)] = v.to_dict() | {"line": v.line()}
     return out
+
+
+def _judge_robots(rows: dict, which):
+    """footforge.rl.verdict.judge over the robots `which` (a mask or a slice of the rollout's rows)."""
+    keys = ("contacts", "alive", "base_height", "command_vx", "vx", "command_speed")
+    return judge(*(rows[k][which] for k in keys))
 
 
 def _gait_traces(rows: dict, robot_kinds: np.ndarray, levels: np.ndarray) -> dict:
@@ -314,15 +312,7 @@ def _gait_traces(rows: dict, robot_kinds: np.ndarray, levels: np.ndarray) -> dic
         robot = gait_robot(rows["reach_m"], levels, robot_kinds, kind)
         if robot is None:
             continue
-        one = slice(robot, robot + 1)
-        v = judge(
-            rows["contacts"][one],
-            rows["alive"][one],
-            rows["base_height"][one],
-            rows["command_vx"][one],
-            rows["vx"][one],
-            rows["command_speed"][one],
-        )
+        v = _judge_robots(rows, slice(robot, robot + 1))
         out[kind] = {
             "robot": robot,
             "level": int(levels[robot]),

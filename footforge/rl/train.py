@@ -46,6 +46,7 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import TypeVar
 
 from footforge.atomic import atomic_file, write_json
 from footforge.envs.config import EnvConfig
@@ -141,46 +142,50 @@ def continue_curve(run_dir: Path, step: int, resume: int) -> bool:
     return evaluated
 
 
+T = TypeVar("T")
+
 LEVEL_SHARE = "episode/terrain/at_level_{}_per_step"
 """The curve's key of the share of ended episodes on a level (the rough environment's metrics)."""
+
+
+def _last_logged(run_dir: Path, step: int, read: Callable[[dict], T | None]) -> T | None:
+    """read(row) of the run's curve's last row at or before `step` for which it returns a value: it raises
+    KeyError, ValueError or TypeError, or returns None, for rows that lack it (another row kind, a line cut
+    short by a kill). None where no row has it."""
+    path = Path(run_dir) / CURVE
+    found = None
+    for line in path.read_text().splitlines() if path.is_file() else []:
+        try:
+            row = json.loads(line)
+            value = read(row) if int(row["global_step"]) <= step else None
+        except (ValueError, KeyError, TypeError):
+            continue
+        found = value if value is not None else found
+    return found
 
 
 def logged_level_shares(run_dir: Path, step: int, num_levels: int) -> tuple[float, ...] | None:
     """The share of robots on each of `num_levels` levels in the run's curve's last row at or before
     `step` that logged them (a rough run's training episodes), normalised; None where no row did (a
     flat run, a rough run resumed before its first log, a curve of another level count)."""
-    path = Path(run_dir) / CURVE
-    if not path.is_file():
-        return None
-    found = None
-    for line in path.read_text().splitlines():
-        try:
-            row = json.loads(line)
-            shares = [float(row[LEVEL_SHARE.format(k)]) for k in range(num_levels)]
-            row_step = int(row["global_step"])
-        except (ValueError, KeyError, TypeError):  # another row kind, or a line cut short by a kill
-            continue
-        if LEVEL_SHARE.format(num_levels) not in row and row_step <= step and min(shares) >= 0 and sum(shares) > 0:
-            found = tuple(round(x / sum(shares), 6) for x in shares)
-    return found
+
+    def shares(row: dict) -> tuple[float, ...] | None:
+        x = [float(row[LEVEL_SHARE.format(k)]) for k in range(num_levels)]
+        ok = LEVEL_SHARE.format(num_levels) not in row and min(x) >= 0 and sum(x) > 0
+        return tuple(round(v / sum(x), 6) for v in x) if ok else None
+
+    return _last_logged(run_dir, step, shares)
 
 
 def logged_learning_rate(run_dir: Path, step: int) -> float | None:
     """The learning rate in the run's curve's last row at or before `step` that logged one (Brax's
     "training/learning_rate": the adaptive-KL schedule's), or None where none did."""
-    path = Path(run_dir) / CURVE
-    if not path.is_file():
-        return None
-    found = None
-    for line in path.read_text().splitlines():
-        try:
-            row = json.loads(line)
-            rate, row_step = float(row["training/learning_rate"]), int(row["global_step"])
-        except (ValueError, KeyError, TypeError):  # another row kind, or a line cut short by a kill
-            continue
-        if row_step <= step and 0.0 < rate < float("inf"):
-            found = rate
-    return found
+
+    def rate(row: dict) -> float | None:
+        value = float(row["training/learning_rate"])
+        return value if 0.0 < value < float("inf") else None
+
+    return _last_logged(run_dir, step, rate)
 
 
 def finish_run(run_dir: Path) -> tuple[int, str] | None:
