@@ -6,7 +6,7 @@ config.json, progress.json, the learning curve gzipped (metrics.jsonl.gz; `footf
 unpacks it) and the weights once: the newest intact checkpoint while the run is still in training
 (the one kept before goes), or policy/ once it reached its total steps (checkpoints/ goes). The
 folder's evaluation/ and closed_chain/ stay. policies/README.md says what a policy folder keeps;
-footforge.rl.run_folder.keep_run does the work. Exit 0, or 2 naming the folder and what to change.
+footforge.rl.kept_run.keep_run does the work. Exit 0, or 2 naming the folder and what to change.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from footforge.errors import InputError
-from footforge.rl.run_folder import keep_run
+from footforge.rl.kept_run import keep_run
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1311,7 +1311,7 @@ def test_a_kept_run_holds_its_newest_checkpoint_and_gzipped_curve_and_resumes_fr
 
     from footforge.rl import train
     from footforge.rl.checkpoints import checkpoint_problem
-    from footforge.rl.run_folder import keep_run
+    from footforge.rl.kept_run import keep_run
 
     run, cfg, ppo = written_run
     rows = [{"global_step": s, "wall_s": 1.0 + s, "episode/length": 2.0 + s} for s in (0, 16, 32, 48, 64)]
@@ -1344,7 +1344,7 @@ def test_a_finished_run_is_kept_with_its_policy_in_place_of_the_checkpoint(writt
     import shutil
 
     from footforge.rl import train
-    from footforge.rl.run_folder import keep_run
+    from footforge.rl.kept_run import keep_run
 
     run, cfg, ppo = written_run
     dest = run.parent / "kept"
@@ -1464,7 +1464,7 @@ def test_a_kept_curve_that_cannot_be_continued_is_refused_naming_the_file(writte
     """Two copies of the curve (metrics.jsonl and metrics.jsonl.gz) are refused before any work, and a
     gzipped curve that is not gzip is an input error naming the file, not a traceback."""
     from footforge.rl import train
-    from footforge.rl.run_folder import keep_run
+    from footforge.rl.kept_run import keep_run
 
     run, cfg, ppo = written_run
     (run / "metrics.jsonl.gz").write_bytes(b"not gzip")
