@@ -3,6 +3,7 @@ intact by their manifests) and are what policies/README.md says: each was evalua
 feet and walks there by the verdict its evaluation recorded, and still walks there when rolled
 out with today's code (a few robots, a few seconds)."""
 
+import importlib.util
 import json
 
 import pytest
@@ -12,12 +13,12 @@ from footforge.rl.policy_files import load_policy_parameters
 
 from conftest import REPO
 
-SHIPPED = sorted(
-    p.name
-    for p in (REPO / "policies").iterdir()
-    if (p / "policy").is_dir() and json.loads((p / "config.json").read_text())["env"]["task"] == "flat"
-)
-"""The flat policies shipped (scripts/shipped_evaluations.py's shipped()); a finished rough policy is judged
+_spec = importlib.util.spec_from_file_location("shipped_evaluations", REPO / "scripts/shipped_evaluations.py")
+shipped_evaluations = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(shipped_evaluations)
+
+SHIPPED = [run.name for run in shipped_evaluations.shipped()]
+"""The flat policies shipped, as scripts/shipped_evaluations.py selects them; a finished rough policy is judged
 by its evaluation over the terrain's tiles (policies/README.md)."""
 
 
@@ -114,11 +115,7 @@ def test_an_evaluation_repeats_byte_for_byte(built, tmp_path):
 def test_the_tables_of_shipped_policies_are_their_recorded_evaluations():
     """README.md's and policies/README.md's tables are what scripts/shipped_evaluations.py writes from
     the committed evaluations (so a regenerated evaluation cannot leave a stale caption behind)."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("shipped_evaluations", REPO / "scripts/shipped_evaluations.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = shipped_evaluations
     expected = module.table(module.shipped())
     for path in module.TABLES:
         text = path.read_text()

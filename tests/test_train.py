@@ -1322,9 +1322,14 @@ def test_a_kept_run_holds_its_newest_checkpoint_and_gzipped_curve_and_resumes_fr
     (dest / "config.json").write_text((run / "config.json").read_text())
     (dest / "evaluation").mkdir()
     (dest / "evaluation" / "metrics.json").write_text("{}")
+    leftover = dest / "checkpoints" / f".{64:012d}.tmp-999999999-x1"  # a killed keep_run's copy (no such PID)
+    leftover.mkdir()
     written = keep_run(run, dest)
     assert written[-1] == f"checkpoints/{64:012d}" and "metrics.jsonl.gz" in written
-    assert sorted(p.name for p in (dest / "checkpoints").iterdir()) == [f"{64:012d}"]
+    assert sorted(p.name for p in (dest / "checkpoints").iterdir()) == [f"{64:012d}"]  # the leftover went too
+    source, copy = run / "checkpoints" / f"{64:012d}", dest / "checkpoints" / f"{64:012d}"
+    files = [sorted(p.relative_to(folder) for p in folder.rglob("*")) for folder in (source, copy)]
+    assert files[0] == files[1]  # the run's checkpoint as it was: no marker or other file added
     assert not (dest / "metrics.jsonl").exists() and not (dest / "tensorboard").exists()
     assert gzip.decompress((dest / "metrics.jsonl.gz").read_bytes()) == (run / "metrics.jsonl").read_bytes()
     assert (dest / "evaluation" / "metrics.json").read_text() == "{}"
@@ -1401,8 +1406,9 @@ def test_a_resumed_rough_run_starts_its_robots_where_its_curriculum_stood(writte
     assert made[0].curriculum.initial_level_shares == (0.0, 0.0, 0.25, 0.75, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     assert any("mean level 2.75" in n for n in notes), notes
     assert json.loads((run / "config.json").read_text())["env"]["curriculum"]["initial_level_shares"] is None
-    assert train.logged_level_shares(run, 40, 10) == (0.0, 1.0) + (0.0,) * 8
-    assert train.logged_level_shares(run, 8, 10) is None and train.logged_level_shares(run, 64, 6) is None
+    assert train.logged_level_shares(train.curve_rows(run, 40), 10) == (0.0, 1.0) + (0.0,) * 8
+    assert train.logged_level_shares(train.curve_rows(run, 8), 10) is None
+    assert train.logged_level_shares(train.curve_rows(run, 64), 6) is None
 
 
 def test_a_resume_goes_on_with_the_adaptive_learning_rate_it_had(written_run, monkeypatch):
@@ -1435,7 +1441,8 @@ def test_a_resume_goes_on_with_the_adaptive_learning_rate_it_had(written_run, mo
     assert ppo.adaptive_kl and given == [5e-5], given
     assert any("learning rate goes on from 5e-05" in n for n in notes), notes
     assert json.loads((run / "config.json").read_text())["ppo"]["learning_rate"] == ppo.learning_rate
-    assert train.logged_learning_rate(run, 20) == 4e-4 and train.logged_learning_rate(run, 8) is None
+    assert train.logged_learning_rate(train.curve_rows(run, 20)) == 4e-4
+    assert train.logged_learning_rate(train.curve_rows(run, 8)) is None
     fixed = replace(ppo, adaptive_kl=0.0)
     (run / "config.json").write_text(json.dumps({"env": to_dict(cfg), "ppo": to_dict(fixed)}))
     train.train(cfg, fixed, run, resume=True, notice=notes.append)

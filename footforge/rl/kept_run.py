@@ -8,9 +8,10 @@ import gzip
 import json
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
-from footforge.atomic import atomic_file
+from footforge.atomic import atomic_file, remove_stale_temporaries
 from footforge.errors import InputError
 from footforge.outputs import MARKER
 from footforge.rl.checkpoints import checkpoints, latest_intact_checkpoint
@@ -89,14 +90,21 @@ def keep_run(run_dir: Path, dest: Path) -> list[str]:
 
 
 def _replace_tree(source: Path, target: Path) -> None:
-    """Copies the folder `source` to `target`, replacing it whole: a copy beside it, renamed in."""
-    tmp = target.with_name(f".{target.name}.tmp-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
-    shutil.copytree(source, tmp)
-    if target.exists():
-        old = target.with_name(f".{target.name}.old-{os.getpid()}")
-        os.replace(target, old)
-        os.replace(tmp, target)
-        shutil.rmtree(old)
-    else:
-        os.replace(tmp, target)
+    """Copies the folder `source` to `target`, replacing it whole: a copy beside it, renamed in, with
+    footforge.atomic's names for the copy and the folder set aside, so that a later call removes what a
+    killed one left (remove_stale_temporaries). Not atomic_directory itself: that writes footforge's
+    marker into the new folder, and the copy is to be the run's folder byte for byte (a checkpoint holds
+    what orbax wrote and the manifest listing it, a policy/ what policy_files wrote)."""
+    remove_stale_temporaries(target)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-{os.getpid()}-", dir=target.parent))
+    try:
+        shutil.copytree(source, tmp, dirs_exist_ok=True)
+        if target.exists():
+            old = target.with_name(f".{target.name}.old-{os.getpid()}")
+            os.replace(target, old)
+            os.replace(tmp, target)
+            shutil.rmtree(old)
+        else:
+            os.replace(tmp, target)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

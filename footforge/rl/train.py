@@ -148,44 +148,56 @@ LEVEL_SHARE = "episode/terrain/at_level_{}_per_step"
 """The curve's key of the share of ended episodes on a level (the rough environment's metrics)."""
 
 
-def _last_logged(run_dir: Path, step: int, read: Callable[[dict], T | None]) -> T | None:
-    """read(row) of the run's curve's last row at or before `step` for which it returns a value: it raises
-    KeyError, ValueError or TypeError, or returns None, for rows that lack it (another row kind, a line cut
-    short by a kill). None where no row has it."""
+def curve_rows(run_dir: Path, step: int) -> list[dict]:
+    """The run's curve's rows at or before `step`, in order, read once for what a resume takes from
+    them (logged_level_shares, logged_learning_rate); lines cut short by a kill are left out."""
     path = Path(run_dir) / CURVE
-    found = None
+    rows = []
     for line in path.read_text().splitlines() if path.is_file() else []:
         try:
             row = json.loads(line)
-            value = read(row) if int(row["global_step"]) <= step else None
+            if int(row["global_step"]) <= step:
+                rows.append(row)
         except (ValueError, KeyError, TypeError):
             continue
-        found = value if value is not None else found
-    return found
+    return rows
 
 
-def logged_level_shares(run_dir: Path, step: int, num_levels: int) -> tuple[float, ...] | None:
-    """The share of robots on each of `num_levels` levels in the run's curve's last row at or before
-    `step` that logged them (a rough run's training episodes), normalised; None where no row did (a
-    flat run, a rough run resumed before its first log, a curve of another level count)."""
+def _last_logged(rows: list[dict], read: Callable[[dict], T | None]) -> T | None:
+    """read(row) of the last of `rows` for which it returns a value: it raises KeyError, ValueError or
+    TypeError, or returns None, for rows that lack it (another row kind). None where no row has it."""
+    for row in reversed(rows):
+        try:
+            value = read(row)
+        except (ValueError, KeyError, TypeError):
+            continue
+        if value is not None:
+            return value
+    return None
+
+
+def logged_level_shares(rows: list[dict], num_levels: int) -> tuple[float, ...] | None:
+    """The share of robots on each of `num_levels` levels in the last of a curve's `rows` (curve_rows)
+    that logged them (a rough run's training episodes), normalised; None where no row did (a flat
+    run, a rough run resumed before its first log, a curve of another level count)."""
 
     def shares(row: dict) -> tuple[float, ...] | None:
         x = [float(row[LEVEL_SHARE.format(k)]) for k in range(num_levels)]
         ok = LEVEL_SHARE.format(num_levels) not in row and min(x) >= 0 and sum(x) > 0
         return tuple(round(v / sum(x), 6) for v in x) if ok else None
 
-    return _last_logged(run_dir, step, shares)
+    return _last_logged(rows, shares)
 
 
-def logged_learning_rate(run_dir: Path, step: int) -> float | None:
-    """The learning rate in the run's curve's last row at or before `step` that logged one (Brax's
+def logged_learning_rate(rows: list[dict]) -> float | None:
+    """The learning rate in the last of a curve's `rows` (curve_rows) that logged one (Brax's
     "training/learning_rate": the adaptive-KL schedule's), or None where none did."""
 
     def rate(row: dict) -> float | None:
         value = float(row["training/learning_rate"])
         return value if 0.0 < value < float("inf") else None
 
-    return _last_logged(run_dir, step, rate)
+    return _last_logged(rows, rate)
 
 
 def finish_run(run_dir: Path) -> tuple[int, str] | None:
@@ -440,11 +452,9 @@ def train(
 
     # A resumed rough run's robots start on the levels where its curriculum stood (CurriculumConfig.
     # initial_level_shares); config.json keeps the configuration the run began with.
-    shares = (
-        logged_level_shares(run_dir, offset, env_config.terrain.num_levels)
-        if resume and env_config.task == "rough"
-        else None
-    )
+    # What a resume takes from the curve so far, read once.
+    logged = curve_rows(run_dir, offset) if resume else []
+    shares = logged_level_shares(logged, env_config.terrain.num_levels) if env_config.task == "rough" else None
     if shares is not None:
         notice(
             f"the curriculum goes on from the level shares logged at or before step {offset:,} (mean level "
@@ -518,7 +528,7 @@ def train(
                 raise _OutOfTime()
 
     # A resume's adaptive learning rate goes on where it stood (module docstring).
-    resumed_rate = logged_learning_rate(run_dir, offset) if resume and ppo.adaptive_kl else None
+    resumed_rate = logged_learning_rate(logged) if ppo.adaptive_kl else None
     if resumed_rate is not None:
         notice(f"the adaptive learning rate goes on from {resumed_rate:.3g} (logged at or before step {offset:,})")
     try:
