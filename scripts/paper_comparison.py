@@ -11,6 +11,12 @@ as accumulating (footforge.outputs): footforge's commands do not replace it with
 
     python scripts/paper_comparison.py --out benchmarks/paper_comparison_1024 --max-minutes 60
     python scripts/paper_comparison.py --out /tmp/cmp --pairs flat_aff_BH:aff --num-envs 32 --seconds 20
+    python scripts/paper_comparison.py --rough --out benchmarks/paper_comparison_rough --max-minutes 60
+
+With --rough, the paper's rough comparison (its Figure 9 and Table 3): ROUGH_PAIRS by default, 17.5 s per robot
+(the paper's rough evaluation) over every terrain tile; a default pair whose policy has no finished policy/
+under policies/ yet (not trained, or still in training) is left out and named ("not_trained" in the summary, a
+line under the joined table), so the comparison grows as the policies arrive.
 
 A pair is done when its folder's metrics.json was made by the same policy (a digest of its policy/
 files), feet, robots, seconds and seed; a pair whose policy changed is evaluated again. The pairs
@@ -47,6 +53,22 @@ PAPER_PAIRS = (
 AOF's own policy and the ball baseline on AOF beside them. The ball baseline is `flat_ball_B_cpu`, trained
 by the same preset as the AFF and AOF policies (the paper's baseline is legged_gym's ANYmal C policy,
 also trained by the recipe of the others)."""
+
+ROUGH_PAIRS = (
+    ("rough_ball_P", "ball"),
+    ("rough_ball_P", "aff"),
+    ("rough_ball_P", "aof"),
+    ("rough_aff_P", "aff"),
+    ("rough_aff_PH", "aff"),
+    ("rough_aof_P", "aof"),
+    ("rough_aof_PH", "aof"),
+    ("rough_aof_B", "aof"),
+    ("rough_aof_BH", "aof"),
+)
+"""The paper's rough comparison (Figure 9, Table 3): the ball-feet perceptive baseline on its own feet and
+zero-shot on AFF and AOF, and the adaptive feet's own perceptive, haptic and blind policies (issue 45's order)."""
+ROUGH_SECONDS = 17.5
+"""The paper's rough evaluation: 1,024 robots for 17.5 s."""
 
 
 def parse_pair(text: str) -> tuple[str, str]:
@@ -130,15 +152,17 @@ def evaluate_pair(policy: Path, feet: str, folder: Path, wanted: dict, args) -> 
     return code
 
 
-def join(out: Path, folders: list[Path]) -> None:
-    """OUT/comparison.md, metrics.json and comparison.png from the pairs' metrics, in the pairs' order."""
+def join(out: Path, folders: list[Path], not_trained: list[str]) -> None:
+    """OUT/comparison.md, metrics.json and comparison.png from the pairs' metrics, in the pairs' order;
+    `not_trained` (pairs left out for want of a policy) named under the table."""
     from footforge.atomic import atomic_file, write_json
     from footforge.rl.evaluate import comparison_markdown, plot_indices
 
     results = [r for f in folders for r in json.loads((f / "metrics.json").read_text())]
     write_json(out / "metrics.json", results)
     with atomic_file(out / "comparison.md") as tmp:
-        tmp.write_text(comparison_markdown(results))
+        missing = f"\nNot trained yet, left out: {', '.join(not_trained)}.\n" if not_trained else ""
+        tmp.write_text(comparison_markdown(results) + missing)
     plot_indices(results, out)
 
 
@@ -146,16 +170,24 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path, required=True, help="the comparison's folder (new, or one this script made)")
     p.add_argument(
+        "--rough",
+        action="store_true",
+        help="the paper's rough comparison: ROUGH_PAIRS by default (those trained so far), --seconds 17.5",
+    )
+    p.add_argument(
         "--pairs",
         type=parse_pair,
         nargs="+",
-        default=list(PAPER_PAIRS),
         metavar="POLICY:FEET",
         help="policy (a folder under policies/, or a run or policy folder) and the feet to walk it on "
-        "(default: " + " ".join(f"{p}:{f}" for p, f in PAPER_PAIRS) + ")",
+        "(default: " + " ".join(f"{p}:{f}" for p, f in PAPER_PAIRS) + "; with --rough ROUGH_PAIRS)",
     )
     p.add_argument("--num-envs", type=int, default=1024, help="robots per pair (default the paper's 1,024)")
-    p.add_argument("--seconds", type=float, default=60.0, help="simulated time per robot (default the paper's 60 s)")
+    p.add_argument(
+        "--seconds",
+        type=float,
+        help=f"simulated time per robot (default the paper's 60 s; with --rough {ROUGH_SECONDS})",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
         "--max-minutes",
@@ -163,6 +195,16 @@ def main(argv: list[str] | None = None) -> int:
         help="start no pair after this wall time, nor one the longest pair so far says would end after it",
     )
     args = p.parse_args(argv)
+    if args.seconds is None:
+        args.seconds = ROUGH_SECONDS if args.rough else 60.0
+    not_trained = []
+    if args.pairs is None and args.rough:
+        not_trained = [
+            f"{policy}:{feet}" for policy, feet in ROUGH_PAIRS if not (POLICIES / policy / "policy").is_dir()
+        ]
+        args.pairs = [(policy, feet) for policy, feet in ROUGH_PAIRS if (POLICIES / policy / "policy").is_dir()]
+    elif args.pairs is None:
+        args.pairs = list(PAPER_PAIRS)
 
     from footforge.errors import InputError
     from footforge.outputs import ACCUMULATING, write_marker
@@ -171,6 +213,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.num_envs < 1 or args.seconds <= 0 or (args.max_minutes is not None and args.max_minutes <= 0):
             raise InputError("--num-envs, --seconds and --max-minutes must be positive")
+        if not args.pairs:
+            raise InputError(f"--rough: none of the rough policies is trained yet ({', '.join(not_trained)})")
         check_out(args.out)
         pairs = []
         for policy, feet in args.pairs:
@@ -208,12 +252,13 @@ def main(argv: list[str] | None = None) -> int:
             longest_s = max(longest_s, clock() - t0)
     left = [f.name for policy, feet, f in pairs if not done(f, settings(policy, feet, args))]
     if not left:
-        join(args.out, [f for _, _, f in pairs])
+        join(args.out, [f for _, _, f in pairs], not_trained)
     summary = {
         "paper_comparison": "done" if not left else "pairs left",
         "evaluated": evaluated,
         "failed": failed,
         "left": left,
+        "not_trained": not_trained,
         "wall_s": round(clock() - started, 1),
     }
     print(json.dumps(summary))

@@ -104,6 +104,27 @@ def test_a_users_folder_and_bad_pairs_are_refused_before_any_work(script, tmp_pa
     assert calls == []
 
 
+def test_the_rough_comparison_takes_the_rough_policies_trained_so_far(script, tmp_path, capsys, monkeypatch):
+    """--rough: the paper's rough pairs at 17.5 s, those whose policy has a finished policy/ under
+    policies/; the others (not trained, or in training with checkpoints only) named, in the summary and under
+    the joined table. With none trained it is refused (exit 2) before any work."""
+    module, calls = script
+    policies = tmp_path / "policies"
+    monkeypatch.setattr(module, "POLICIES", policies)
+    out = tmp_path / "cmp"
+    assert module.main(["--rough", "--out", str(out)]) == 2 and not out.exists()
+    shutil.copytree(REPO / "policies/flat_aof_B/policy", policies / "rough_aof_P" / "policy")
+    shutil.copytree(REPO / "policies/flat_aof_B/policy", policies / "rough_ball_P" / "policy")
+    (policies / "rough_aof_PH" / "checkpoints" / "000000000064").mkdir(parents=True)  # still in training
+    assert module.main(["--rough", "--out", str(out), "--num-envs", "8"]) == 0
+    assert calls == [("rough_ball_P", feet, 8, 0) for feet in ("ball", "aff", "aof")] + [("rough_aof_P", "aof", 8, 0)]
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert "rough_aof_PH:aof" in summary["not_trained"] and "rough_aof_P:aof" not in summary["not_trained"]
+    assert len(summary["not_trained"]) == len(module.ROUGH_PAIRS) - 4
+    assert json.loads((out / "rough_aof_P_on_aof" / "pair.json").read_text())["seconds"] == module.ROUGH_SECONDS
+    assert "Not trained yet, left out: " in (out / "comparison.md").read_text()
+
+
 def test_footforge_does_not_replace_the_comparison_folder_unforced(script, tmp_path):
     """A comparison's folder holds pairs of many calls: footforge's commands refuse to replace it, as a run folder."""
     from footforge.errors import InputError
