@@ -132,3 +132,26 @@ def test_card_of_an_untrained_policy_says_what_was_not_recorded(tmp_path):
     assert "freshly initialised" in card and "| wall time | not recorded |" in card
     assert "| machine | not recorded |" in card and "zero-shot" not in card
     assert card_name(0, 1) == "policy_card.md" and card_name(2, 3) == "policy_card_2.md"
+
+
+def test_card_of_a_rough_evaluation_tables_crossings_and_falls_by_kind_and_level(tmp_path):
+    """A rough evaluation's robots by kind and level: each cell its tile's crossed/robots and falls, a
+    level a kind lacks as '-'; a flat evaluation gets no such table."""
+    from footforge.rl.evaluate import terrain_levels_markdown
+
+    policy = tmp_path / "rough_aof_P" / "policy"
+    policy.mkdir(parents=True)
+    env = envs.default_config("rough", "aof", "P")
+    (policy / "footforge.json").write_text(json.dumps({"env": to_dict(env), "ppo": to_dict(PPOConfig())}))
+    rough = _result(policy, "aof", 0.0) | {"task": "rough"}
+    tile = {"diverged": 0} | {name: 0.1 for name in INDICES}
+    rough["by_terrain"] = {
+        "stairs_up": {"0": tile | {"robots": 5, "falls": 1, "crossed": 4}, "1": tile | {"robots": 4, "falls": 4}},
+        "discrete": {"1": tile | {"robots": 3, "falls": 0, "crossed": 3}},
+    }
+    table = terrain_levels_markdown(rough).splitlines()
+    assert table[0] == "| kind | level 0 | level 1 |"
+    assert table[2:] == ["| discrete | - | 3/3, fell 0 |", "| stairs_up | 4/5, fell 1 | 0/4, fell 4 |"]
+    card = policy_card(policy, [(0, rough)], [])
+    assert "\n".join(table) in card and "by terrain kind and level, on aof feet" in card
+    assert terrain_levels_markdown(_result(policy, "aof", 0.0)) == ""

@@ -613,7 +613,7 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
     """A perceptive ball-foot policy (freshly initialised) evaluated over every tile of a small
     terrain: indices per kind and level, and the Figure 9 table (zero-shot on other feet is the
     flat evaluation's test: the same code)."""
-    from footforge.rl.evaluate import INDICES
+    from footforge.rl.evaluate import INDICES, terrain_levels_markdown
     from footforge.rl.train import default_ppo, initial_policy
 
     config = replace(envs.default_config("rough", "ball", "P"), terrain=SMALL)
@@ -646,6 +646,7 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
         assert gait["reach_m"] < 4.0 and 0 <= gait["level"] < SMALL.num_levels
     card = (report / "policy_card.md").read_text()  # this evaluation's indices, its plots linked
     assert "freshly initialised" in card and "[contacts_0.png](contacts_0.png)" in card
+    assert terrain_levels_markdown(result) in card  # crossings and falls by kind and level
     for kind in ("stairs_up", "stepping_stones"):  # the two kinds' contact schedules (GAIT_KINDS)
         if kind in by_terrain:
             assert (report / f"contacts_0_{kind}.png").is_file(), kind

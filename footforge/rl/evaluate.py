@@ -514,6 +514,27 @@ def terrain_markdown(results: list[dict]) -> str:
     )
 
 
+def terrain_levels_markdown(result: dict) -> str:
+    """One rough evaluation's robots by terrain kind (rows) and level (columns): in each cell the robots that
+    crossed their tile and those that fell, of the robots spawned there ("crossed/robots, fell n");
+    empty for a flat evaluation."""
+    by_terrain = result.get("by_terrain") or {}
+    levels = sorted({int(level) for tiles in by_terrain.values() for level in tiles})
+    rows = []
+    for kind in sorted(by_terrain):
+        tiles = {int(level): t for level, t in by_terrain[kind].items()}
+        rows.append(
+            [kind]
+            + [
+                f"{tiles[lv].get('crossed', 0)}/{tiles[lv]['robots']}, fell {tiles[lv]['falls']}"
+                if lv in tiles
+                else "-"
+                for lv in levels
+            ]
+        )
+    return "\n".join(markdown_table(["kind", *(f"level {lv}" for lv in levels)], rows)) + "\n" if rows else ""
+
+
 def record(
     policy_dir: Path,
     *,

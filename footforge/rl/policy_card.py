@@ -16,7 +16,14 @@ from pathlib import Path
 
 from footforge.envs import engine
 from footforge.rl.config import steps_before
-from footforge.rl.evaluate import AFTER_EVENT_S, INDEX_UNITS, INDICES, command_falls_cell, falls_cell
+from footforge.rl.evaluate import (
+    AFTER_EVENT_S,
+    INDEX_UNITS,
+    INDICES,
+    command_falls_cell,
+    falls_cell,
+    terrain_levels_markdown,
+)
 from footforge.tables import markdown_table
 
 
@@ -81,6 +88,17 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
         "(footforge/rl/evaluate.py defines the indices). The verdict (walks, stands or falls) comes "
         "from the forward error, the time up, the base height and each foot's share of the ground "
         "(footforge/rl/verdict.py).",
+    ]
+    for _, r in evaluations:
+        if r.get("by_terrain"):
+            lines += [
+                "",
+                f"Robots that crossed their tile and robots that fell, by terrain kind and level, on {r['feet']} "
+                "feet (each robot spawned on one tile, commanded across it; level l: difficulty l / levels):",
+                "",
+                terrain_levels_markdown(r).rstrip("\n"),
+            ]
+    lines += [
         "",
         "## Plots",
         "",
