@@ -72,8 +72,12 @@ def curve(folder: Path) -> list[dict]:
 
 
 def _window_mean(rows: list[dict], end_step: int) -> float:
+    """The mean level of the rows in the window ending at `end_step`; a window holding no row (logs further
+    apart than the window) takes the last row at or before it."""
     inside = [r[LEVEL_KEY] for r in rows if end_step - PLATEAU_WINDOW_STEPS < r["global_step"] <= end_step]
-    return statistics.fmean(inside)
+    if inside:
+        return statistics.fmean(inside)
+    return [r[LEVEL_KEY] for r in rows if r["global_step"] <= end_step][-1]
 
 
 def level_reached(rows: list[dict]) -> dict:
@@ -106,7 +110,7 @@ def evaluation(folder: Path, feet: str) -> dict | None:
         "robots": n,
         "seconds": r["seconds"],
         "fell": round(r["falls"] / n, 3),
-        "crossed": round(r["crossed"] / n, 3),
+        "crossed": round(r["crossed"] / n, 3) if "crossed" in r else None,  # not counted before 2026-11-29
         "vx_error_mps": round(r["indices"]["lin_vel_x_error"]["mean"], 3),
         "verdict": r["walking"]["verdict"],
     }
@@ -143,12 +147,22 @@ def main(argv: list[str] | None = None) -> int:
         if not config.is_file():
             print(f"{folder}: no config.json (give a training run's folder)", file=sys.stderr)
             return 2
-        env = json.loads(config.read_text())["env"]
+        saved = json.loads(config.read_text())
+        env, seed = saved["env"], saved["ppo"]["seed"]
         if env.get("task") != "rough":
             print(f"{folder}: a {env.get('task')} run; the touch comparison takes rough runs", file=sys.stderr)
             return 2
-        seed = json.loads(config.read_text())["ppo"]["seed"]
+        if any((r["feet"], r["policy"], r["seed"]) == (env["feet"], env["policy"], seed) for r in runs):
+            print(
+                f"{folder}: a second {env['feet']} {env['policy']} run of seed {seed} (the same run twice?); "
+                "each seed counts once",
+                file=sys.stderr,
+            )
+            return 2
         rows = curve(folder)
+        if not rows:
+            print(f"{folder}: its curve has no {LEVEL_KEY} rows yet (train it past its first log)", file=sys.stderr)
+            return 2
         runs.append(
             {"run": folder.name, "feet": env["feet"], "policy": env["policy"], "seed": seed, "rows": rows}
             | level_reached(rows)
@@ -167,7 +181,11 @@ def main(argv: list[str] | None = None) -> int:
             "level": summarise([m["level"] for m in members]),
             "level_at_common_step": summarise([m["level_at_common_step"] for m in members]),
         } | (
-            {k: summarise([e[k] for e in evaluated]) for k in ("fell", "crossed", "vx_error_mps")} if evaluated else {}
+            {
+                k: summarise([e[k] for e in evaluated])
+                for k in ("fell", "crossed", "vx_error_mps")
+                if evaluated and all(e[k] is not None for e in evaluated)
+            }
         )
     answers = []
     for feet in sorted({f for f, _ in arms}):
@@ -195,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
         lines.append(
             f"| {r['run']} | {r['feet']} | {r['policy']} | {r['seed']} | {r['steps'] / 1e6:.2f} | {r['level']:.2f} "
             f"| {plateau} | {r['level_at_common_step']:.2f} | {e.get('robots', '-')} x {e.get('seconds', '-')} "
-            f"| {e.get('fell', '-')} | {e.get('crossed', '-')} | {e.get('vx_error_mps', '-')} "
+            f"| {e.get('fell', '-')} | {'-' if e.get('crossed') is None else e['crossed']} | {e.get('vx_error_mps', '-')} "
             f"| {e.get('verdict', 'not evaluated')} |"
         )
     lines += [
@@ -229,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
             label=f"{r['feet'].upper()} {r['policy']} seed {r['seed']}",
         )
     ax.set_xlabel("environment steps (M)")
-    ax.set_ylabel("mean terrain level (0-9)")
+    ax.set_ylabel("mean terrain level")
     ax.set_title("terrain curriculum: haptic against non-haptic", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()

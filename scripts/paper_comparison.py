@@ -14,8 +14,9 @@ as accumulating (footforge.outputs): footforge's commands do not replace it with
     python scripts/paper_comparison.py --rough --out benchmarks/paper_comparison_rough --max-minutes 60
 
 With --rough, the paper's rough comparison (its Figure 9 and Table 3): ROUGH_PAIRS by default, 17.5 s per robot
-(the paper's rough evaluation) over every terrain tile; a default pair whose policy has no finished policy/
-under policies/ yet (not trained, or still in training) is left out and named ("not_trained" in the summary, a
+(the paper's rough evaluation) over every terrain tile, with the table per terrain kind; a default pair whose
+policy has no policy/ under policies/ yet (keep_run writes it once the run reached its total steps; a run
+still in training keeps a checkpoint instead) is left out and named ("not_trained" in the summary, a
 line under the joined table), so the comparison grows as the policies arrive.
 
 A pair is done when its folder's metrics.json was made by the same policy (a digest of its policy/
@@ -156,13 +157,15 @@ def join(out: Path, folders: list[Path], not_trained: list[str]) -> None:
     """OUT/comparison.md, metrics.json and comparison.png from the pairs' metrics, in the pairs' order;
     `not_trained` (pairs left out for want of a policy) named under the table."""
     from footforge.atomic import atomic_file, write_json
-    from footforge.rl.evaluate import comparison_markdown, plot_indices
+    from footforge.rl.evaluate import comparison_markdown, plot_indices, terrain_markdown
 
     results = [r for f in folders for r in json.loads((f / "metrics.json").read_text())]
     write_json(out / "metrics.json", results)
     with atomic_file(out / "comparison.md") as tmp:
         missing = f"\nNot trained yet, left out: {', '.join(not_trained)}.\n" if not_trained else ""
-        tmp.write_text(comparison_markdown(results) + missing)
+        # Rough results: also Figure 9's table, per terrain kind, and each kind's verdict.
+        rough = terrain_markdown(results)
+        tmp.write_text(comparison_markdown(results) + (f"\n{rough}" if rough else "") + missing)
     plot_indices(results, out)
 
 

@@ -146,12 +146,15 @@ def test_card_of_a_rough_evaluation_tables_crossings_and_falls_by_kind_and_level
     rough = _result(policy, "aof", 0.0) | {"task": "rough"}
     tile = {"diverged": 0} | {name: 0.1 for name in INDICES}
     rough["by_terrain"] = {
-        "stairs_up": {"0": tile | {"robots": 5, "falls": 1, "crossed": 4}, "1": tile | {"robots": 4, "falls": 4}},
+        "stairs_up": {
+            "0": tile | {"robots": 5, "falls": 1, "crossed": 4},
+            "1": tile | {"robots": 4, "falls": 4},
+        },  # crossings not counted
         "discrete": {"1": tile | {"robots": 3, "falls": 0, "crossed": 3}},
     }
     table = terrain_levels_markdown(rough).splitlines()
     assert table[0] == "| kind | level 0 | level 1 |"
-    assert table[2:] == ["| discrete | - | 3/3, fell 0 |", "| stairs_up | 4/5, fell 1 | 0/4, fell 4 |"]
+    assert table[2:] == ["| discrete | - | 3/3, fell 0 |", "| stairs_up | 4/5, fell 1 | -/4, fell 4 |"]
     card = policy_card(policy, [(0, rough)], [])
     assert "\n".join(table) in card and "by terrain kind and level, on aof feet" in card
     assert terrain_levels_markdown(_result(policy, "aof", 0.0)) == ""

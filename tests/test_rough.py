@@ -646,7 +646,8 @@ def test_rough_evaluation_output_is_complete(built, tmp_path):
         assert gait["reach_m"] < 4.0 and 0 <= gait["level"] < SMALL.num_levels
     card = (report / "policy_card.md").read_text()  # this evaluation's indices, its plots linked
     assert "freshly initialised" in card and "[contacts_0.png](contacts_0.png)" in card
-    assert terrain_levels_markdown(result) in card  # crossings and falls by kind and level
+    levels_table = terrain_levels_markdown(result)  # crossings and falls by kind and level
+    assert levels_table.startswith("| kind | level ") and levels_table in card
     for kind in ("stairs_up", "stepping_stones"):  # the two kinds' contact schedules (GAIT_KINDS)
         if kind in by_terrain:
             assert (report / f"contacts_0_{kind}.png").is_file(), kind

@@ -70,13 +70,15 @@ def test_touch_helps_only_beyond_the_spread_of_the_seeds(tmp_path, capsys):
     assert (tmp_path / "o" / "touch_comparison.png").stat().st_size > 0
     assert "| aof_PH | 3 | 4.000 ± 0.100 |" in (tmp_path / "o" / "touch_comparison.md").read_text()
 
-    for seed, top in enumerate((3.0, 3.3)):
+    # BH 3.0 and 3.4 (mean 3.2, sd 0.283), B 3.0 and 3.1 (mean 3.05, sd 0.071): the gap of 0.15 is more than
+    # B's spread alone and less than the two added.
+    for seed, top in enumerate((3.0, 3.4)):
         _run(tmp_path / f"bh{seed}", "BH", seed, _ramp(top))
-    for seed, top in enumerate((3.1, 3.2)):
+    for seed, top in enumerate((3.0, 3.1)):
         _run(tmp_path / f"b{seed}", "B", seed, _ramp(top))
     assert touch.main([str(tmp_path / n) for n in ("bh0", "bh1", "b0", "b1")] + ["--out", str(tmp_path / "o2")]) == 0
     answers = json.loads(capsys.readouterr().out.splitlines()[-1])["answers"]
-    assert any(a.startswith("AOF BH vs B, level: +0.000, no difference beyond") for a in answers), answers
+    assert any(a.startswith("AOF BH vs B, level: +0.150, no difference beyond") for a in answers), answers
 
     assert touch.main([str(tmp_path / "ph0"), str(tmp_path / "p0"), "--out", str(tmp_path / "o3")]) == 0
     answers = json.loads(capsys.readouterr().out.splitlines()[-1])["answers"]
@@ -105,6 +107,24 @@ def test_evaluations_give_the_shares_fell_and_crossed(tmp_path, capsys):
         "vx_error_mps": 0.2,
         "verdict": "falls",
     }
+    older = {k: v for k, v in evaluation.items() if k != "crossed"}  # from before crossings were counted
+    _run(tmp_path / "p1", "P", 1, _ramp(2.0), evaluation=older)
+    assert touch.main([str(tmp_path / "p"), str(tmp_path / "p1"), "--out", str(tmp_path / "o1")]) == 0
+    out = json.loads(capsys.readouterr().out.splitlines()[-1])
+    assert out["runs"]["p1"]["evaluation"]["crossed"] is None and "crossed" not in out["arms"]["aof_P"]
+    assert out["arms"]["aof_P"]["fell"] == {"mean": 0.25, "sd": 0.0, "n": 2}
+
+
+def test_a_run_given_twice_and_a_run_without_levels_are_refused(tmp_path, capsys):
+    _run(tmp_path / "p", "P", 0, _ramp(2.0))
+    (tmp_path / "again").mkdir()
+    for name in ("config.json", "metrics.jsonl"):
+        (tmp_path / "again" / name).write_bytes((tmp_path / "p" / name).read_bytes())
+    assert touch.main([str(tmp_path / "p"), str(tmp_path / "again"), "--out", str(tmp_path / "o")]) == 2
+    assert "each seed counts once" in capsys.readouterr().err
+    _run(tmp_path / "young", "PH", 0, [])
+    assert touch.main([str(tmp_path / "young"), "--out", str(tmp_path / "o")]) == 2
+    assert "no episode/terrain/level_per_step rows yet" in capsys.readouterr().err
 
 
 def test_a_flat_run_is_refused(tmp_path, capsys):

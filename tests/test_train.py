@@ -1322,11 +1322,11 @@ def test_a_kept_run_holds_its_newest_checkpoint_and_gzipped_curve_and_resumes_fr
     (dest / "config.json").write_text((run / "config.json").read_text())
     (dest / "evaluation").mkdir()
     (dest / "evaluation" / "metrics.json").write_text("{}")
-    leftover = dest / "checkpoints" / f".{64:012d}.tmp-999999999-x1"  # a killed keep_run's copy (no such PID)
-    leftover.mkdir()
+    for step in (64, 16):  # killed keep_runs' copies (no such PID) of this checkpoint and of an older one
+        (dest / "checkpoints" / f".{step:012d}.tmp-999999999-x1").mkdir()
     written = keep_run(run, dest)
     assert written[-1] == f"checkpoints/{64:012d}" and "metrics.jsonl.gz" in written
-    assert sorted(p.name for p in (dest / "checkpoints").iterdir()) == [f"{64:012d}"]  # the leftover went too
+    assert sorted(p.name for p in (dest / "checkpoints").iterdir()) == [f"{64:012d}"]  # the leftovers went too
     source, copy = run / "checkpoints" / f"{64:012d}", dest / "checkpoints" / f"{64:012d}"
     files = [sorted(p.relative_to(folder) for p in folder.rglob("*")) for folder in (source, copy)]
     assert files[0] == files[1]  # the run's checkpoint as it was: no marker or other file added
@@ -1530,3 +1530,18 @@ def test_the_policy_s_initial_actions_are_as_small_as_its_output_scale_says():
     assert default < 0.05, default
     np.testing.assert_array_equal(default_deviation, full_deviation)
     np.testing.assert_array_equal(tenth_deviation, full_deviation)
+
+
+def test_curve_rows_read_a_kept_gzipped_curve_where_the_plain_one_is_not_there(tmp_path):
+    """A process that reads before process 0 unpacked a kept curve (continue_curve) reads the gzipped copy:
+    the same rows up to the step, a cut line left out; an unreadable copy gives no rows (process 0 names it)."""
+    import gzip
+
+    from footforge.rl import train
+
+    lines = [json.dumps({"global_step": s, "training/learning_rate": 1e-4 * s}) for s in (8, 16, 24)]
+    (tmp_path / "metrics.jsonl.gz").write_bytes(gzip.compress(("\n".join(lines) + '\n{"global_st').encode()))
+    assert [r["global_step"] for r in train.curve_rows(tmp_path, 16)] == [8, 16]
+    assert train.logged_learning_rate(train.curve_rows(tmp_path, 16)) == pytest.approx(1.6e-3)
+    (tmp_path / "metrics.jsonl.gz").write_bytes(b"not gzip")
+    assert train.curve_rows(tmp_path, 16) == []

@@ -516,7 +516,8 @@ def terrain_markdown(results: list[dict]) -> str:
 
 def terrain_levels_markdown(result: dict) -> str:
     """One rough evaluation's robots by terrain kind (rows) and level (columns): in each cell the robots that
-    crossed their tile and those that fell, of the robots spawned there ("crossed/robots, fell n");
+    crossed their tile and those that fell, of the robots spawned there ("crossed/robots, fell n"; a robot that
+    crossed and then fell counts in both; "-/robots" in an evaluation from before crossings were counted);
     empty for a flat evaluation."""
     by_terrain = result.get("by_terrain") or {}
     levels = sorted({int(level) for tiles in by_terrain.values() for level in tiles})
@@ -526,7 +527,7 @@ def terrain_levels_markdown(result: dict) -> str:
         rows.append(
             [kind]
             + [
-                f"{tiles[lv].get('crossed', 0)}/{tiles[lv]['robots']}, fell {tiles[lv]['falls']}"
+                f"{tiles[lv].get('crossed', '-')}/{tiles[lv]['robots']}, fell {tiles[lv]['falls']}"
                 if lv in tiles
                 else "-"
                 for lv in levels

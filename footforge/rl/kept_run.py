@@ -7,6 +7,7 @@ from __future__ import annotations
 import gzip
 import json
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -85,6 +86,9 @@ def keep_run(run_dir: Path, dest: Path) -> list[str]:
         for _, older in checkpoints(dest):
             if older != target:
                 shutil.rmtree(older)
+        # A killed call's copy of an older checkpoint, which checkpoints() does not list (a hidden name).
+        for name in {m[1] for m in (re.match(r"^\.(\d+)\.(?:tmp|old)-", e.name) for e in target.parent.iterdir()) if m}:
+            remove_stale_temporaries(target.parent / name)
         written.append(f"checkpoints/{newest[1].name}")
     return written
 

@@ -94,7 +94,8 @@ def policy_card(policy_dir: Path, evaluations: list[tuple[int, dict]], files: li
             lines += [
                 "",
                 f"Robots that crossed their tile and robots that fell, by terrain kind and level, on {r['feet']} "
-                "feet (each robot spawned on one tile, commanded across it; level l: difficulty l / levels):",
+                "feet (each robot spawned on one tile, commanded across it; one that crossed and then fell counts "
+                "in both; level l: difficulty l / levels):",
                 "",
                 terrain_levels_markdown(r).rstrip("\n"),
             ]

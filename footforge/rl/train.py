@@ -150,10 +150,15 @@ LEVEL_SHARE = "episode/terrain/at_level_{}_per_step"
 
 def curve_rows(run_dir: Path, step: int) -> list[dict]:
     """The run's curve's rows at or before `step`, in order, read once for what a resume takes from
-    them (logged_level_shares, logged_learning_rate); lines cut short by a kill are left out."""
-    path = Path(run_dir) / CURVE
+    them (logged_level_shares, logged_learning_rate); lines cut short by a kill are left out. The gzipped
+    copy (CURVE_KEPT) where CURVE is not there (continue_curve unpacks it on process 0 only)."""
+    path, packed = Path(run_dir) / CURVE, Path(run_dir) / CURVE_KEPT
+    try:
+        text = path.read_text() if path.is_file() else gzip.decompress(packed.read_bytes()).decode()
+    except (OSError, EOFError, UnicodeDecodeError):  # none, or unreadable (continue_curve names it on process 0)
+        text = ""
     rows = []
-    for line in path.read_text().splitlines() if path.is_file() else []:
+    for line in text.splitlines():
         try:
             row = json.loads(line)
             if int(row["global_step"]) <= step:
@@ -450,11 +455,13 @@ def train(
     # The curve continues from the restored checkpoint (module docstring).
     evaluated_at_offset = continue_curve(run_dir, offset, resumes) if resume and primary else False
 
-    # A resumed rough run's robots start on the levels where its curriculum stood (CurriculumConfig.
-    # initial_level_shares); config.json keeps the configuration the run began with.
-    # What a resume takes from the curve so far, read once.
+    # What a resume takes from the curve so far, read once: a rough run's robots start on the levels where
+    # its curriculum stood (CurriculumConfig.initial_level_shares; config.json keeps the configuration the
+    # run began with), and the adaptive learning rate goes on where it stood (module docstring).
     logged = curve_rows(run_dir, offset) if resume else []
     shares = logged_level_shares(logged, env_config.terrain.num_levels) if env_config.task == "rough" else None
+    resumed_rate = logged_learning_rate(logged) if ppo.adaptive_kl else None
+    del logged
     if shares is not None:
         notice(
             f"the curriculum goes on from the level shares logged at or before step {offset:,} (mean level "
@@ -527,8 +534,6 @@ def train(
             if budget.out_of_time(time.time(), float(metrics.get("eval/epoch_eval_time", 0.0))):
                 raise _OutOfTime()
 
-    # A resume's adaptive learning rate goes on where it stood (module docstring).
-    resumed_rate = logged_learning_rate(logged) if ppo.adaptive_kl else None
     if resumed_rate is not None:
         notice(f"the adaptive learning rate goes on from {resumed_rate:.3g} (logged at or before step {offset:,})")
     try:
