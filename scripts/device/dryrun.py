@@ -210,16 +210,16 @@ ROUGH_ITERATION = 64 * 4 * 24
 minibatches of 64 trajectories: 6,144), the unit the dry run's rough runs advance by."""
 
 
-ROUGH_JOBS = (("aof", "PH", "policies/rough_aof_PH"), ("ball", "P", None))
+ROUGH_JOBS = (("ball", "P", None), ("aof", "B", None))
 """The prepared rough call's jobs (docs/training.md): feet, policy type, and the committed run each resumes
 (None: begun under the rough `cpu` preset)."""
 
 
 def rough_campaign(work: Path, repo: Path, env: dict) -> dict:
-    """The prepared rough call (docs/training.md) through campaign.sh --cpu, shortened: the committed
-    rough AOF PH run resumed for two PPO iterations beside ball P begun under the rough `cpu` preset for
-    two, side by side on the C engine; then, as on a new machine (no runs/, no cache), both resumed from
-    their tarballs for one more. Returns the figures for the summary line."""
+    """The prepared rough call (docs/training.md) through campaign.sh --cpu, shortened: its jobs (ROUGH_JOBS;
+    a committed run resumed, or a run begun under the rough `cpu` preset) for two PPO iterations, side by
+    side on the C engine; then, as on a new machine (no runs/, no cache), both resumed from their tarballs
+    for one more. Returns the figures for the summary line."""
     if " " in str(work):
         raise Failed(f"--rough needs a WORKDIR without spaces (campaign.sh splits its jobs at spaces): {work}")
     campaign = repo / "scripts/device/campaign.sh"
