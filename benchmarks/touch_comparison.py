@@ -209,11 +209,12 @@ def main(argv: list[str] | None = None) -> int:
     ]
     for r in runs:
         e = r["evaluation"] or {}
+        crossed = "-" if e.get("crossed") is None else e["crossed"]
         plateau = f"{r['plateau_from_step'] / 1e6:.1f}" if r["plateau_from_step"] is not None else "-"
         lines.append(
             f"| {r['run']} | {r['feet']} | {r['policy']} | {r['seed']} | {r['steps'] / 1e6:.2f} | {r['level']:.2f} "
             f"| {plateau} | {r['level_at_common_step']:.2f} | {e.get('robots', '-')} x {e.get('seconds', '-')} "
-            f"| {e.get('fell', '-')} | {'-' if e.get('crossed') is None else e['crossed']} | {e.get('vx_error_mps', '-')} "
+            f"| {e.get('fell', '-')} | {crossed} | {e.get('vx_error_mps', '-')} "
             f"| {e.get('verdict', 'not evaluated')} |"
         )
     lines += [
