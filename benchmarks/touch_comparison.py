@@ -28,7 +28,9 @@ one line per run, coloured by arm); prints one JSON line.
 from __future__ import annotations
 
 import argparse
+import bisect
 import gzip
+import itertools
 import json
 import statistics
 import sys
@@ -80,6 +82,18 @@ def _window_mean(rows: list[dict], end_step: int) -> float:
     return [r[LEVEL_KEY] for r in rows if r["global_step"] <= end_step][-1]
 
 
+def _trailing_means(rows: list[dict]) -> list[float]:
+    """_window_mean at each row's own step, for all rows at once: prefix sums over the sorted steps, each
+    window's bounds found by bisection (n log n; the window always holds its own row)."""
+    steps = [r["global_step"] for r in rows]
+    prefix = list(itertools.accumulate((r[LEVEL_KEY] for r in rows), initial=0.0))
+    means = []
+    for step in steps:
+        lo, hi = bisect.bisect_right(steps, step - PLATEAU_WINDOW_STEPS), bisect.bisect_right(steps, step)
+        means.append((prefix[hi] - prefix[lo]) / (hi - lo))
+    return means
+
+
 def level_reached(rows: list[dict]) -> dict:
     """The level reached (the last window's mean) and the first step whose trailing window mean is within
     PLATEAU_TOLERANCE_LEVELS of it (None for a run shorter than one window)."""
@@ -89,9 +103,8 @@ def level_reached(rows: list[dict]) -> dict:
     if last >= PLATEAU_WINDOW_STEPS:
         plateau = next(
             r["global_step"]
-            for r in rows
-            if r["global_step"] >= PLATEAU_WINDOW_STEPS
-            and abs(_window_mean(rows, r["global_step"]) - final) <= PLATEAU_TOLERANCE_LEVELS
+            for r, mean in zip(rows, _trailing_means(rows), strict=True)
+            if r["global_step"] >= PLATEAU_WINDOW_STEPS and abs(mean - final) <= PLATEAU_TOLERANCE_LEVELS
         )
     return {"steps": last, "level": round(final, 3), "plateau_from_step": plateau}
 

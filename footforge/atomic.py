@@ -31,6 +31,27 @@ def _process_alive(pid: int) -> bool:
     return True
 
 
+# `.NAME.tmp-PID-SUFFIX` (SUFFIX: mkdtemp's) or `.NAME.old-PID`: the names atomic_directory gives
+# its temporary folder and the folder it sets aside.
+_LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(?:tmp-(?P<tmp_pid>\d+)-[a-z0-9_]+|old-(?P<old_pid>\d+))$")
+
+
+def _remove_stale(parent: Path, name: str | None) -> list[Path]:
+    """Removes the leftovers in `parent` of killed runs: of the output `name`, or of any output (None)."""
+    if not parent.is_dir():
+        return []
+    removed = []
+    for entry in sorted(parent.iterdir()):
+        m = _LEFTOVER.match(entry.name)
+        if not m or (name is not None and m["name"] != name) or entry.is_symlink() or not entry.is_dir():
+            continue
+        pid = int(m["tmp_pid"] or m["old_pid"])
+        if pid != os.getpid() and not _process_alive(pid):
+            shutil.rmtree(entry, ignore_errors=True)
+            removed.append(entry)
+    return removed
+
+
 def remove_stale_temporaries(out_dir: Path) -> list[Path]:
     """Removes the temporary and set-aside folders of `out_dir` left by runs that were killed.
 
@@ -39,19 +60,14 @@ def remove_stale_temporaries(out_dir: Path) -> list[Path]:
     the removed paths.
     """
     out_dir = Path(out_dir)
-    if not out_dir.parent.is_dir():
-        return []
-    pattern = re.compile(rf"^\.{re.escape(out_dir.name)}\.(?:tmp-(\d+)-[a-z0-9_]+|old-(\d+))$")  # mkdtemp suffix
-    removed = []
-    for entry in out_dir.parent.iterdir():
-        m = pattern.match(entry.name)
-        if not m or entry.is_symlink() or not entry.is_dir():
-            continue
-        pid = int(m.group(1) or m.group(2))
-        if pid != os.getpid() and not _process_alive(pid):
-            shutil.rmtree(entry, ignore_errors=True)
-            removed.append(entry)
-    return removed
+    return _remove_stale(out_dir.parent, out_dir.name)
+
+
+def remove_stale_temporaries_in(folder: Path) -> list[Path]:
+    """remove_stale_temporaries for every output in `folder` at once: the leftovers of outputs that
+    no longer exist too (a killed copy of a checkpoint since superseded), which no later write of
+    the same name would find."""
+    return _remove_stale(Path(folder), None)
 
 
 @contextmanager

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from footforge.atomic import atomic_directory, remove_stale_temporaries
+from footforge.atomic import atomic_directory, remove_stale_temporaries, remove_stale_temporaries_in
 from footforge.cli.main import main
 from footforge.errors import InputError
 from footforge.outputs import MARKER, check_output_folder, write_marker
@@ -250,6 +250,24 @@ def test_stale_temporaries_of_dead_runs_are_removed(tmp_path):
     assert not stale.exists() and not stale_old.exists()
     assert live.is_dir() and other.is_dir() and (out / "a").is_file()
     assert remove_stale_temporaries(out) == []
+
+
+
+def test_stale_temporaries_of_every_output_in_a_folder_are_removed(tmp_path):
+    """remove_stale_temporaries_in finds the leftovers of outputs that no longer exist, and only dead
+    runs' leftovers with atomic_directory's names."""
+    gone = [tmp_path / f".000123.tmp-{dead_pid()}-abc123", tmp_path / f".policy.old-{dead_pid()}"]
+    kept = [
+        tmp_path / f".000456.tmp-{os.getppid()}-def456",  # a running process's
+        tmp_path / f".notes.tmp-{dead_pid()}",  # not a name atomic_directory gives (no mkdtemp suffix)
+        tmp_path / "000789",  # an output itself
+    ]
+    for folder in gone + kept:
+        folder.mkdir()
+    user_file = tmp_path / f".a.old-{dead_pid()}"
+    user_file.write_text("a user's file, not a folder")
+    assert sorted(remove_stale_temporaries_in(tmp_path)) == sorted(gone)
+    assert all(not p.exists() for p in gone) and all(p.is_dir() for p in kept) and user_file.is_file()
 
 
 def process_gone(pid: int) -> bool:

@@ -7,6 +7,8 @@ import gzip
 import importlib.util
 import json
 
+import numpy as np
+
 from conftest import REPO
 
 spec = importlib.util.spec_from_file_location("touch_comparison", REPO / "benchmarks/touch_comparison.py")
@@ -49,6 +51,19 @@ def test_the_level_reached_is_the_last_window_and_the_plateau_where_it_came_with
     values = _ramp(4.0)
     first = next(k for k in range(12, 81) if 4.0 - sum(values[k - 12 : k]) / 12 <= touch.PLATEAU_TOLERANCE_LEVELS)
     assert found["plateau_from_step"] == first * STEP and 40 * STEP < first * STEP < 50 * STEP
+
+
+
+def test_the_trailing_means_at_once_are_each_window_mean():
+    """The prefix-sum means (level_reached's plateau search) against the direct mean of each window, on
+    uneven logs with two rows at one step."""
+    rng = np.random.default_rng(3)
+    steps = np.cumsum(rng.choice([0, 250_000, 2_000_000], 200))  # zeros: repeated steps; 2 M: a sparse stretch
+    rows = [{"global_step": int(s), touch.LEVEL_KEY: float(v)} for s, v in zip(steps, rng.uniform(0, 9, 200))]
+    rows.sort(key=lambda r: r["global_step"])
+    assert len({r["global_step"] for r in rows}) < len(rows)
+    direct = [touch._window_mean(rows, r["global_step"]) for r in rows]
+    np.testing.assert_allclose(touch._trailing_means(rows), direct, rtol=0, atol=1e-9)
 
 
 def test_touch_helps_only_beyond_the_spread_of_the_seeds(tmp_path, capsys):

@@ -7,12 +7,11 @@ from __future__ import annotations
 import gzip
 import json
 import os
-import re
 import shutil
 import tempfile
 from pathlib import Path
 
-from footforge.atomic import atomic_file, remove_stale_temporaries
+from footforge.atomic import atomic_file, remove_stale_temporaries, remove_stale_temporaries_in
 from footforge.errors import InputError
 from footforge.outputs import MARKER
 from footforge.rl.checkpoints import checkpoints, latest_intact_checkpoint
@@ -87,8 +86,7 @@ def keep_run(run_dir: Path, dest: Path) -> list[str]:
             if older != target:
                 shutil.rmtree(older)
         # A killed call's copy of an older checkpoint, which checkpoints() does not list (a hidden name).
-        for name in {m[1] for m in (re.match(r"^\.(\d+)\.(?:tmp|old)-", e.name) for e in target.parent.iterdir()) if m}:
-            remove_stale_temporaries(target.parent / name)
+        remove_stale_temporaries_in(target.parent)
         written.append(f"checkpoints/{newest[1].name}")
     return written
 
