@@ -252,7 +252,6 @@ def test_stale_temporaries_of_dead_runs_are_removed(tmp_path):
     assert remove_stale_temporaries(out) == []
 
 
-
 def test_stale_temporaries_of_every_output_in_a_folder_are_removed(tmp_path):
     """remove_stale_temporaries_in finds the leftovers of outputs that no longer exist, and only dead
     runs' leftovers with atomic_directory's names."""

@@ -53,7 +53,6 @@ def test_the_level_reached_is_the_last_window_and_the_plateau_where_it_came_with
     assert found["plateau_from_step"] == first * STEP and 40 * STEP < first * STEP < 50 * STEP
 
 
-
 def test_the_trailing_means_at_once_are_each_window_mean():
     """The prefix-sum means (level_reached's plateau search) against the direct mean of each window, on
     uneven logs with two rows at one step."""
