@@ -20,7 +20,10 @@ still in training keeps a checkpoint instead) is left out and named ("not_traine
 line under the joined table), so the comparison grows as the policies arrive.
 
 A pair is done when its folder's metrics.json was made by the same policy (a digest of its policy/
-files), feet, robots, seconds and seed; a pair whose policy changed is evaluated again. The pairs
+files), feet, robots, seconds and seed; a pair whose policy changed is evaluated again. A pair that the
+policy's own evaluation already holds (`policies/<name>/evaluation/metrics.json`, a row of the same digest,
+feet, robots, seconds and seed: `footforge evaluate --feet ball aff aof --num-envs 1024 --seed 0` of a rough
+policy holds all three of its pairs) is taken from there instead of evaluated again ("reused"). The pairs
 default to the paper's three (PAPER_PAIRS) and the AOF policy and the ball baseline on AOF beside
 them. The builds are the ones `footforge build` made here (build/<feet>/); a rebuilt model is not
 detected, so a comparison spread over several calls should not straddle a rebuild.
@@ -32,7 +35,6 @@ Exit codes: 0 every pair done and the table written, 1 pairs left for a later ca
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import sys
 import time
@@ -90,14 +92,6 @@ def policy_dir(policy: str) -> Path:
     return path / "policy" if (path / "policy").is_dir() else path
 
 
-def digest(policy: Path) -> str:
-    """sha256 over the policy folder's files (names and bytes; the output marker left out)."""
-    h = hashlib.sha256()
-    for f in sorted(p for p in policy.rglob("*") if p.is_file() and p.name != ".footforge-output"):
-        h.update(str(f.relative_to(policy)).encode() + b"\0" + f.read_bytes())
-    return h.hexdigest()
-
-
 def pair_name(policy: str, feet: str) -> str:
     """The pair's folder name: the run folder's name and the feet."""
     run = Path(policy)
@@ -107,8 +101,10 @@ def pair_name(policy: str, feet: str) -> str:
 
 def settings(policy: Path, feet: str, args) -> dict:
     """What makes a pair's result reusable: the policy's digest, the feet, robots, seconds, seed."""
+    from footforge.rl.policy_files import policy_digest
+
     return {
-        "policy_sha256": digest(policy),
+        "policy_sha256": policy_digest(policy),
         "feet": feet,
         "num_envs": args.num_envs,
         "seconds": args.seconds,
@@ -137,6 +133,32 @@ def check_out(out: Path) -> None:
         raise InputError(f"--out {out}: is a file; give a folder")
     if out.is_dir() and any(out.iterdir()) and marker_kind(out) != ACCUMULATING:
         raise InputError(f"--out {out}: holds files this script did not write; give a new folder or one it made before")
+
+
+def recorded_result(policy: Path, wanted: dict) -> tuple[Path, dict] | None:
+    """The pair's result where the policy's own evaluation already holds it (POLICY/../evaluation/metrics.json,
+    `footforge evaluate` of a kept policy): a row of the same parameters (its policy_sha256), feet, robots,
+    seconds and seed, with that file; None where there is none (evaluations made before rows carried the
+    digest are not reused)."""
+    recorded = policy.parent / "evaluation" / "metrics.json"
+    try:
+        rows = json.loads(recorded.read_text())
+    except (OSError, ValueError):
+        return None
+    for row in rows:
+        if all(row.get(key) == value for key, value in wanted.items()):
+            return recorded, row
+    return None
+
+
+def reuse_pair(recorded: Path, row: dict, folder: Path, wanted: dict) -> None:
+    """The pair's folder from a recorded result (written whole or not at all), then pair.json."""
+    from footforge.atomic import atomic_directory, write_json
+
+    print(f"reusing {recorded} for {folder.name} (same policy, feet, robots, seconds and seed)", flush=True)
+    with atomic_directory(folder, command=f"paper_comparison.py: reused {recorded}") as tmp:
+        write_json(tmp / "metrics.json", [row])
+    write_json(folder / "pair.json", wanted)
 
 
 def evaluate_pair(policy: Path, feet: str, folder: Path, wanted: dict, args) -> int:
@@ -239,10 +261,15 @@ def main(argv: list[str] | None = None) -> int:
     write_marker(args.out, kind=ACCUMULATING)  # footforge's commands then refuse to replace it
 
     budget_s = None if args.max_minutes is None else 60.0 * args.max_minutes
-    longest_s, evaluated, failed = 0.0, [], []
+    longest_s, evaluated, reused, failed = 0.0, [], [], []
     for policy, feet, folder in pairs:
         wanted = settings(policy, feet, args)
         if done(folder, wanted):
+            continue
+        recorded = recorded_result(policy, wanted)
+        if recorded is not None:
+            reuse_pair(*recorded, folder, wanted)
+            reused.append(folder.name)
             continue
         elapsed = clock() - started
         if budget_s is not None and elapsed + longest_s > budget_s:
@@ -259,6 +286,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = {
         "paper_comparison": "done" if not left else "pairs left",
         "evaluated": evaluated,
+        "reused": reused,
         "failed": failed,
         "left": left,
         "not_trained": not_trained,

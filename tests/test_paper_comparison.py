@@ -125,6 +125,33 @@ def test_the_rough_comparison_takes_the_rough_policies_trained_so_far(script, tm
     assert "Not trained yet, left out: " in (out / "comparison.md").read_text()
 
 
+def test_a_pair_the_policys_own_evaluation_holds_is_reused_not_evaluated(script, tmp_path, capsys):
+    """A row of the policy's evaluation/metrics.json with the same digest, feet, robots, seconds and seed is
+    the pair's result; a row of other robots, or of other parameters (a changed policy), is not."""
+    from footforge.rl.policy_files import policy_digest
+
+    module, calls = script
+    run = tmp_path / "rough_ball_P"
+    shutil.copytree(REPO / "policies/flat_aof_B/policy", run / "policy")
+    shipped = json.loads((REPO / "policies/flat_aof_B/evaluation/metrics.json").read_text())[0]
+    digest = policy_digest(run)
+    row = shipped | {"policy_sha256": digest, "num_envs": 8, "seconds": 17.5, "seed": 0, "falls": 99}
+    rows = [row | {"feet": "aff"}, row | {"feet": "aof", "num_envs": 16}, row | {"feet": "ball", "policy_sha256": "0"}]
+    (run / "evaluation").mkdir()
+    (run / "evaluation" / "metrics.json").write_text(json.dumps(rows))
+    out = tmp_path / "cmp"
+    pairs = [f"{run}:{feet}" for feet in ("aff", "aof", "ball")]
+    assert module.main(["--out", str(out), "--pairs", *pairs, "--num-envs", "8", "--seconds", "17.5"]) == 0
+    assert calls == [("rough_ball_P", "aof", 8, 0), ("rough_ball_P", "ball", 8, 0)]
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["reused"] == ["rough_ball_P_on_aff"]
+    assert summary["evaluated"] == ["rough_ball_P_on_aof", "rough_ball_P_on_ball"]
+    assert json.loads((out / "metrics.json").read_text())[0] == rows[0]  # the recorded row, joined first
+    calls.clear()  # done pairs, the reused one included, are kept
+    assert module.main(["--out", str(out), "--pairs", *pairs, "--num-envs", "8", "--seconds", "17.5"]) == 0
+    assert calls == []
+
+
 def test_footforge_does_not_replace_the_comparison_folder_unforced(script, tmp_path):
     """A comparison's folder holds pairs of many calls: footforge's commands refuse to replace it, as a run folder."""
     from footforge.errors import InputError
@@ -141,10 +168,13 @@ def test_footforge_does_not_replace_the_comparison_folder_unforced(script, tmp_p
 @pytest.mark.slow
 def test_one_real_pair_end_to_end(tmp_path):
     """The real footforge evaluate of one pair, tiny (4 robots x 0.5 s), then the joined table."""
+    from footforge.rl.policy_files import policy_digest
+
     module = _script()
     out = tmp_path / "cmp"
     argv = ["--out", str(out), "--pairs", "flat_aff_B:aff", "--num-envs", "4", "--seconds", "0.5"]
     assert module.main(argv) == 0
     (result,) = json.loads((out / "metrics.json").read_text())
     assert (result["feet"], result["num_envs"], result["seconds"]) == ("aff", 4, 0.5)
+    assert result["policy_sha256"] == policy_digest(REPO / "policies/flat_aff_B")  # what a later call may reuse
     assert json.loads((out / "flat_aff_B_on_aff" / "metrics.json").read_text()) == [result]

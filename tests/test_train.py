@@ -1545,3 +1545,21 @@ def test_curve_rows_read_a_kept_gzipped_curve_where_the_plain_one_is_not_there(t
     assert train.logged_learning_rate(train.curve_rows(tmp_path, 16)) == pytest.approx(1.6e-3)
     (tmp_path / "metrics.jsonl.gz").write_bytes(b"not gzip")
     assert train.curve_rows(tmp_path, 16) == []
+
+
+def test_a_policys_digest_is_of_its_parameters_not_of_where_it_lies(tmp_path):
+    """policy_digest: a copy (with footforge's output marker) and the run folder around it give the policy's
+    digest; a changed byte changes it."""
+    import shutil
+
+    from footforge.outputs import write_marker
+    from footforge.rl.policy_files import policy_digest
+
+    shipped = REPO / "policies/flat_aof_B/policy"
+    copy = tmp_path / "run" / "policy"
+    shutil.copytree(shipped, copy)
+    write_marker(copy, "a copy")
+    assert policy_digest(copy) == policy_digest(shipped) == policy_digest(REPO / "policies/flat_aof_B")
+    meta = copy / "footforge.json"
+    meta.write_bytes(meta.read_bytes() + b" ")
+    assert policy_digest(copy) != policy_digest(shipped)

@@ -150,6 +150,7 @@ def evaluate(
     levels, columns = spawn_tiles(num_envs, env.terrain.column_kinds if rough else ("flat",), config.terrain.num_levels)
 
     from footforge.envs import rewards as reward_module
+    from footforge.rl.policy_files import policy_digest
 
     reward_terms = tuple(reward_module.terms(config.rewards))
     clip = config.rewards.clip_total_at_zero
@@ -227,6 +228,7 @@ def evaluate(
     commands = event_times(config.commands.resample_s, config.policy_dt, steps)
     return {
         "policy": str(policy_dir),
+        "policy_sha256": policy_digest(policy_dir),  # what a later comparison may reuse this result for
         "trained_on": env_config.feet,
         "feet": feet,
         "policy_type": env_config.policy,

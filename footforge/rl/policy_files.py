@@ -146,6 +146,21 @@ def policy_folder(path: Path) -> Path:
     return final[1] if final is not None else policy if (policy / "footforge.json").is_file() else path
 
 
+def policy_digest(path: Path) -> str:
+    """sha256 over the files of the folder whose parameters `path` gives (policy_folder): their names and
+    bytes, footforge's output marker left out (a copy made by keep_run or cp -r has the same digest). An
+    evaluation records it, so a result can be told to be of these very parameters and reused."""
+    import hashlib
+
+    from footforge.outputs import MARKER
+
+    folder = policy_folder(path)
+    h = hashlib.sha256()
+    for f in sorted(p for p in folder.rglob("*") if p.is_file() and p.name != MARKER):
+        h.update(str(f.relative_to(folder)).encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()
+
+
 def folder_note(given: Path, used: Path) -> str | None:
     """What a command says when `policy_folder(given)` chose a checkpoint of a run: which, and why."""
     if Path(used).parent.name != "checkpoints" or Path(given).resolve() == Path(used).resolve():
