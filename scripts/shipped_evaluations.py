@@ -13,6 +13,12 @@ of the ground) and the policies' footforge.json (steps, wall time, machine).
     python scripts/shipped_evaluations.py --policies flat_aof_B --no-video
     python scripts/shipped_evaluations.py --tables-only              # the tables from the committed metrics
     python scripts/shipped_evaluations.py --closed-chain             # also closed_chain/ and the play caption
+    MUJOCO_GL=osmesa python scripts/shipped_evaluations.py --rough --policies rough_ball_P   # a rough one
+
+With --rough, the finished rough policies instead: 1,024 robots x 17.5 s over every tile of their terrain
+(the paper's rough evaluation; about 3.5 minutes per feet on 2 cores), on their own feet and, unless haptic,
+zero-shot on the others (the ball baseline on AFF and AOF: the paper's Figure 9), keeping one GIF, the robot
+on its own feet crossing the middle level's stairs (KEPT_VIDEO); no table is written for them.
 
 With --closed-chain, each policy that has a `closed_chain/` record is evaluated again on the 34-joint
 closed chain (`footforge evaluate-closed-chain`, 8 robots x 20 s, about 4 minutes each) and the
@@ -43,17 +49,26 @@ FEET_ORDER = ("ball", "aff", "aof")
 FEET_NAMES = {"ball": "ball", "aff": "AFF", "aof": "AOF"}
 
 
-def shipped() -> list[Path]:
-    """The shipped flat policies' run folders (those with a policy/ whose config.json is the flat task), by
-    name. A finished rough policy keeps its rough evaluation over the terrain's tiles instead (policies/README.md)."""
+def shipped(task: str = "flat") -> list[Path]:
+    """The shipped policies' run folders of `task` (those with a policy/ whose config.json is that task), by
+    name. The tables are of the flat ones; a finished rough policy keeps its rough evaluation over the terrain's
+    tiles (--rough, policies/README.md)."""
     return sorted(
         p.parent
         for p in POLICIES.glob("*/policy")
-        if p.is_dir() and json.loads((p.parent / "config.json").read_text())["env"]["task"] == "flat"
+        if p.is_dir() and json.loads((p.parent / "config.json").read_text())["env"]["task"] == task
     )
 
 
-def evaluate(run: Path, video: bool) -> int:
+EVALUATION = {"flat": ("32", "20"), "rough": ("1024", "17.5")}
+"""Robots and seconds of a shipped policy's recorded evaluation, per task: flat 32 x 20 s; rough the paper's
+1,024 x 17.5 s, robots spread over every tile (about 17 per kind and level)."""
+KEPT_VIDEO = {"flat": "video_0.gif", "rough": "video_0_stairs_up.gif"}
+"""The one GIF an evaluation keeps, on the policy's own feet: flat, the robot walking its commands; rough, the
+robot crossing the middle level's stairs (footforge evaluate --video on the rough task)."""
+
+
+def evaluate(run: Path, video: bool, task: str = "flat") -> int:
     """`footforge evaluate` of one shipped policy on its feet and the others, into its evaluation/,
     then lightened as the repository keeps it (light())."""
     from footforge.cli.evaluate import main as evaluate_main
@@ -61,15 +76,16 @@ def evaluate(run: Path, video: bool) -> int:
     meta = json.loads((run / "policy" / "footforge.json").read_text())
     own = meta["env"]["feet"]
     feet = [own] if _haptic(meta) else [own] + [f for f in FEET_ORDER if f != own]
+    robots, seconds = EVALUATION[task]
     argv = [
         "--policy",
         str(run.relative_to(REPO)),
         "--feet",
         *feet,
         "--num-envs",
-        "32",
+        robots,
         "--seconds",
-        "20",
+        seconds,
         "--seed",
         "0",
         "--out",
@@ -81,7 +97,7 @@ def evaluate(run: Path, video: bool) -> int:
     print("footforge evaluate " + " ".join(argv), flush=True)
     code = evaluate_main(argv)
     if code == 0:
-        light(run / "evaluation")
+        light(run / "evaluation", keep=KEPT_VIDEO[task])
     return code
 
 
@@ -94,24 +110,24 @@ VIDEO_S = 3
 """Seconds of video recorded on the policy's own feet (the GIF the repository keeps)."""
 
 
-def light(folder: Path) -> None:
+def light(folder: Path, keep: str = KEPT_VIDEO["flat"]) -> None:
     """An evaluation folder as a policy folder keeps it: the metrics, the card, the comparison and
-    the small plots, and one GIF, the policy on its own feet (video_0.gif, within
-    footforge.rl.render.POLICY_GIF_MAX_BYTES); the frame strips and the zero-shot videos are removed
+    the small plots, and one GIF, the policy on its own feet (`keep`, within
+    footforge.rl.render.POLICY_GIF_MAX_BYTES); the frame strips and the other videos are removed
     (`footforge evaluate --video` writes them again) and the card's links to them with them."""
     from footforge.rl.render import POLICY_GIF_MAX_BYTES, shrink_gif
 
     removed = sorted(p.name for p in folder.glob("strip_*.png")) + sorted(
-        p.name for p in folder.glob("video_*.gif") if p.name != "video_0.gif"
+        p.name for p in folder.glob("video_*.gif") if p.name != keep
     )
     for name in removed:
         (folder / name).unlink()
     card = folder / "policy_card.md"
     lines = card.read_text().splitlines(keepends=True)
     card.write_text("".join(line for line in lines if not any(f"]({name})" in line for name in removed)))
-    if (folder / "video_0.gif").exists():
-        width, colours, size = shrink_gif(folder / "video_0.gif", max_bytes=POLICY_GIF_MAX_BYTES)
-        print(f"{folder.relative_to(REPO)}/video_0.gif: {width} px, {colours} colours, {size / 1e3:.0f} KB")
+    if (folder / keep).exists():
+        width, colours, size = shrink_gif(folder / keep, max_bytes=POLICY_GIF_MAX_BYTES)
+        print(f"{folder.relative_to(REPO)}/{keep}: {width} px, {colours} colours, {size / 1e3:.0f} KB")
 
 
 def evaluate_closed_chain(run: Path) -> int:
@@ -252,13 +268,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-video", action="store_true", help="no GIFs (also where MUJOCO_GL is unset)")
     p.add_argument("--tables-only", action="store_true", help="only rewrite the tables from the committed metrics")
     p.add_argument(
+        "--rough",
+        action="store_true",
+        help="the finished rough policies instead (1,024 robots x 17.5 s over every tile, the GIF on stairs; "
+        "no table: policies/README.md describes them)",
+    )
+    p.add_argument(
         "--closed-chain",
         action="store_true",
         help="also the closed-chain records (closed_chain/) and the README's closed-chain play caption",
     )
     args = p.parse_args(argv)
     os.chdir(REPO)  # the evaluations are recorded with paths relative to the repository
-    runs = shipped()
+    task = "rough" if args.rough else "flat"
+    runs = shipped(task)
     if args.policies:
         unknown = set(args.policies) - {r.name for r in runs}
         if unknown:
@@ -269,16 +292,17 @@ def main(argv: list[str] | None = None) -> int:
     if not args.tables_only:
         video = not args.no_video and bool(os.environ.get("MUJOCO_GL"))
         for run in chosen:
-            code = evaluate(run, video)
+            code = evaluate(run, video, task)
             if code:
                 return code
-            if args.closed_chain and (run / "closed_chain").is_dir():
+            if args.closed_chain and not args.rough and (run / "closed_chain").is_dir():
                 code = evaluate_closed_chain(run)
                 if code:
                     return code
-        if args.closed_chain:
+        if args.closed_chain and not args.rough:
             _replace_block(REPO / "README.md", PLAY_START, PLAY_END, play_caption())
-    write_tables(runs)
+    if not args.rough:
+        write_tables(runs)
     return 0
 
 

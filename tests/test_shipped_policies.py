@@ -141,3 +141,29 @@ def test_a_fine_tuned_policy_counts_the_steps_it_went_on_from(tmp_path):
 
     shutil.copytree(aof / "policy", tmp_path / "policy")  # outside its run: no config.json beside it
     assert steps_in_all(tmp_path / "policy", own) == own
+
+
+def test_an_evaluation_is_lightened_to_its_one_gif_and_the_cards_links_follow(tmp_path, monkeypatch):
+    """light(): the strips and every GIF but the kept one go, with the card's lines linking them; a rough
+    evaluation keeps the GIF on stairs (KEPT_VIDEO), a flat one the plain walk."""
+    module = shipped_evaluations
+    monkeypatch.setattr(module, "REPO", tmp_path)
+    shrunk = []
+    monkeypatch.setattr("footforge.rl.render.shrink_gif", lambda path, max_bytes: shrunk.append(path.name) or (1, 2, 3))
+    for task in ("flat", "rough"):
+        folder = tmp_path / task
+        folder.mkdir()
+        names = ["video_0.gif", "video_1.gif", "video_0_stairs_up.gif", "video_0_stepping_stones.gif", "strip_0.png"]
+        for name in names + ["metrics.json", "contacts_0.png"]:
+            (folder / name).write_bytes(b"x")
+        card = "# card\n" + "".join(f"- [{n}]({n})\n" for n in names + ["contacts_0.png"])
+        (folder / "policy_card.md").write_text(card)
+        module.light(folder, keep=module.KEPT_VIDEO[task])
+        kept = module.KEPT_VIDEO[task]
+        assert sorted(p.name for p in folder.iterdir()) == sorted(
+            [kept, "metrics.json", "contacts_0.png", "policy_card.md"]
+        )
+        assert (
+            folder / "policy_card.md"
+        ).read_text() == f"# card\n- [{kept}]({kept})\n- [contacts_0.png](contacts_0.png)\n"
+    assert shrunk == ["video_0.gif", "video_0_stairs_up.gif"]
