@@ -32,6 +32,7 @@ import bisect
 import gzip
 import itertools
 import json
+import math
 import statistics
 import sys
 from pathlib import Path
@@ -68,7 +69,7 @@ def curve(folder: Path) -> list[dict]:
             row = json.loads(line)
         except ValueError:  # a line cut short by a kill
             continue
-        if LEVEL_KEY in row:
+        if LEVEL_KEY in row and math.isfinite(row[LEVEL_KEY]):  # a NaN would spoil every later prefix sum
             rows.append(row)
     return sorted(rows, key=lambda r: r["global_step"])
 

@@ -138,15 +138,22 @@ def check_out(out: Path) -> None:
 def recorded_result(policy: Path, wanted: dict) -> tuple[Path, dict] | None:
     """The pair's result where the policy's own evaluation already holds it (POLICY/../evaluation/metrics.json,
     `footforge evaluate` of a kept policy): a row of the same parameters (its policy_sha256), feet, robots,
-    seconds and seed, with that file; None where there is none (evaluations made before rows carried the
-    digest are not reused)."""
+    seconds and seed, on the engine this machine's evaluations would use, with that file; None where there is
+    none (evaluations made before rows carried the digest are not reused)."""
+    from footforge.envs import engine
+
     recorded = policy.parent / "evaluation" / "metrics.json"
     try:
         rows = json.loads(recorded.read_text())
     except (OSError, ValueError):
         return None
-    for row in rows:
-        if all(row.get(key) == value for key, value in wanted.items()):
+    physics = engine.resolve("auto")  # the engine this script's own evaluations run on: one engine per table
+    for row in rows if isinstance(rows, list) else []:
+        if (
+            isinstance(row, dict)
+            and row.get("physics") == physics
+            and all(row.get(key) == value for key, value in wanted.items())
+        ):
             return recorded, row
     return None
 
@@ -268,8 +275,13 @@ def main(argv: list[str] | None = None) -> int:
             continue
         recorded = recorded_result(policy, wanted)
         if recorded is not None:
-            reuse_pair(*recorded, folder, wanted)
-            reused.append(folder.name)
+            try:
+                reuse_pair(*recorded, folder, wanted)
+            except InputError as e:  # the pair's folder is not this script's (as evaluate_pair's failure)
+                print(f"paper_comparison: {folder.name}: {e}", file=sys.stderr)
+                failed.append(folder.name)
+            else:
+                reused.append(folder.name)
             continue
         elapsed = clock() - started
         if budget_s is not None and elapsed + longest_s > budget_s:

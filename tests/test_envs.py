@@ -668,6 +668,7 @@ def test_evaluation_reports_robots_whose_simulation_diverged(built, monkeypatch)
     monkeypatch.setattr(
         evaluation, "_policy_and_env", lambda *args: (lambda obs, key: (jp.zeros(12), {}), config, "ball", 0.1, env)
     )
+    monkeypatch.setattr("footforge.rl.policy_files.policy_digest", lambda path: "no files: a stand-in policy")
     keys = jax.random.split(jax.random.PRNGKey(0), 4)  # evaluate's keys: which robots are "robot 0"
     zero = int(sum(int(jax.random.split(k)[0][-1] % 2 == 0) for k in keys))
     result = evaluation.evaluate("policy", num_envs=4, seed=0)

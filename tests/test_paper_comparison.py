@@ -136,7 +136,9 @@ def test_a_pair_the_policys_own_evaluation_holds_is_reused_not_evaluated(script,
     shipped = json.loads((REPO / "policies/flat_aof_B/evaluation/metrics.json").read_text())[0]
     digest = policy_digest(run)
     row = shipped | {"policy_sha256": digest, "num_envs": 8, "seconds": 17.5, "seed": 0, "falls": 99}
+    row["physics"] = "mujoco"  # the engine this CPU's evaluations use
     rows = [row | {"feet": "aff"}, row | {"feet": "aof", "num_envs": 16}, row | {"feet": "ball", "policy_sha256": "0"}]
+    rows += [row | {"feet": "aof", "physics": "mjx"}, "not a row"]  # another engine's: not mixed into the table
     (run / "evaluation").mkdir()
     (run / "evaluation" / "metrics.json").write_text(json.dumps(rows))
     out = tmp_path / "cmp"
@@ -150,6 +152,14 @@ def test_a_pair_the_policys_own_evaluation_holds_is_reused_not_evaluated(script,
     calls.clear()  # done pairs, the reused one included, are kept
     assert module.main(["--out", str(out), "--pairs", *pairs, "--num-envs", "8", "--seconds", "17.5"]) == 0
     assert calls == []
+    # A pair's folder holding a user's file is not replaced by a reuse: that pair fails, the others go on.
+    mine = out / "rough_ball_P_on_aff"
+    shutil.rmtree(mine)
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    assert module.main(["--out", str(out), "--pairs", *pairs, "--num-envs", "8", "--seconds", "17.5"]) == 1
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["failed"] == ["rough_ball_P_on_aff"] and (mine / "notes.txt").read_text() == "mine"
 
 
 def test_footforge_does_not_replace_the_comparison_folder_unforced(script, tmp_path):

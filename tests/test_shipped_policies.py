@@ -167,3 +167,10 @@ def test_an_evaluation_is_lightened_to_its_one_gif_and_the_cards_links_follow(tm
             folder / "policy_card.md"
         ).read_text() == f"# card\n- [{kept}]({kept})\n- [contacts_0.png](contacts_0.png)\n"
     assert shrunk == ["video_0.gif", "video_0_stairs_up.gif"]
+
+
+def test_rough_with_the_flat_tables_or_the_closed_chain_is_refused_before_any_work(capsys):
+    for flag in ("--tables-only", "--closed-chain"):
+        with pytest.raises(SystemExit) as exit_:
+            shipped_evaluations.main(["--rough", flag])
+        assert exit_.value.code == 2 and "--rough writes no table" in capsys.readouterr().err

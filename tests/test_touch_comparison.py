@@ -27,6 +27,7 @@ def _run(folder, policy, seed, levels, gzipped=False, evaluation=None):
     rows = []
     for i, level in enumerate(levels, start=1):
         rows += [{"global_step": i * STEP, touch.LEVEL_KEY: level}, {"global_step": i * STEP, "eval/x": 0.0}]
+    rows.append({"global_step": 2 * STEP, touch.LEVEL_KEY: float("nan")})  # a non-finite log: left out
     text = "".join(json.dumps(r) + "\n" for r in rows) + '{"global_step": 9'  # a line cut by a kill
     if gzipped:
         (folder / "metrics.jsonl.gz").write_bytes(gzip.compress(text.encode()))

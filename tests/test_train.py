@@ -1563,3 +1563,6 @@ def test_a_policys_digest_is_of_its_parameters_not_of_where_it_lies(tmp_path):
     meta = copy / "footforge.json"
     meta.write_bytes(meta.read_bytes() + b" ")
     assert policy_digest(copy) != policy_digest(shipped)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match="no policy files"):
+        policy_digest(tmp_path / "empty")

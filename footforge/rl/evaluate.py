@@ -143,6 +143,9 @@ def evaluate(
     import jax
     import jax.numpy as jp
 
+    from footforge.rl.policy_files import policy_digest
+
+    digest = policy_digest(policy_dir)  # of the files loaded next, before any later write could replace them
     policy, env_config, feet, seconds, env = _policy_and_env(policy_dir, feet, seconds, build_dir, physics)
     config, robot = env.config, env.robot
     steps = int(round(seconds / env_config.policy_dt))
@@ -150,7 +153,6 @@ def evaluate(
     levels, columns = spawn_tiles(num_envs, env.terrain.column_kinds if rough else ("flat",), config.terrain.num_levels)
 
     from footforge.envs import rewards as reward_module
-    from footforge.rl.policy_files import policy_digest
 
     reward_terms = tuple(reward_module.terms(config.rewards))
     clip = config.rewards.clip_total_at_zero
@@ -228,7 +230,7 @@ def evaluate(
     commands = event_times(config.commands.resample_s, config.policy_dt, steps)
     return {
         "policy": str(policy_dir),
-        "policy_sha256": policy_digest(policy_dir),  # what a later comparison may reuse this result for
+        "policy_sha256": digest,  # what a later comparison may reuse this result for
         "trained_on": env_config.feet,
         "feet": feet,
         "policy_type": env_config.policy,

@@ -149,14 +149,21 @@ def policy_folder(path: Path) -> Path:
 def policy_digest(path: Path) -> str:
     """sha256 over the files of the folder whose parameters `path` gives (policy_folder): their names and
     bytes, footforge's output marker left out (a copy made by keep_run or cp -r has the same digest). An
-    evaluation records it, so a result can be told to be of these very parameters and reused."""
+    evaluation records it, so a result can be told to be of these very parameters and reused.
+
+    Raises:
+      InputError: the folder holds no files.
+    """
     import hashlib
 
     from footforge.outputs import MARKER
 
     folder = policy_folder(path)
+    files = sorted(p for p in folder.rglob("*") if p.is_file() and p.name != MARKER)
+    if not files:
+        raise InputError(f"{path}: no policy files to digest", fix="give a policy, run or checkpoint folder")
     h = hashlib.sha256()
-    for f in sorted(p for p in folder.rglob("*") if p.is_file() and p.name != MARKER):
+    for f in files:
         h.update(str(f.relative_to(folder)).encode() + b"\0" + f.read_bytes())
     return h.hexdigest()
 
