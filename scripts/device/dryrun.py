@@ -210,7 +210,7 @@ ROUGH_ITERATION = 64 * 4 * 24
 minibatches of 64 trajectories: 6,144), the unit the dry run's rough runs advance by."""
 
 
-ROUGH_JOBS = (("ball", "P", None), ("aof", "B", None))
+ROUGH_JOBS = (("aof", "B", None), ("aof", "BH", None))
 """The prepared rough call's jobs (docs/training.md): feet, policy type, and the committed run each resumes
 (None: begun under the rough `cpu` preset)."""
 

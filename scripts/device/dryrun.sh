@@ -14,7 +14,7 @@
 #    from the results tarball to 128 steps, then evaluate; checks each summary, the tarballs and
 #    that no build-time package (dm_control, pinocchio, coacd, pxr, xacro) was imported.
 #    With --rough, instead: the prepared rough call (docs/training.md) through campaign.sh --cpu,
-#    shortened: its two jobs (dryrun.py's ROUGH_JOBS: ball P and AOF B begun under the rough `cpu`
+#    shortened: its two jobs (dryrun.py's ROUGH_JOBS: AOF B and BH begun under the rough `cpu`
 #    preset) for two PPO iterations, then both resumed from their tarballs on a fresh runs/ for one more.
 # Environment: PYTHON312 (default: python3.12 on PATH, else pyenv's 3.12), KIT, PREPARE_PYTHON.
 # Exit codes: 0 all worked, 1 a step failed, 2 usage error. The last line is a JSON summary.
