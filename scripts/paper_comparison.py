@@ -269,8 +269,10 @@ def main(argv: list[str] | None = None) -> int:
 
     budget_s = None if args.max_minutes is None else 60.0 * args.max_minutes
     longest_s, evaluated, reused, failed = 0.0, [], [], []
+    # Each pair's settings once: a digest reads every file of its policy.
+    wanted_of = {folder: settings(policy, feet, args) for policy, feet, folder in pairs}
     for policy, feet, folder in pairs:
-        wanted = settings(policy, feet, args)
+        wanted = wanted_of[folder]
         if done(folder, wanted):
             continue
         recorded = recorded_result(policy, wanted)
@@ -292,7 +294,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             evaluated.append(folder.name)
             longest_s = max(longest_s, clock() - t0)
-    left = [f.name for policy, feet, f in pairs if not done(f, settings(policy, feet, args))]
+    left = [f.name for _, _, f in pairs if not done(f, wanted_of[f])]
     if not left:
         join(args.out, [f for _, _, f in pairs], not_trained)
     summary = {
