@@ -21,7 +21,7 @@ from footforge.envs import curriculum, observation_layout
 from footforge.envs.anymal import GEOM_FOOT, GEOM_SHANK
 from footforge.envs.config import CurriculumConfig
 from footforge.envs.contacts import foot_contacts, ground_contacts
-from footforge.envs.terrain import TerrainConfig, column_kinds
+from footforge.envs.terrain import KINDS, TerrainConfig, column_kinds
 from footforge.envs.wrappers import wrap_for_training
 
 from conftest import REPO, float64_stance
@@ -366,6 +366,51 @@ def test_curriculum_promotes_demotes_and_recycles_the_top():
     level, column = curriculum.first_levels(key, c, t, (1000,))
     assert int(level.max()) == c.initial_max_level and int(level.min()) == 0
     assert len(np.unique(np.asarray(column))) == t.num_columns
+
+
+def test_a_resumed_curriculum_draws_each_robots_level_from_its_columns_kind():
+    """initial_level_shares_by_kind: a robot's first level is drawn from the row of its column's kind
+    (here stairs up all on level 1, smooth slopes on 7 and 8), from initial_level_shares where that row
+    is all zero (level 4); the columns are those drawn without the rows."""
+    t = TerrainConfig()  # 20 columns of the six kinds, 10 levels
+    kinds = column_kinds(t)
+    kind_of_column = jp.asarray([KINDS.index(k) for k in kinds])
+    rows = [[0.0] * 10 for _ in KINDS]
+    rows[KINDS.index("stairs_up")][1] = 0.3
+    rows[KINDS.index("smooth_slope")][7] = rows[KINDS.index("smooth_slope")][8] = 0.1
+    fallback = tuple(float(k == 4) for k in range(10))
+    c = CurriculumConfig(initial_level_shares=fallback, initial_level_shares_by_kind=tuple(map(tuple, rows)))
+    key = jax.random.PRNGKey(3)
+    level, column = map(np.asarray, curriculum.first_levels(key, c, t, (4000,), kind_of_column=kind_of_column))
+    robot_kinds = np.array(kinds)[column]
+    assert set(level[robot_kinds == "stairs_up"]) == {1}
+    smooth = level[robot_kinds == "smooth_slope"]
+    assert set(smooth) == {7, 8} and 0.4 < (smooth == 7).mean() < 0.6  # equal shares: about half each
+    others = ~np.isin(robot_kinds, ["stairs_up", "smooth_slope"])
+    assert others.sum() > 1000 and set(level[others]) == {4}
+    plain = replace(c, initial_level_shares_by_kind=None)
+    plain_level, plain_column = map(np.asarray, curriculum.first_levels(key, plain, t, (4000,)))
+    np.testing.assert_array_equal(plain_column, column)
+    assert set(plain_level) == {4}
+    # Without the columns' kinds the rows are not used.
+    assert set(np.asarray(curriculum.first_levels(key, c, t, (4000,))[0])) == {4}
+
+
+def test_the_kind_and_level_metrics_split_the_level_metrics_by_kind(rough):
+    """The joint indicators (KIND_LEVEL_SHARE) of a robot: one, at its column's kind (the terrain's
+    column_kinds, read in Python) and its level; summed over the kinds they are the level indicators."""
+    from footforge.envs.rough import KIND_LEVEL_SHARE
+
+    env, states, _ = rough["aof"]
+    for state in states:
+        m, info = state.metrics, state.info
+        kind = env.terrain.column_kinds[int(info["column"])]
+        levels = range(SMALL.num_levels)
+        ones = [(k, lv) for k in KINDS for lv in levels if float(m[KIND_LEVEL_SHARE.format(k, lv)]) == 1]
+        assert ones == [(kind, int(info["level"]))]
+        for lv in range(SMALL.num_levels):
+            total = sum(float(m[KIND_LEVEL_SHARE.format(k, lv)]) for k in KINDS)
+            assert total == float(m[f"terrain/at_level_{lv}_per_step"])
 
 
 def test_an_ended_episode_moves_the_robot_and_keeps_its_curriculum(rough):

@@ -15,10 +15,11 @@ from footforge.envs.config import CurriculumConfig
 from footforge.envs.terrain import TerrainConfig
 
 
-def first_levels(key, curriculum: CurriculumConfig, terrain: TerrainConfig, shape=()):
-    """(level, column) of robots at the start of training: a level in 0..initial_max_level, or drawn
-    from initial_level_shares where given (a resumed run), and a uniformly drawn column (so every
-    kind of terrain gets robots)."""
+def first_levels(key, curriculum: CurriculumConfig, terrain: TerrainConfig, shape=(), kind_of_column=None):
+    """(level, column) of robots at the start of training: a uniformly drawn column (so every kind of
+    terrain gets robots) and a level in 0..initial_max_level, or drawn from initial_level_shares where given
+    (a resumed run), or from the row of initial_level_shares_by_kind of the column's kind where given with
+    `kind_of_column` (each column's index in terrain.KINDS) and that row is not all zero."""
     k_level, k_column = jax.random.split(key)
     if curriculum.initial_level_shares is not None:
         shares = jp.asarray(curriculum.initial_level_shares, jp.float32)
@@ -27,6 +28,13 @@ def first_levels(key, curriculum: CurriculumConfig, terrain: TerrainConfig, shap
         top = min(curriculum.initial_max_level, terrain.num_levels - 1)
         level = jax.random.randint(k_level, shape, 0, top + 1)
     column = jax.random.randint(k_column, shape, 0, terrain.num_columns)
+    if curriculum.initial_level_shares_by_kind is not None and kind_of_column is not None:
+        rows = jp.asarray(curriculum.initial_level_shares_by_kind, jp.float32)
+        row = rows[jp.asarray(kind_of_column)[column]]  # (*shape, num_levels)
+        logits = jp.where(row > 0, jp.log(jp.where(row > 0, row, 1.0)), -jp.inf)
+        # Its own stream (fold_in): the column and the fallback level are the draws made without it.
+        by_kind = jax.random.categorical(jax.random.fold_in(k_level, 1), logits, axis=-1)
+        level = jp.where(row.sum(axis=-1) > 0, by_kind, level).astype(level.dtype)
     return level, column
 
 

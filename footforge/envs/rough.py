@@ -25,9 +25,12 @@ from footforge.envs import curriculum
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 from footforge.envs.locomotion import LocomotionEnv
-from footforge.envs.terrain import generate, surface_height
+from footforge.envs.terrain import KINDS, generate, surface_height
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
+
+KIND_LEVEL_SHARE = "terrain/{}/at_level_{}_per_step"
+"""The metric of robots on one terrain kind (footforge.envs.terrain.KINDS) and level."""
 
 
 class RoughEnv(LocomotionEnv):
@@ -39,6 +42,8 @@ class RoughEnv(LocomotionEnv):
         super().__init__(config, load_robot(config, self.terrain))
         self._heights = jp.asarray(self.terrain.heights_m, jp.float32)
         self._stand_z = float(self.robot.stand_qpos[2])
+        # Each column's kind as its index in KINDS (the curriculum's levels per kind).
+        self._kind_of_column = jp.asarray([KINDS.index(k) for k in self.terrain.column_kinds], jp.int32)
 
     # Ground -------------------------------------------------------------------------------
     def terrain_height(self, xy):
@@ -80,7 +85,9 @@ class RoughEnv(LocomotionEnv):
 
     def _first_spawn_info(self, key):
         k_level, k_spawn = jax.random.split(key)
-        level, column = curriculum.first_levels(k_level, self.config.curriculum, self.config.terrain)
+        level, column = curriculum.first_levels(
+            k_level, self.config.curriculum, self.config.terrain, kind_of_column=self._kind_of_column
+        )
         xy, yaw = self._spawn(level, column, k_spawn)
         return {"level": level, "column": column, "spawn_xy": xy, "spawn_yaw": yaw}
 
@@ -113,9 +120,18 @@ class RoughEnv(LocomotionEnv):
 
     def _task_metrics(self, info):
         """The episode's level, and one indicator per level (their means over ended episodes are
-        the distribution of robots over the levels)."""
+        the distribution of robots over the levels), and one per terrain kind and level (the joint
+        distribution, KIND_LEVEL_SHARE: what a resume restores the curriculum from; training keeps
+        them out of the curve, footforge.rl.train)."""
         level = info["level"]
-        return {"terrain/level_per_step": level.astype(jp.float32)} | {
-            f"terrain/at_level_{k}_per_step": (level == k).astype(jp.float32)
-            for k in range(self.config.terrain.num_levels)
-        }
+        kind = self._kind_of_column[info["column"]]
+        levels = range(self.config.terrain.num_levels)
+        return (
+            {"terrain/level_per_step": level.astype(jp.float32)}
+            | {f"terrain/at_level_{k}_per_step": (level == k).astype(jp.float32) for k in levels}
+            | {
+                KIND_LEVEL_SHARE.format(name, k): ((kind == i) & (level == k)).astype(jp.float32)
+                for i, name in enumerate(KINDS)
+                for k in levels
+            }
+        )

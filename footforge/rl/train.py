@@ -41,6 +41,7 @@ from __future__ import annotations
 import gzip
 import json
 import os
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -50,6 +51,7 @@ from typing import TypeVar
 
 from footforge.atomic import atomic_file, write_json
 from footforge.envs.config import EnvConfig
+from footforge.envs.terrain import KINDS
 from footforge.errors import InputError
 from footforge.rl.checkpoints import (  # noqa: F401 (re-exported)
     CHECKPOINT_MANIFEST,
@@ -146,6 +148,13 @@ T = TypeVar("T")
 
 LEVEL_SHARE = "episode/terrain/at_level_{}_per_step"
 """The curve's key of the share of ended episodes on a level (the rough environment's metrics)."""
+KIND_LEVEL_SHARE = "episode/terrain/{}/at_level_{}_per_step"
+"""The key of the share of ended episodes on one terrain kind and level (footforge.envs.rough's
+KIND_LEVEL_SHARE as logged): 60 numbers a log, kept out of the curve and TensorBoard (they would double a
+kept run's metrics.jsonl.gz) and written with each checkpoint's progress.json, whence a resume restores
+the curriculum kind by kind (checkpoint_level_shares_by_kind)."""
+_BY_KIND = re.compile(r"terrain/[a-z_]+/at_level_\d+_per_step$")
+"""Those keys, in training's and evaluations' logs alike."""
 
 
 def curve_rows(run_dir: Path, step: int) -> list[dict]:
@@ -192,6 +201,26 @@ def logged_level_shares(rows: list[dict], num_levels: int) -> tuple[float, ...] 
         return tuple(round(v / sum(x), 6) for v in x) if ok else None
 
     return _last_logged(rows, shares)
+
+
+def checkpoint_level_shares_by_kind(progress: dict, step: int, num_levels: int) -> tuple[tuple[float, ...], ...] | None:
+    """The shares of robots on each terrain kind (KINDS order) and level that a run's progress.json
+    recorded with its checkpoint at `step` (KIND_LEVEL_SHARE), one row per kind; None where it recorded
+    none at that step (a checkpoint older than progress.json's, a run from before these shares, a flat
+    run, a terrain of another level count, or nothing logged yet)."""
+    metrics = progress.get("metrics")
+    if progress.get("global_step") != step or not isinstance(metrics, dict):
+        return None
+    try:
+        rows = tuple(
+            tuple(float(metrics[KIND_LEVEL_SHARE.format(kind, k)]) for k in range(num_levels)) for kind in KINDS
+        )
+    except (KeyError, TypeError, ValueError):
+        return None
+    values = [v for row in rows for v in row]
+    if KIND_LEVEL_SHARE.format(KINDS[0], num_levels) in metrics or min(values) < 0 or not sum(values) > 0:
+        return None
+    return tuple(tuple(round(v, 6) for v in row) for row in rows)
 
 
 def logged_learning_rate(rows: list[dict]) -> float | None:
@@ -462,12 +491,26 @@ def train(
     shares = logged_level_shares(logged, env_config.terrain.num_levels) if env_config.task == "rough" else None
     resumed_rate = logged_learning_rate(logged) if ppo.adaptive_kl else None
     del logged
-    if shares is not None:
-        notice(
-            f"the curriculum goes on from the level shares logged at or before step {offset:,} (mean level "
-            f"{sum(k * x for k, x in enumerate(shares)):.2f})"
+    by_kind = None
+    if resume and env_config.task == "rough" and state_file.exists():
+        by_kind = checkpoint_level_shares_by_kind(
+            json.loads(state_file.read_text()), offset, env_config.terrain.num_levels
         )
-        curriculum = replace(env_config.curriculum, initial_level_shares=shares)
+    if shares is not None or by_kind is not None:
+        if by_kind is not None:
+            means = ", ".join(
+                f"{kind} {sum(k * x for k, x in enumerate(row)) / sum(row):.2f}"
+                for kind, row in zip(KINDS, by_kind)
+                if sum(row) > 0
+            )
+            notice(f"the curriculum goes on kind by kind from the shares recorded with checkpoint {offset:,} ({means})")
+        if shares is not None:
+            notice(
+                f"the curriculum goes on from the level shares logged at or before step {offset:,} (mean level "
+                f"{sum(k * x for k, x in enumerate(shares)):.2f})"
+                + (" where a kind recorded none" if by_kind is not None else "")
+            )
+        curriculum = replace(env_config.curriculum, initial_level_shares=shares, initial_level_shares_by_kind=by_kind)
         env = from_config(replace(env_config, curriculum=curriculum))
     else:
         env = from_config(env_config)  # Brax evaluates on the same environment
@@ -480,7 +523,12 @@ def train(
     writer = SummaryWriter(str(run_dir / "tensorboard"), purge_step=offset + 1 if resume else None) if primary else None
     epochs = training_epochs(ppo, offset)
     total = planned_steps(ppo, offset)  # what Brax will run: whole iterations
-    last: dict = {}
+    # Until this call logs its own, its checkpoints record the shares it resumed from.
+    last: dict = (
+        {}
+        if by_kind is None
+        else {KIND_LEVEL_SHARE.format(kind, k): x for kind, row in zip(KINDS, by_kind) for k, x in enumerate(row)}
+    )
     t0 = time.time()
     this_machine = machine()
     budget = WallTimeBudget(max_wall_s, (total - offset) // epochs, t0)  # Brax's epochs: whole iterations
@@ -515,12 +563,13 @@ def train(
         # A resumed call's first evaluation evaluates the checkpoint's parameters, which the curve
         # holds already unless the killed call died before evaluating them.
         if not (step == 0 and evaluated_at_offset):
-            for key, value in now.items():
+            curve = {k: v for k, v in now.items() if not _BY_KIND.search(k)}  # those go to progress.json
+            for key, value in curve.items():
                 writer.add_scalar(key, value, global_step)  # type: ignore[union-attr]  # primary: a writer
             writer.flush()  # type: ignore[union-attr]
             with open(run_dir / CURVE, "a") as f:  # one line per evaluation or training-episodes log
                 f.write(
-                    json.dumps({"global_step": global_step, "wall_s": wall_s_before + time.time() - t0} | now) + "\n"
+                    json.dumps({"global_step": global_step, "wall_s": wall_s_before + time.time() - t0} | curve) + "\n"
                 )
         # The end of an epoch (its checkpoint written, its evaluation run if any) is the call that
         # carries Brax's training/sps; the initial evaluation and the training-episode logs do not.
