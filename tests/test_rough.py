@@ -633,6 +633,10 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     assert (out / "policy" / "footforge.json").is_file()
     lines = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     assert any("eval/episode_reward" in line for line in lines)
+    # The shares per terrain kind and level go with the checkpoints (progress.json), not into the curve.
+    assert not [k for line in lines for k in line if "/at_level_" in k and k.count("/") > 2]
+    recorded = json.loads((out / "progress.json").read_text())["metrics"]  # 32 steps: only evaluations' episodes
+    assert {f"eval/episode_terrain/{kind}/at_level_1_per_step" for kind in KINDS} <= set(recorded)
     config = json.loads((out / "config.json").read_text())
     assert config["env"]["task"] == "rough" and config["ppo"]["policy_hidden_layers"] == [512, 256, 128]
     # Three robots do not split over two devices: a clear error (in a new run folder: the run's

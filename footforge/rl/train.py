@@ -153,8 +153,8 @@ KIND_LEVEL_SHARE = "episode/terrain/{}/at_level_{}_per_step"
 KIND_LEVEL_SHARE as logged): 60 numbers a log, kept out of the curve and TensorBoard (they would double a
 kept run's metrics.jsonl.gz) and written with each checkpoint's progress.json, whence a resume restores
 the curriculum kind by kind (checkpoint_level_shares_by_kind)."""
-_BY_KIND = re.compile(r"terrain/[a-z_]+/at_level_\d+_per_step$")
-"""Those keys, in training's and evaluations' logs alike."""
+_BY_KIND = re.compile(r"terrain/[a-z_]+/at_level_\d+_per_step(_std)?$")
+"""Those keys, in training's and evaluations' logs alike (Brax's evaluator adds each one's spread, _std)."""
 
 
 def curve_rows(run_dir: Path, step: int) -> list[dict]:
