@@ -87,14 +87,14 @@ def parse_pair(text: str) -> tuple[str, str]:
 def policy_dir(policy: str) -> Path:
     """The policy/ folder of a name under policies/ or of a given run or policy folder.
 
-    A name under policies/ is given relative to the working folder where it lies under it (run from the
-    repository: `policies/<name>/policy`), so the evaluations' rows, which record this path, read the same
-    on every clone; from elsewhere it stays absolute."""
+    A name under policies/ is `policies/<name>/policy` when the script runs from the repository, so the
+    evaluations' rows, which record this path, read the same on every clone; from elsewhere it stays
+    absolute."""
     path = Path(policy)
     if not path.exists():
         path = POLICIES / policy
-        if path.is_relative_to(Path.cwd()):
-            path = path.relative_to(Path.cwd())
+        if Path.cwd() == POLICIES.parent:
+            path = path.relative_to(POLICIES.parent)
     return path / "policy" if (path / "policy").is_dir() else path
 
 

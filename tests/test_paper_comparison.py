@@ -192,12 +192,14 @@ def test_one_real_pair_end_to_end(tmp_path):
 
 def test_a_policy_named_under_policies_is_recorded_relative_to_the_repository(monkeypatch, tmp_path):
     """Run from the repository, a policy named by its folder under policies/ is the relative
-    policies/<name>/policy (what the evaluation's rows record, the same on every clone); run from a folder
-    outside it, the absolute path; a path the user gives is kept as given."""
+    policies/<name>/policy (what the evaluation's rows record, the same on every clone); run from another
+    folder, the repository's parent or one outside it, the absolute path; a path the user gives is kept as
+    given."""
     module = _script()
     monkeypatch.chdir(REPO)
     assert module.policy_dir("flat_aof_B") == Path("policies/flat_aof_B/policy")
-    monkeypatch.chdir(tmp_path)
-    assert module.policy_dir("flat_aof_B") == REPO / "policies/flat_aof_B/policy"
+    for elsewhere in (REPO.parent, tmp_path):
+        monkeypatch.chdir(elsewhere)
+        assert module.policy_dir("flat_aof_B") == REPO / "policies/flat_aof_B/policy"
     shutil.copytree(REPO / "policies/flat_aof_B/policy", tmp_path / "mine" / "policy")
     assert module.policy_dir("mine") == Path("mine/policy")

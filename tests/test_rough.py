@@ -396,20 +396,44 @@ def test_a_resumed_curriculum_draws_each_robots_level_from_its_columns_kind():
     assert set(np.asarray(curriculum.first_levels(key, c, t, (4000,))[0])) == {4}
 
 
+@pytest.mark.slow  # an environment of its own, its batched reset compiled: about 15 s on 2 cores
+@pytest.mark.timeout(600)  # explicit budget: several times its time on 2 quiet cores
+def test_a_resumed_rough_environment_starts_each_kind_on_its_own_levels(built):
+    """The environment a resume makes (CurriculumConfig.initial_level_shares_by_kind set): its jitted,
+    batched reset puts every robot on a level of its column's kind's row (stairs up on 2, the other kinds
+    on 0 or 1 at random); rows of another shape are refused when it is made."""
+    from footforge.errors import InputError
+
+    rows = [[0.5, 0.5, 0.0] for _ in KINDS]
+    rows[KINDS.index("stairs_up")] = [0.0, 0.0, 1.0]
+    config = envs.default_config("rough", "ball", "P")
+    curriculum_config = replace(config.curriculum, initial_level_shares_by_kind=tuple(map(tuple, rows)))
+    make = dict(build_dir=str(built["ball"][0]), terrain=SMALL, physics="mujoco")
+    env = envs.make("rough", "ball", "P", curriculum=curriculum_config, **make)
+    states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 64))
+    level, column = np.asarray(states.info["level"]), np.asarray(states.info["column"])
+    stairs = np.array(env.terrain.column_kinds)[column] == "stairs_up"
+    assert 0 < stairs.sum() < 64 and set(level[stairs]) == {2} and set(level[~stairs]) == {0, 1}
+    with pytest.raises(InputError, match="initial_level_shares_by_kind"):
+        envs.make(
+            "rough", "ball", "P", curriculum=replace(curriculum_config, initial_level_shares_by_kind=rows[:5]), **make
+        )
+
+
 def test_the_kind_and_level_metrics_split_the_level_metrics_by_kind(rough):
-    """The joint indicators (KIND_LEVEL_SHARE) of a robot: one, at its column's kind (the terrain's
+    """The joint indicators (KIND_LEVEL_STEPS) of a robot: one, at its column's kind (the terrain's
     column_kinds, read in Python) and its level; summed over the kinds they are the level indicators."""
-    from footforge.envs.rough import KIND_LEVEL_SHARE
+    from footforge.envs.rough import KIND_LEVEL_STEPS
 
     env, states, _ = rough["aof"]
     for state in states:
         m, info = state.metrics, state.info
         kind = env.terrain.column_kinds[int(info["column"])]
         levels = range(SMALL.num_levels)
-        ones = [(k, lv) for k in KINDS for lv in levels if float(m[KIND_LEVEL_SHARE.format(k, lv)]) == 1]
+        ones = [(k, lv) for k in KINDS for lv in levels if float(m[KIND_LEVEL_STEPS.format(k, lv)]) == 1]
         assert ones == [(kind, int(info["level"]))]
         for lv in range(SMALL.num_levels):
-            total = sum(float(m[KIND_LEVEL_SHARE.format(k, lv)]) for k in KINDS)
+            total = sum(float(m[KIND_LEVEL_STEPS.format(k, lv)]) for k in KINDS)
             assert total == float(m[f"terrain/at_level_{lv}_per_step"])
 
 
@@ -634,9 +658,9 @@ def test_tiny_rough_training_run_on_two_devices(built, tmp_path):
     lines = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     assert any("eval/episode_reward" in line for line in lines)
     # The shares per terrain kind and level go with the checkpoints (progress.json), not into the curve.
-    assert not [k for line in lines for k in line if "/at_level_" in k and k.count("/") > 2]
+    assert not [k for line in lines for k in line if "/steps_at_level_" in k]
     recorded = json.loads((out / "progress.json").read_text())["metrics"]  # 32 steps: only evaluations' episodes
-    assert {f"eval/episode_terrain/{kind}/at_level_1_per_step" for kind in KINDS} <= set(recorded)
+    assert {f"eval/episode_terrain/{kind}/steps_at_level_1" for kind in KINDS} <= set(recorded)
     config = json.loads((out / "config.json").read_text())
     assert config["env"]["task"] == "rough" and config["ppo"]["policy_hidden_layers"] == [512, 256, 128]
     # Three robots do not split over two devices: a clear error (in a new run folder: the run's

@@ -1412,10 +1412,11 @@ def test_a_resumed_rough_run_starts_its_robots_where_its_curriculum_stood(writte
 
 
 def test_a_resumed_rough_run_restores_its_curriculum_kind_by_kind(written_run, monkeypatch):
-    """The shares of each terrain kind's robots on each level, logged by the rough environment
-    (KIND_LEVEL_SHARE), are kept out of the curve and TensorBoard and recorded with each checkpoint's
-    progress.json; a resume from that checkpoint starts each kind's robots on that kind's levels
-    (CurriculumConfig.initial_level_shares_by_kind), beside the all-kinds shares of the curve."""
+    """The steps the episodes spent on each terrain kind and level, logged by the rough environment
+    (KIND_LEVEL_STEPS), are kept out of the curve and TensorBoard and recorded with each checkpoint's
+    progress.json; a resume from that checkpoint starts each kind's robots on that kind's levels, in
+    proportion to those steps (CurriculumConfig.initial_level_shares_by_kind), beside the all-kinds shares of
+    the curve; a checkpoint written before the resumed call's first log records the shares it resumed from."""
     from dataclasses import replace
     from types import SimpleNamespace
 
@@ -1429,9 +1430,9 @@ def test_a_resumed_rough_run_restores_its_curriculum_kind_by_kind(written_run, m
     _write_curve(run, [{"global_step": 48, **at_3}])
 
     def by_kind(where: dict) -> dict:  # {(kind, level): share}
-        return {train.KIND_LEVEL_SHARE.format(kind, k): where.get((kind, k), 0.0) for kind in KINDS for k in range(10)}
+        return {train.KIND_LEVEL_STEPS.format(kind, k): where.get((kind, k), 0.0) for kind in KINDS for k in range(10)}
 
-    recorded = by_kind({("stairs_up", 1): 0.25, ("smooth_slope", 6): 0.5, ("smooth_slope", 7): 0.25})
+    recorded = by_kind({("stairs_up", 1): 100.0, ("smooth_slope", 6): 200.0, ("smooth_slope", 7): 100.0})
     (run / "progress.json").write_text(json.dumps({"global_step": 64, "resumes": 0, "metrics": recorded}))
     made, notes = [], []
     small = generate(TerrainConfig(num_levels=2, num_columns=6, tile_size_m=2.0, border_m=1.0, platform_m=1.0))
@@ -1440,11 +1441,15 @@ def test_a_resumed_rough_run_restores_its_curriculum_kind_by_kind(written_run, m
         made.append(config)
         return SimpleNamespace(observation_size=48, action_size=12, terrain=small)
 
-    logged = by_kind({("discrete", 2): 1.0})
+    logged = by_kind({("discrete", 2): 640.0})
+
+    seeded = []
 
     def fake_ppo(ppo_train, env, env_config, ppo, remaining, epochs, restore, resumes, log, save, *rest):
+        save(8, None, restore)  # before any log: the shares it resumed from
+        seeded.append(json.loads((run / "progress.json").read_text()))
         log(16, {"episode/terrain/at_level_2_per_step": 1.0, "episode/length": 5.0, **logged})
-        log(16, {"eval/episode_reward": 1.0, "eval/episode_terrain/discrete/at_level_2_per_step": 1.0})
+        log(16, {"eval/episode_reward": 1.0, "eval/episode_terrain/discrete/steps_at_level_2_std": 1.0})
         save(remaining, None, restore)
 
     monkeypatch.setattr(envs, "from_config", make)
@@ -1453,11 +1458,13 @@ def test_a_resumed_rough_run_restores_its_curriculum_kind_by_kind(written_run, m
     rows = dict(zip(KINDS, made[0].curriculum.initial_level_shares_by_kind))
     assert rows["stairs_up"] == (0.0, 0.25) + (0.0,) * 8 and rows["smooth_slope"][6:8] == (0.5, 0.25)
     assert sum(map(sum, rows.values())) == 1.0
+    again = train.checkpoint_level_shares_by_kind(seeded[0], 72, 10)
+    assert seeded[0]["global_step"] == 72 and again == made[0].curriculum.initial_level_shares_by_kind
     assert made[0].curriculum.initial_level_shares == (0.0, 0.0, 0.0, 1.0) + (0.0,) * 6
     assert any("kind by kind" in n and "smooth_slope 6.33" in n and "stairs_up 1.00" in n for n in notes), notes
     curve = _curve_rows(run)
     assert curve[-2]["episode/terrain/at_level_2_per_step"] == 1.0 and "eval/episode_reward" in curve[-1]
-    assert not [k for row in curve for k in row if "/at_level_" in k and k.count("/") > 2]
+    assert not [k for row in curve for k in row if "/steps_at_level_" in k]
     progress = json.loads((run / "progress.json").read_text())
     assert progress["global_step"] == 96 and {k: progress["metrics"][k] for k in logged} == logged
     assert json.loads((run / "config.json").read_text())["env"]["curriculum"]["initial_level_shares_by_kind"] is None
@@ -1466,7 +1473,7 @@ def test_a_resumed_rough_run_restores_its_curriculum_kind_by_kind(written_run, m
     assert train.checkpoint_level_shares_by_kind(progress, 64, 10) is None  # an older checkpoint restored
     assert train.checkpoint_level_shares_by_kind(progress, 96, 9) is None  # another terrain's level count
     assert train.checkpoint_level_shares_by_kind({"global_step": 96, "metrics": {}}, 96, 10) is None
-    negative = progress | {"metrics": logged | {train.KIND_LEVEL_SHARE.format("discrete", 0): -1.0}}
+    negative = progress | {"metrics": logged | {train.KIND_LEVEL_STEPS.format("discrete", 0): -1.0}}
     assert train.checkpoint_level_shares_by_kind(negative, 96, 10) is None
 
 

@@ -29,8 +29,11 @@ from footforge.envs.terrain import KINDS, generate, surface_height
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
 
-KIND_LEVEL_SHARE = "terrain/{}/at_level_{}_per_step"
-"""The metric of robots on one terrain kind (footforge.envs.terrain.KINDS) and level."""
+KIND_LEVEL_STEPS = "terrain/{}/steps_at_level_{}"
+"""The metric of the steps an episode spent on one terrain kind (footforge.envs.terrain.KINDS) and level:
+without the _per_step suffix Brax's logger averages each episode's sum, so that its values over the kinds
+and levels are proportional to the time robots spend on each (a share of episodes would count a fall of a
+few steps as much as a whole episode)."""
 
 
 class RoughEnv(LocomotionEnv):
@@ -38,6 +41,15 @@ class RoughEnv(LocomotionEnv):
         if config.task != "rough":
             raise InputError(f"RoughEnv needs task 'rough', got '{config.task}'", fix="use envs.make('rough', ...)")
         config.terrain.check()
+        by_kind = config.curriculum.initial_level_shares_by_kind
+        if by_kind is not None and (
+            len(by_kind) != len(KINDS) or any(len(row) != config.terrain.num_levels or min(row) < 0 for row in by_kind)
+        ):
+            raise InputError(
+                f"curriculum initial_level_shares_by_kind must be {len(KINDS)} rows ({', '.join(KINDS)}) of "
+                f"{config.terrain.num_levels} non-negative shares (one per terrain level)",
+                fix="leave it unset (a resume sets it from its checkpoint's progress.json)",
+            )
         self.terrain = generate(config.terrain)
         super().__init__(config, load_robot(config, self.terrain))
         self._heights = jp.asarray(self.terrain.heights_m, jp.float32)
@@ -121,8 +133,8 @@ class RoughEnv(LocomotionEnv):
     def _task_metrics(self, info):
         """The episode's level, and one indicator per level (their means over ended episodes are
         the distribution of robots over the levels), and one per terrain kind and level (the joint
-        distribution, KIND_LEVEL_SHARE: what a resume restores the curriculum from; training keeps
-        them out of the curve, footforge.rl.train)."""
+        distribution in time, KIND_LEVEL_STEPS: what a resume restores the curriculum from; training
+        keeps them out of the curve, footforge.rl.train)."""
         level = info["level"]
         kind = self._kind_of_column[info["column"]]
         levels = range(self.config.terrain.num_levels)
@@ -130,7 +142,7 @@ class RoughEnv(LocomotionEnv):
             {"terrain/level_per_step": level.astype(jp.float32)}
             | {f"terrain/at_level_{k}_per_step": (level == k).astype(jp.float32) for k in levels}
             | {
-                KIND_LEVEL_SHARE.format(name, k): ((kind == i) & (level == k)).astype(jp.float32)
+                KIND_LEVEL_STEPS.format(name, k): ((kind == i) & (level == k)).astype(jp.float32)
                 for i, name in enumerate(KINDS)
                 for k in levels
             }

@@ -148,12 +148,12 @@ T = TypeVar("T")
 
 LEVEL_SHARE = "episode/terrain/at_level_{}_per_step"
 """The curve's key of the share of ended episodes on a level (the rough environment's metrics)."""
-KIND_LEVEL_SHARE = "episode/terrain/{}/at_level_{}_per_step"
-"""The key of the share of ended episodes on one terrain kind and level (footforge.envs.rough's
-KIND_LEVEL_SHARE as logged): 60 numbers a log, kept out of the curve and TensorBoard (they would double a
-kept run's metrics.jsonl.gz) and written with each checkpoint's progress.json, whence a resume restores
-the curriculum kind by kind (checkpoint_level_shares_by_kind)."""
-_BY_KIND = re.compile(r"terrain/[a-z_]+/at_level_\d+_per_step(_std)?$")
+KIND_LEVEL_STEPS = "episode/terrain/{}/steps_at_level_{}"
+"""The key of the mean steps the ended episodes spent on one terrain kind and level (footforge.envs.rough's
+KIND_LEVEL_STEPS as logged: proportional to the robots' time there): 60 numbers a log, kept out of the curve and
+TensorBoard (they would double a kept run's metrics.jsonl.gz) and written with each checkpoint's progress.json,
+whence a resume restores the curriculum kind by kind (checkpoint_level_shares_by_kind)."""
+_BY_KIND = re.compile(r"terrain/[a-z_]+/steps_at_level_\d+(_std)?$")
 """Those keys, in training's and evaluations' logs alike (Brax's evaluator adds each one's spread, _std)."""
 
 
@@ -204,23 +204,24 @@ def logged_level_shares(rows: list[dict], num_levels: int) -> tuple[float, ...] 
 
 
 def checkpoint_level_shares_by_kind(progress: dict, step: int, num_levels: int) -> tuple[tuple[float, ...], ...] | None:
-    """The shares of robots on each terrain kind (KINDS order) and level that a run's progress.json
-    recorded with its checkpoint at `step` (KIND_LEVEL_SHARE), one row per kind; None where it recorded
-    none at that step (a checkpoint older than progress.json's, a run from before these shares, a flat
-    run, a terrain of another level count, or nothing logged yet)."""
+    """The shares of the robots' time on each terrain kind (KINDS order) and level that a run's progress.json
+    recorded with its checkpoint at `step` (KIND_LEVEL_STEPS, normalised over all), one row per kind; None
+    where it recorded none at that step (a checkpoint older than progress.json's, a run from before these
+    shares, a flat run, a terrain of another level count, or nothing logged yet)."""
     metrics = progress.get("metrics")
     if progress.get("global_step") != step or not isinstance(metrics, dict):
         return None
     try:
         rows = tuple(
-            tuple(float(metrics[KIND_LEVEL_SHARE.format(kind, k)]) for k in range(num_levels)) for kind in KINDS
+            tuple(float(metrics[KIND_LEVEL_STEPS.format(kind, k)]) for k in range(num_levels)) for kind in KINDS
         )
     except (KeyError, TypeError, ValueError):
         return None
     values = [v for row in rows for v in row]
-    if KIND_LEVEL_SHARE.format(KINDS[0], num_levels) in metrics or min(values) < 0 or not sum(values) > 0:
+    total = sum(values)
+    if KIND_LEVEL_STEPS.format(KINDS[0], num_levels) in metrics or min(values) < 0 or not 0 < total < float("inf"):
         return None
-    return tuple(tuple(round(v, 6) for v in row) for row in rows)
+    return tuple(tuple(round(v / total, 6) for v in row) for row in rows)
 
 
 def logged_learning_rate(rows: list[dict]) -> float | None:
@@ -527,7 +528,7 @@ def train(
     last: dict = (
         {}
         if by_kind is None
-        else {KIND_LEVEL_SHARE.format(kind, k): x for kind, row in zip(KINDS, by_kind) for k, x in enumerate(row)}
+        else {KIND_LEVEL_STEPS.format(kind, k): x for kind, row in zip(KINDS, by_kind) for k, x in enumerate(row)}
     )
     t0 = time.time()
     this_machine = machine()
