@@ -231,12 +231,10 @@ class CurriculumConfig:
     initial_level_shares_by_kind: tuple[tuple[float, ...], ...] | None = None
     """Or, for each terrain kind (footforge.envs.terrain.KINDS order), the share of robots on each level
     (rows normalised one by one): a robot's first level is drawn from the row of its column's kind, and from
-    the rule above where that row is all zero. A resumed rough run sets it from the joint shares of kind and
-    level logged at its checkpoint (footforge.rl.train's checkpoint_level_shares_by_kind): the curriculum
-    holds each kind's robots on their own levels (stairs low, smooth slopes high), where the shares of all
-    kinds together put robots of easy kinds' levels on stairs they fall from, and demote them faster (a fall
-    is a short episode) than the others climb back (one level per whole episode). Not written to config.json,
-    as initial_level_shares."""
+    the rule above where that row is all zero. A resumed rough run sets it from the steps its episodes spent
+    on each kind and level, recorded with its checkpoint (footforge.rl.train's checkpoint_level_shares_by_kind),
+    so that each kind's robots start on that kind's own levels (stairs low, smooth slopes high) rather than
+    every kind on the levels of all kinds together. Not written to config.json, as initial_level_shares."""
     promote_fraction_of_tile: float = 0.5
     """Promoted when the episode took it farther than this fraction of a tile from its spawn."""
     demote_fraction_of_command: float = 0.25

@@ -25,15 +25,9 @@ from footforge.envs import curriculum
 from footforge.envs.anymal import load_robot
 from footforge.envs.config import EnvConfig
 from footforge.envs.locomotion import LocomotionEnv
-from footforge.envs.terrain import KINDS, generate, surface_height
+from footforge.envs.terrain import KIND_LEVEL_STEPS, KINDS, generate, surface_height
 from footforge.envs.wrappers import policy_side
 from footforge.errors import InputError
-
-KIND_LEVEL_STEPS = "terrain/{}/steps_at_level_{}"
-"""The metric of the steps an episode spent on one terrain kind (footforge.envs.terrain.KINDS) and level:
-without the _per_step suffix Brax's logger averages each episode's sum, so that its values over the kinds
-and levels are proportional to the time robots spend on each (a share of episodes would count a fall of a
-few steps as much as a whole episode)."""
 
 
 class RoughEnv(LocomotionEnv):

@@ -21,6 +21,12 @@ import numpy as np
 from footforge.errors import InputError
 
 KINDS = ("smooth_slope", "rough_slope", "stairs_up", "stairs_down", "discrete", "stepping_stones")
+KIND_LEVEL_STEPS = "terrain/{}/steps_at_level_{}"
+"""The rough environment's metric of the steps an episode spent on one of KINDS and one level (format with the
+kind and the level): without the _per_step suffix Brax's logger averages each episode's sum, so that its values
+over the kinds and levels are proportional to the time robots spend on each (a share of episodes would count a
+fall of a few steps as much as a whole episode). A resume restores the curriculum from them
+(footforge.rl.train.checkpoint_level_shares_by_kind)."""
 
 
 @dataclass(frozen=True)

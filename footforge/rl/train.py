@@ -50,6 +50,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from footforge.atomic import atomic_file, write_json
+from footforge.envs import terrain
 from footforge.envs.config import EnvConfig
 from footforge.envs.terrain import KINDS
 from footforge.errors import InputError
@@ -148,12 +149,12 @@ T = TypeVar("T")
 
 LEVEL_SHARE = "episode/terrain/at_level_{}_per_step"
 """The curve's key of the share of ended episodes on a level (the rough environment's metrics)."""
-KIND_LEVEL_STEPS = "episode/terrain/{}/steps_at_level_{}"
-"""The key of the mean steps the ended episodes spent on one terrain kind and level (footforge.envs.rough's
-KIND_LEVEL_STEPS as logged: proportional to the robots' time there): 60 numbers a log, kept out of the curve and
-TensorBoard (they would double a kept run's metrics.jsonl.gz) and written with each checkpoint's progress.json,
-whence a resume restores the curriculum kind by kind (checkpoint_level_shares_by_kind)."""
-_BY_KIND = re.compile(r"terrain/[a-z_]+/steps_at_level_\d+(_std)?$")
+KIND_LEVEL_STEPS = "episode/" + terrain.KIND_LEVEL_STEPS
+"""The curve's key of the mean steps the ended episodes spent on one terrain kind and level (proportional to the
+robots' time there): 60 numbers a log, kept out of the curve and TensorBoard (they would double a kept run's
+metrics.jsonl.gz) and written with each checkpoint's progress.json, whence a resume restores the curriculum kind
+by kind (checkpoint_level_shares_by_kind)."""
+_BY_KIND = re.compile(terrain.KIND_LEVEL_STEPS.format("[a-z_]+", r"\d+") + "(_std)?$")
 """Those keys, in training's and evaluations' logs alike (Brax's evaluator adds each one's spread, _std)."""
 
 
@@ -355,8 +356,9 @@ def _origin(source: Path, step: int) -> dict:
 
 
 def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, primary: bool):
-    """(steps done, the checkpoint to restore, the number of this resume, training seconds so far)
-    of the run in run_dir, refused where it was started with other settings."""
+    """(steps done, the checkpoint to restore, the number of this resume, training seconds so far, the
+    progress.json of its last checkpoint) of the run in run_dir, refused where it was started with other
+    settings."""
     saved_env, saved_ppo = load_run_config(run_dir)
     # The engine (EnvConfig.physics) may change between calls: both step the same model, so a run
     # started on a GPU (mjx) resumes on a CPU (mujoco) and back.
@@ -379,7 +381,8 @@ def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, 
     previous = json.loads(state_file.read_text()) if state_file.exists() else {}
     # Training time of the earlier calls, up to their last checkpoint (a killed call's time after
     # it is lost with its work).
-    return offset, restore, previous.get("resumes", 0) + 1, previous.get("wall_s_total", previous.get("wall_s", 0.0))
+    wall_s = previous.get("wall_s_total", previous.get("wall_s", 0.0))
+    return offset, restore, previous.get("resumes", 0) + 1, wall_s, previous
 
 
 def train(
@@ -444,7 +447,7 @@ def train(
     # On several machines only process 0 writes (Brax saves and evaluates there alone).
     primary = jax.process_index() == 0
     # Only process 0 checks the folder: the others may look before or after it wrote its marker.
-    offset, restore, resumes, wall_s_before = 0, None, 0, 0.0
+    offset, restore, resumes, wall_s_before, previous = 0, None, 0, 0.0, {}
     origin = {}
     if init_from is not None:  # before the run folder is touched
         if resume:
@@ -461,7 +464,7 @@ def train(
     )
     state_file = run_dir / "progress.json"
     if resume:
-        offset, restore, resumes, wall_s_before = _resume_state(run_dir, env_config, ppo, notice, primary)
+        offset, restore, resumes, wall_s_before, previous = _resume_state(run_dir, env_config, ppo, notice, primary)
         saved = json.loads((run_dir / "config.json").read_text())
         origin = {k: v for k, v in saved.items() if k in ("initialised_from", "recipe")}
         if "recipe" in origin and saved.get("ppo", {}).get("num_timesteps") != ppo.num_timesteps:
@@ -492,11 +495,11 @@ def train(
     shares = logged_level_shares(logged, env_config.terrain.num_levels) if env_config.task == "rough" else None
     resumed_rate = logged_learning_rate(logged) if ppo.adaptive_kl else None
     del logged
-    by_kind = None
-    if resume and env_config.task == "rough" and state_file.exists():
-        by_kind = checkpoint_level_shares_by_kind(
-            json.loads(state_file.read_text()), offset, env_config.terrain.num_levels
-        )
+    by_kind = (
+        checkpoint_level_shares_by_kind(previous, offset, env_config.terrain.num_levels)
+        if resume and env_config.task == "rough"
+        else None
+    )
     if shares is not None or by_kind is not None:
         if by_kind is not None:
             means = ", ".join(
