@@ -356,9 +356,8 @@ def _origin(source: Path, step: int) -> dict:
 
 
 def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, primary: bool):
-    """(steps done, the checkpoint to restore, the number of this resume, training seconds so far, the
-    progress.json of its last checkpoint) of the run in run_dir, refused where it was started with other
-    settings."""
+    """(steps done, the checkpoint to restore, the number of this resume, training seconds so far)
+    of the run in run_dir, refused where it was started with other settings."""
     saved_env, saved_ppo = load_run_config(run_dir)
     # The engine (EnvConfig.physics) may change between calls: both step the same model, so a run
     # started on a GPU (mjx) resumes on a CPU (mujoco) and back.
@@ -381,8 +380,7 @@ def _resume_state(run_dir: Path, env_config: EnvConfig, ppo: PPOConfig, notice, 
     previous = json.loads(state_file.read_text()) if state_file.exists() else {}
     # Training time of the earlier calls, up to their last checkpoint (a killed call's time after
     # it is lost with its work).
-    wall_s = previous.get("wall_s_total", previous.get("wall_s", 0.0))
-    return offset, restore, previous.get("resumes", 0) + 1, wall_s, previous
+    return offset, restore, previous.get("resumes", 0) + 1, previous.get("wall_s_total", previous.get("wall_s", 0.0))
 
 
 def train(
@@ -447,7 +445,7 @@ def train(
     # On several machines only process 0 writes (Brax saves and evaluates there alone).
     primary = jax.process_index() == 0
     # Only process 0 checks the folder: the others may look before or after it wrote its marker.
-    offset, restore, resumes, wall_s_before, previous = 0, None, 0, 0.0, {}
+    offset, restore, resumes, wall_s_before = 0, None, 0, 0.0
     origin = {}
     if init_from is not None:  # before the run folder is touched
         if resume:
@@ -464,7 +462,7 @@ def train(
     )
     state_file = run_dir / "progress.json"
     if resume:
-        offset, restore, resumes, wall_s_before, previous = _resume_state(run_dir, env_config, ppo, notice, primary)
+        offset, restore, resumes, wall_s_before = _resume_state(run_dir, env_config, ppo, notice, primary)
         saved = json.loads((run_dir / "config.json").read_text())
         origin = {k: v for k, v in saved.items() if k in ("initialised_from", "recipe")}
         if "recipe" in origin and saved.get("ppo", {}).get("num_timesteps") != ppo.num_timesteps:
@@ -496,8 +494,8 @@ def train(
     resumed_rate = logged_learning_rate(logged) if ppo.adaptive_kl else None
     del logged
     by_kind = (
-        checkpoint_level_shares_by_kind(previous, offset, env_config.terrain.num_levels)
-        if resume and env_config.task == "rough"
+        checkpoint_level_shares_by_kind(json.loads(state_file.read_text()), offset, env_config.terrain.num_levels)
+        if resume and env_config.task == "rough" and state_file.exists()
         else None
     )
     if shares is not None or by_kind is not None:
